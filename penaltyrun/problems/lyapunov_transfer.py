@@ -1,0 +1,68 @@
+"""Generic quadratic Lyapunov law for low-thrust transfers (the paper's "generic" law).
+
+V = ½ (S W D)ᵀ K (S W D), W = diag(1/a_T, 1, 1, 1, 1), û = −Bᵀ∇V/‖Bᵀ∇V‖, thrust always on;
+cost = time of flight (days). No rate scaling, S_a or periapsis penalty: a transfer whose
+periapsis falls below ``impact_radius_km`` fails with status ``impact``.
+
+Cost of failures: see :mod:`penaltyrun.problems.lowthrust_common`.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from penaltyrun.dynamics import lowthrust as lt
+from penaltyrun.problems.lowthrust_common import (
+    CASE_PARAMS,
+    CASES,
+    DEFAULT_CASE,
+    LowThrustParams,
+    LowThrustProblem,
+    base_prm,
+    build_params,
+    plot_elements,
+    plot_thrust,
+    plot_trajectory,
+)
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Params(LowThrustParams):
+    """Generic-law parameters; identical to :class:`LowThrustParams` (minimum time only)."""
+
+
+def kernel_params(p: Params) -> Any:
+    """Kernel settings vector (shape (lt.N_PRM,)) for the generic law."""
+    return base_prm(p, lt.LAW_GENERIC)
+
+
+def make_problem(case: str, overrides: Mapping[str, Any]) -> LowThrustProblem:
+    """Build the generic-law problem for ``case`` with parameter ``overrides``.
+
+    Raises
+    ------
+    ConfigError
+        Unknown case or parameter, or an invalid parameter value.
+    """
+    params = build_params(Params, case, overrides)
+    logger.debug("lyapunov_transfer case %s: %s", case, params)
+    return LowThrustProblem("lyapunov_transfer", case, params, kernel_params(params),
+                            "min_time")
+
+
+__all__ = [
+    "CASES",
+    "CASE_PARAMS",
+    "DEFAULT_CASE",
+    "Params",
+    "kernel_params",
+    "make_problem",
+    "plot_elements",
+    "plot_thrust",
+    "plot_trajectory",
+]

@@ -1,0 +1,94 @@
+"""Compiled closed loop of the Zermelo navigation variation (2 states + running cost).
+
+State ``y = (x, y, J)``; parameters ``p = (K11, K12, K21, K22, event_radius)``.
+Drift d(X) = (−x cos y sin x, −y cos y sin x); control U = −d(X) − Kᵀ X; closed loop
+Ẋ = U + d(X) = −Kᵀ X; running cost J̇ = ½ UᵀU (control energy).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from penaltyrun.dynamics.integrate import dopri5
+
+
+@njit(cache=True)
+def drift(x, y):
+    """Current (drift) velocity d(X) at (x, y); returns (dx, dy)."""
+    s = np.cos(y) * np.sin(x)
+    return -x * s, -y * s
+
+
+@njit(cache=True)
+def control(x, y, p):
+    """Feedback U = −d(X) − Kᵀ X for ``p = (K11, K12, K21, K22, ...)``."""
+    dx, dy = drift(x, y)
+    u1 = -dx - (p[0] * x + p[2] * y)
+    u2 = -dy - (p[1] * x + p[3] * y)
+    return u1, u2
+
+
+@njit(cache=True)
+def rhs(t, y, p, out):
+    """Closed-loop right-hand side dy/dt for ``y = (x, y, J)``."""
+    u1, u2 = control(y[0], y[1], p)
+    dx, dy = drift(y[0], y[1])
+    out[0] = u1 + dx
+    out[1] = u2 + dy
+    out[2] = 0.5 * (u1 * u1 + u2 * u2)
+
+
+@njit(cache=True)
+def event(t, y, p):
+    """Terminal event ‖X‖ − r_event (fires when ≤ 0)."""
+    return np.sqrt(y[0] * y[0] + y[1] * y[1]) - p[4]
+
+
+@njit(cache=False)  # numba cannot cache callers that pass functions to dopri5
+def simulate_batch(K, x0, t_max, event_radius, rtol, atol, max_step, max_steps):
+    """Closed-loop runs for a batch of gains.
+
+    Parameters
+    ----------
+    K : ndarray, shape (B, 2, 2)
+        Gain matrices.
+    x0 : ndarray, shape (2,)
+        Initial position (nondimensional).
+    t_max : float
+        Horizon cap.
+    event_radius : float
+        Target radius ‖X‖ of the terminal event.
+    rtol, atol, max_step : float
+        Integrator settings.
+    max_steps : int
+        Step cap per run.
+
+    Returns
+    -------
+    t_end, cost, dist : ndarray, shape (B,)
+        Final time, J at the final time, ‖X‖ at the final time.
+    status : ndarray of int64, shape (B,)
+        Integrator status codes (see :mod:`penaltyrun.dynamics.integrate`).
+    """
+    B = K.shape[0]
+    t_end = np.empty(B)
+    cost = np.empty(B)
+    dist = np.empty(B)
+    status = np.empty(B, dtype=np.int64)
+    p = np.empty(5)
+    y0 = np.zeros(3)
+    y0[0] = x0[0]
+    y0[1] = x0[1]
+    for b in range(B):
+        p[0] = K[b, 0, 0]
+        p[1] = K[b, 0, 1]
+        p[2] = K[b, 1, 0]
+        p[3] = K[b, 1, 1]
+        p[4] = event_radius
+        t, y, st, _ = dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, 1, max_steps)
+        t_end[b] = t
+        cost[b] = y[2]
+        dist[b] = np.sqrt(y[0] * y[0] + y[1] * y[1])
+        status[b] = st
+    return t_end, cost, dist, status

@@ -1,0 +1,118 @@
+"""The one Parquet schema of penaltyrun results: one row per job.
+
+Nested values that differ per problem (matrices, metrics, settings, the resolved config)
+are stored as JSON text columns, so every problem shares one flat schema.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+logger = logging.getLogger(__name__)
+
+SCHEMA_VERSION = 1
+RESULTS_FILE = "results.parquet"
+
+#: Column name → (arrow type, description). JSON columns hold text.
+COLUMNS: dict[str, tuple[pa.DataType, str]] = {
+    "run_id": (pa.string(), "run directory name"),
+    "job_id": (pa.string(), "problem-case-param-optimizer-sNNN"),
+    "problem": (pa.string(), "problem name"),
+    "case": (pa.string(), "problem case"),
+    "param": (pa.string(), "parameterization (diagonal, full, geagsp, givens, cayley)"),
+    "optimizer": (pa.string(), "optimizer name (pso, de)"),
+    "start": (pa.int64(), "start index within the cell"),
+    "seed": (pa.int64(), "job seed derived from runner.seed"),
+    "status": (pa.string(), "ok | diverged | failed"),
+    "error": (pa.string(), "error text (failed) or why the best did not converge"),
+    "best_cost": (pa.float64(), "best objective value"),
+    "best_converged": (pa.bool_(), "whether the best candidate met the terminal condition"),
+    "best_status": (pa.string(), "problem status of the best candidate"),
+    "t_final": (pa.float64(), "final time of the best candidate (problem time unit)"),
+    "best_z": (pa.list_(pa.float64()), "best decision vector"),
+    "z_names": (pa.list_(pa.string()), "labels of the decision variables"),
+    "matrices": (pa.string(), "JSON: decoded best matrices {name: nested list}"),
+    "scalars": (pa.string(), "JSON: best extra scalars"),
+    "metrics": (pa.string(), "JSON: detailed evaluation of the best candidate"),
+    "n_evals": (pa.int64(), "objective evaluations"),
+    "n_iters": (pa.int64(), "optimizer iterations"),
+    "stop_reason": (pa.string(), "ftol (stall) | iters (budget)"),
+    "n_nonfinite": (pa.int64(), "non-finite costs replaced by a penalty"),
+    "history": (pa.list_(pa.float64()), "best cost after each iteration"),
+    "wall_time_s": (pa.float64(), "wall time of the job"),
+    "optimizer_settings": (pa.string(), "JSON: optimizer settings"),
+    "problem_params": (pa.string(), "JSON: problem parameter overrides"),
+    "param_options": (pa.string(), "JSON: parameterization options"),
+    "config_hash": (pa.string(), "hash of the resolved config"),
+    "config": (pa.string(), "resolved config (YAML)"),
+    "package_version": (pa.string(), "penaltyrun version"),
+    "git_commit": (pa.string(), "git commit of the code (or 'unknown')"),
+    "started_at": (pa.string(), "UTC ISO time"),
+    "finished_at": (pa.string(), "UTC ISO time"),
+    "schema_version": (pa.int64(), "version of this schema"),
+}
+SCHEMA = pa.schema([pa.field(name, typ) for name, (typ, _) in COLUMNS.items()])
+JSON_COLUMNS = ("matrices", "scalars", "metrics", "optimizer_settings", "problem_params",
+                "param_options")
+
+
+def normalize(record: dict[str, Any], run_id: str = "") -> dict[str, Any]:
+    """One record with exactly the schema's columns (JSON columns serialized)."""
+    row: dict[str, Any] = {}
+    for name in COLUMNS:
+        value = record.get(name)
+        if name in JSON_COLUMNS and value is not None and not isinstance(value, str):
+            value = json.dumps(value, default=str)
+        row[name] = value
+    row["run_id"] = record.get("run_id") or run_id
+    row["schema_version"] = SCHEMA_VERSION
+    return row
+
+
+def to_table(records: Iterable[dict[str, Any]], run_id: str = "") -> pa.Table:
+    """Arrow table in :data:`SCHEMA` from job records."""
+    rows = [normalize(r, run_id) for r in records]
+    return pa.Table.from_pylist(rows, schema=SCHEMA)
+
+
+def collect(run_dir: Path) -> Path:
+    """Gather ``run_dir/jobs/*.json`` into ``run_dir/results.parquet``; returns its path."""
+    run_dir = Path(run_dir)
+    records = [json.loads(p.read_text()) for p in sorted((run_dir / "jobs").glob("*.json"))]
+    path = run_dir / RESULTS_FILE
+    pq.write_table(to_table(records, run_id=run_dir.name), path)
+    logger.info("wrote %d job records to %s", len(records), path)
+    return path
+
+
+def find_results(path: Path) -> list[Path]:
+    """Result files at ``path``: the file itself, or every results.parquet below a folder."""
+    path = Path(path)
+    if path.is_file():
+        return [path]
+    return sorted(path.rglob(RESULTS_FILE))
+
+
+def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
+    """All results under ``path`` (file, folder, or several) as one DataFrame.
+
+    JSON columns stay text; use :func:`decode_json` to parse them.
+    """
+    paths = find_results(path) if isinstance(path, (str, Path)) else [Path(p) for p in path]
+    if not paths:
+        raise FileNotFoundError(f"no {RESULTS_FILE} found under {path}")
+    frames = [pq.read_table(p, schema=SCHEMA).to_pandas() for p in paths]
+    return pd.concat(frames, ignore_index=True)
+
+
+def decode_json(value: str | None) -> Any:
+    """Parse one JSON column value (None stays None)."""
+    return None if value is None or value == "" else json.loads(value)

@@ -1,0 +1,144 @@
+"""Particle swarm optimization through pyswarms' ``GlobalBestPSO`` (the only pyswarms user).
+
+Traps handled here (see the spec's ``pso.md``):
+
+* pyswarms draws from the global ``np.random`` state: it is seeded right before the
+  optimizer is built (one job per process, so this is safe);
+* out-of-bound particles are clamped (``bh_strategy='nearest'``, ≈ MATLAB), not wrapped;
+* the whole swarm is evaluated as one batch; ``n_processes`` is never used (the runner
+  already runs one job per worker);
+* pyswarms' reporter would reconfigure the root logger and write ``report.log`` in the
+  working directory: its logger set-up is disabled and its loggers quietened.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+_NOOP_LOGGING = str(Path(__file__).with_name("pyswarms_logging.yaml"))
+
+
+def _import_pyswarms_quietly():  # noqa: ANN202
+    """Import pyswarms with its import-time logging set-up pointed at a no-op config."""
+    previous = os.environ.get("LOG_CFG")
+    os.environ["LOG_CFG"] = _NOOP_LOGGING
+    try:
+        import pyswarms
+        from pyswarms.utils.reporter import reporter
+    finally:
+        if previous is None:
+            del os.environ["LOG_CFG"]
+        else:
+            os.environ["LOG_CFG"] = previous
+    return pyswarms, reporter
+
+
+pyswarms, _reporter = _import_pyswarms_quietly()
+
+from penaltyrun.optim.base import (  # noqa: E402  (after the quiet pyswarms import)
+    BatchObjective,
+    CountingObjective,
+    OptimResult,
+)
+
+logger = logging.getLogger(__name__)
+
+
+def _quiet_pyswarms() -> None:
+    """Stop later pyswarms reporters from configuring logging or writing ``report.log``."""
+    _reporter.Reporter._setup_logger = lambda self, path=None: None
+    for name in ("pyswarms", "pyswarms.single.global_best", _reporter.__name__):
+        logging.getLogger(name).setLevel(logging.WARNING)
+
+
+_quiet_pyswarms()
+
+
+@dataclass(frozen=True)
+class PSOSettings:
+    """Settings of a global-best PSO run.
+
+    Attributes
+    ----------
+    n_particles : int
+        Swarm size.
+    iters : int
+        Maximum iterations.
+    c1, c2 : float
+        Cognitive and social coefficients (MATLAB default 1.49).
+    w : float
+        Inertia weight.
+    ftol : float
+        Relative stall tolerance: stop when the best cost changes by less than
+        ``ftol · (1 + |best|)`` for ``ftol_iter`` consecutive iterations.
+    ftol_iter : int
+        Stall window (MATLAB's MaxStallIterations = 20).
+    bh_strategy : str
+        pyswarms boundary handling; ``nearest`` clamps to the bound.
+    vh_strategy : str
+        pyswarms velocity handling for out-of-bound particles.
+    """
+
+    n_particles: int = 30
+    iters: int = 100
+    c1: float = 1.49
+    c2: float = 1.49
+    w: float = 0.72
+    ftol: float = 1e-6
+    ftol_iter: int = 20
+    bh_strategy: str = "nearest"
+    vh_strategy: str = "unmodified"
+
+
+def run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: PSOSettings,
+            seed: int, init_pos: np.ndarray | None = None) -> OptimResult:
+    """Minimize ``objective`` over the box [lb, ub] with pyswarms' GlobalBestPSO.
+
+    Parameters
+    ----------
+    objective : callable
+        Batched objective Z (n_particles, dim) → (n_particles,).
+    lb, ub : ndarray, shape (dim,)
+        Box bounds.
+    settings : PSOSettings
+    seed : int
+        Seed of the global numpy state used by pyswarms.
+    init_pos : ndarray, shape (n_particles, dim), optional
+        Initial swarm (default: uniform in the box).
+
+    Returns
+    -------
+    OptimResult
+    """
+    counted = CountingObjective(objective)
+    np.random.seed(seed % 2**32)  # noqa: NPY002  (pyswarms draws from the global state)
+    opt = pyswarms.single.GlobalBestPSO(
+        n_particles=settings.n_particles,
+        dimensions=len(lb),
+        options={"c1": settings.c1, "c2": settings.c2, "w": settings.w},
+        bounds=(np.asarray(lb, float), np.asarray(ub, float)),
+        bh_strategy=settings.bh_strategy,
+        vh_strategy=settings.vh_strategy,
+        ftol=settings.ftol,
+        ftol_iter=settings.ftol_iter,
+        init_pos=init_pos,
+    )
+    best_cost, best_pos = opt.optimize(counted, iters=settings.iters, verbose=False)
+    history = [float(c) for c in opt.cost_history]
+    stop = "iters" if len(history) >= settings.iters else "ftol"
+    logger.debug("PSO stopped after %d iterations (%s), best %.6g", len(history), stop,
+                 best_cost)
+    return OptimResult(
+        best_cost=float(best_cost),
+        best_z=np.asarray(best_pos, float),
+        history=history,
+        n_evals=counted.n_evals,
+        n_iters=len(history),
+        stop_reason=stop,
+        n_nonfinite=counted.n_nonfinite,
+    )

@@ -1,0 +1,174 @@
+"""The shape every problem module shares.
+
+A problem module (``penaltyrun/problems/<name>.py``) exposes
+
+* ``CASES`` : tuple of case names, ``DEFAULT_CASE`` : str;
+* a frozen parameters dataclass (``Params``) with units in its docstring;
+* ``make_problem(case, params) -> Problem`` where ``params`` is a plain mapping of
+  overrides (from the ``problem`` config group, already merged with the case's entry);
+* plot helpers (``plot_*``) that take the dictionaries returned by ``Problem.simulate``.
+
+The layer below (``penaltyrun.dynamics``) holds the compiled kernels; this layer wraps them
+into objects that know the problem's matrices, bounds and cost. Hydra and pandas stay out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from penaltyrun.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class MatrixSpec:
+    """One tunable symmetric positive-definite penalty matrix.
+
+    Attributes
+    ----------
+    name : str
+        Key used in configs and results, e.g. ``"K"``, ``"Kp"``, ``"Q"``.
+    size : int
+        Matrix dimension N (matrix is N × N).
+    eig_bounds : tuple of float
+        (lower, upper) bounds of the eigenvalues (or diagonal entries), lower > 0.
+    """
+
+    name: str
+    size: int
+    eig_bounds: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class ScalarSpec:
+    """An extra scalar decision variable (e.g. the Q-law coasting threshold η_cut)."""
+
+    name: str
+    bounds: tuple[float, float]
+
+
+@dataclass
+class BatchEvaluation:
+    """Result of evaluating a batch of B candidate matrices.
+
+    Attributes
+    ----------
+    cost : ndarray, shape (B,)
+        Objective values; always finite (non-converged candidates get a graded penalty).
+    converged : ndarray of bool, shape (B,)
+        Whether the terminal condition was met.
+    status : ndarray of str, shape (B,)
+        Per-candidate status name (``"converged"`` or a problem-specific failure name).
+    """
+
+    cost: np.ndarray
+    converged: np.ndarray
+    status: np.ndarray
+
+
+@runtime_checkable
+class Problem(Protocol):
+    """What the optimizer and runner layers need from a problem instance."""
+
+    name: str
+    case: str
+    matrices: tuple[MatrixSpec, ...]
+    scalars: tuple[ScalarSpec, ...]
+
+    def evaluate_batch(
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None
+    ) -> BatchEvaluation:
+        """Evaluate B candidates; ``mats[name]`` has shape (B, N, N)."""
+        ...
+
+    def evaluate(
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None
+    ) -> dict[str, Any]:
+        """Evaluate one candidate in detail; JSON-serializable dict with at least
+        ``cost``, ``converged``, ``status`` and ``t_final``."""
+        ...
+
+    def simulate(
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None
+    ) -> dict[str, np.ndarray]:
+        """Time histories of one candidate for plots (``t`` plus named arrays)."""
+        ...
+
+
+class ParamsMixin:
+    """Helpers for problem parameter dataclasses built from config mappings (plain mixin,
+    usable by frozen dataclasses)."""
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any], prefix: str = "problem") -> Any:
+        """Build from defaults plus ``mapping`` overrides, rejecting unknown keys."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(mapping) - names)
+        if unknown:
+            raise ConfigError(
+                f"{prefix}.{unknown[0]}", "unknown parameter", allowed=sorted(names)
+            )
+        values = {}
+        for key, value in mapping.items():
+            default = getattr(cls(), key)
+            values[key] = tuple(value) if isinstance(default, tuple) and value is not None \
+                else value
+        return replace(cls(), **values)
+
+
+def check_spd(name: str, matrix: Any, size: int) -> np.ndarray:
+    """Validate a user-given matrix: shape (size, size), symmetric, positive definite.
+
+    Parameters
+    ----------
+    name : str
+        Config key used in error messages (e.g. ``"matrices.K"``).
+    matrix : array_like
+        Candidate matrix.
+    size : int
+        Required dimension.
+
+    Returns
+    -------
+    ndarray, shape (size, size)
+
+    Raises
+    ------
+    ConfigError
+        If the matrix is malformed, of the wrong size, non-symmetric or not PD.
+    """
+    try:
+        arr = np.asarray(matrix, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(name, f"not a numeric matrix ({exc})") from None
+    if arr.shape != (size, size):
+        raise ConfigError(name, f"expected a {size}x{size} matrix, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ConfigError(name, "matrix has non-finite entries")
+    scale = max(1.0, float(np.max(np.abs(arr))))
+    if not np.allclose(arr, arr.T, rtol=0.0, atol=1e-12 * scale):
+        raise ConfigError(name, "matrix is not symmetric")
+    eig = np.linalg.eigvalsh(arr)
+    if eig[0] <= 0.0:
+        raise ConfigError(name, "matrix is not positive definite "
+                          f"(smallest eigenvalue {eig[0]:.3g})")
+    return arr
+
+
+def status_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """Map integer kernel status codes to their names (array of str)."""
+    return np.asarray([names[int(c)] for c in codes], dtype=object)
+
+
+__all__ = [
+    "BatchEvaluation",
+    "MatrixSpec",
+    "ParamsMixin",
+    "Problem",
+    "ScalarSpec",
+    "check_spd",
+    "status_names",
+]

@@ -1,0 +1,232 @@
+"""Problem 1: the Zermelo navigation variation (2 states, minimum control energy).
+
+Ẋ = U + d(X), d(X) = (−x cos y sin x, −y cos y sin x), U = −d(X) − KᵀX, so the closed loop
+is Ẋ = −KᵀX and V = ½XᵀX decreases for every PD K. Cost J = ∫½UᵀU dt up to the first time
+‖X‖ = ``event_radius``; a run whose event does not fire before ``t_max`` fails and gets
+the graded penalty ``J(t_max) + failure_penalty · (1 + ‖X(t_max)‖ / ‖X0‖)``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from penaltyrun.dynamics import integrate
+from penaltyrun.dynamics.zermelo import drift, simulate_batch
+from penaltyrun.problems.base import (
+    BatchEvaluation,
+    MatrixSpec,
+    ParamsMixin,
+    ScalarSpec,
+    check_spd,
+)
+
+logger = logging.getLogger(__name__)
+
+CASES = ("default",)
+DEFAULT_CASE = "default"
+CASE_PARAMS: dict[str, dict[str, Any]] = {"default": {}}
+
+#: The paper's best matrices (diagonal K1, full K2).
+PAPER_K_DIAGONAL = np.diag([0.8094, 0.1611])
+PAPER_K_FULL = np.array([[1.7421, 0.9560], [0.9560, 1.1414]])
+
+
+@dataclass(frozen=True)
+class Params(ParamsMixin):
+    """Zermelo problem parameters (nondimensional units).
+
+    Attributes
+    ----------
+    x0 : tuple of float
+        Initial position (x, y).
+    event_radius : float
+        Terminal event ‖X‖ = event_radius.
+    t_max : float
+        Horizon cap; the event must fire before it.
+    rtol, atol : float
+        Integration tolerances (paper: 1e-10).
+    max_step : float
+        Largest integration step (``inf``: unbounded).
+    max_steps : int
+        Step cap per run (a run hitting it fails).
+    eig_bounds : tuple of float
+        Eigenvalue / diagonal-entry bounds of K.
+    failure_penalty : float
+        Penalty scale for runs whose event does not fire.
+    """
+
+    x0: tuple[float, float] = (-8.0, 6.0)
+    event_radius: float = 1e-3
+    t_max: float = 1000.0
+    rtol: float = 1e-10
+    atol: float = 1e-10
+    max_step: float = float("inf")
+    max_steps: int = 1_000_000
+    eig_bounds: tuple[float, float] = (1e-8, 10.0)
+    failure_penalty: float = 1e3
+
+
+class Zermelo:
+    """Zermelo closed-loop problem with one 2×2 penalty matrix ``K``."""
+
+    name = "zermelo"
+
+    def __init__(self, case: str, params: Params) -> None:
+        self.case = case
+        self.params = params
+        self.matrices = (MatrixSpec("K", 2, tuple(float(b) for b in params.eig_bounds)),)
+        self.scalars: tuple[ScalarSpec, ...] = ()
+
+    def _run(self, K: np.ndarray) -> tuple[np.ndarray, ...]:
+        p = self.params
+        return simulate_batch(
+            np.ascontiguousarray(K, dtype=float),
+            np.asarray(p.x0, dtype=float),
+            float(p.t_max),
+            float(p.event_radius),
+            float(p.rtol),
+            float(p.atol),
+            float(p.max_step),
+            int(p.max_steps),
+        )
+
+    def evaluate_batch(
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None
+    ) -> BatchEvaluation:
+        """Costs of a batch of gains ``mats["K"]``, shape (B, 2, 2)."""
+        t_end, cost, dist, status = self._run(mats["K"])
+        converged = status == integrate.EVENT
+        d0 = float(np.hypot(*self.params.x0))
+        penalty = cost + self.params.failure_penalty * (1.0 + dist / d0)
+        graded = np.where(converged, cost, penalty)
+        graded = np.where(np.isfinite(graded), graded, 10.0 * self.params.failure_penalty)
+        names = np.asarray(["converged" if c else integrate.STATUS_NAMES[int(s)]
+                            for c, s in zip(converged, status)], dtype=object)
+        return BatchEvaluation(cost=graded, converged=converged, status=names)
+
+    def evaluate(
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None
+    ) -> dict[str, Any]:
+        """Detailed evaluation of one gain; JSON-serializable."""
+        K = check_spd("matrices.K", mats["K"], 2)
+        t_end, cost, dist, status = self._run(K[None])
+        batch = self.evaluate_batch({"K": K[None]})
+        return {
+            "problem": self.name,
+            "case": self.case,
+            "cost": float(batch.cost[0]),
+            "energy": float(cost[0]),
+            "converged": bool(batch.converged[0]),
+            "status": str(batch.status[0]),
+            "t_final": float(t_end[0]),
+            "final_distance": float(dist[0]),
+        }
+
+    def simulate(
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None,
+        n_points: int = 400,
+    ) -> dict[str, np.ndarray]:
+        """Closed-loop path of one gain, sampled with scipy's dense output for plots.
+
+        Returns ``t``, ``x``, ``y``, ``u1``, ``u2`` (arrays of length ``n_points``).
+        """
+        from scipy.integrate import solve_ivp
+
+        K = check_spd("matrices.K", mats["K"], 2)
+        t_end = float(self._run(K[None])[0][0])
+        p = self.params
+
+        def rhs(t: float, X: np.ndarray) -> np.ndarray:
+            return -K.T @ X
+
+        t = np.linspace(0.0, t_end, n_points)
+        sol = solve_ivp(rhs, (0.0, t_end), np.asarray(p.x0, float), t_eval=t,
+                        rtol=p.rtol, atol=p.atol, method="DOP853")
+        x, y = sol.y
+        dx, dy = drift(x, y)
+        u1 = -dx - (K[0, 0] * x + K[1, 0] * y)
+        u2 = -dy - (K[0, 1] * x + K[1, 1] * y)
+        return {"t": sol.t, "x": x, "y": y, "u1": u1, "u2": u2}
+
+
+def make_problem(case: str, overrides: Mapping[str, Any]) -> Zermelo:
+    """Build the Zermelo problem: defaults → case entry → ``overrides``."""
+    merged = {**CASE_PARAMS[case], **dict(overrides)}
+    params = Params.from_mapping(merged)
+    return Zermelo(case, params)
+
+
+def reference_cost(K: np.ndarray, params: Params | None = None) -> tuple[float, float, bool]:
+    """Independent scipy ``solve_ivp`` (DOP853) evaluation of one gain.
+
+    Returns
+    -------
+    cost : float
+        J at the event (or at ``t_max`` if it did not fire).
+    t_final : float
+        Event time or ``t_max``.
+    converged : bool
+        Whether the event fired.
+    """
+    from scipy.integrate import solve_ivp
+
+    p = params or Params()
+    K = np.asarray(K, float)
+
+    def rhs(t: float, s: np.ndarray) -> list[float]:
+        x, y = s[0], s[1]
+        d = np.array([-x * np.cos(y) * np.sin(x), -y * np.cos(y) * np.sin(x)])
+        u = -d - K.T @ s[:2]
+        xdot = u + d
+        return [xdot[0], xdot[1], 0.5 * float(u @ u)]
+
+    def hit(t: float, s: np.ndarray) -> float:
+        return float(np.hypot(s[0], s[1]) - p.event_radius)
+
+    hit.terminal = True
+    sol = solve_ivp(rhs, (0.0, p.t_max), [p.x0[0], p.x0[1], 0.0], events=hit,
+                    rtol=p.rtol, atol=p.atol, method="DOP853")
+    if sol.t_events[0].size:
+        return float(sol.y_events[0][0][2]), float(sol.t_events[0][0]), True
+    return float(sol.y[2, -1]), float(sol.t[-1]), False
+
+
+def plot_phase_plane(paths: Mapping[str, Mapping[str, np.ndarray]], ax: Any = None,
+                     extent: float = 10.0) -> Any:
+    """Phase-plane plot of closed-loop paths over the current field.
+
+    Parameters
+    ----------
+    paths : mapping label → dict from :meth:`Zermelo.simulate`
+    ax : matplotlib Axes, optional
+    extent : float
+        Half-width of the plotted square [−extent, extent]².
+    """
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 6))
+    g = np.linspace(-extent, extent, 25)
+    X, Y = np.meshgrid(g, g)
+    dx, dy = drift(X.ravel(), Y.ravel())
+    ax.quiver(X, Y, dx.reshape(X.shape), dy.reshape(X.shape), color="0.7", angles="xy",
+              label="current d(X)")
+    for label, path in paths.items():
+        style = "--" if label.startswith("paper") else "-"
+        ax.plot(path["x"], path["y"], style, lw=2, label=label)
+    x0 = next(iter(paths.values())) if paths else None
+    if x0 is not None:
+        ax.plot(x0["x"][0], x0["y"][0], "ko", label="start")
+    ax.plot(0.0, 0.0, "k*", ms=12, label="target")
+    ax.set_xlim(-extent, extent)
+    ax.set_ylim(-extent, extent)
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_aspect("equal")
+    ax.legend(loc="upper right", fontsize=8)
+    return ax

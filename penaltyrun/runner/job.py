@@ -1,0 +1,101 @@
+"""Run one job and turn it into one flat record (never raises)."""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+import traceback
+from datetime import datetime, timezone
+from typing import Any
+
+import numpy as np
+
+from penaltyrun import optim
+from penaltyrun.runner.plan import Job
+from penaltyrun.runner.setup import build
+
+logger = logging.getLogger(__name__)
+
+#: Job-level statuses: ``ok`` (best candidate converged), ``diverged`` (the optimizer's
+#: best candidate did not meet the terminal condition), ``failed`` (the job raised).
+JOB_STATUSES = ("ok", "diverged", "failed")
+
+
+def _jsonable(value: Any) -> Any:
+    """Convert numpy containers/scalars to plain Python for JSON."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    return value
+
+
+def run_job(job: Job) -> dict[str, Any]:
+    """Optimize one job and evaluate its best candidate in detail.
+
+    Returns
+    -------
+    dict
+        One flat record (see :mod:`penaltyrun.io.schema` for the columns). A job that
+        raises is returned with ``status="failed"`` and the error text.
+    """
+    started = datetime.now(timezone.utc)
+    t0 = time.perf_counter()
+    record: dict[str, Any] = {
+        "job_id": job.job_id, "problem": job.problem, "case": job.case, "param": job.param,
+        "optimizer": job.optimizer, "start": job.start, "seed": job.seed,
+        "optimizer_settings": _jsonable(job.optimizer_options),
+        "problem_params": _jsonable(job.problem_params),
+        "param_options": _jsonable(job.param_options),
+        "started_at": started.isoformat(),
+        **job.meta,
+    }
+    try:
+        prob, layout, settings = build(job.problem, job.case, job.problem_params, job.param,
+                                       job.param_options, job.optimizer,
+                                       job.optimizer_options)
+        lb, ub = layout.bounds()
+
+        def objective(Z: np.ndarray) -> np.ndarray:
+            mats, scalars = layout.split(Z)
+            return prob.evaluate_batch(mats, scalars or None).cost
+
+        result = optim.minimize(job.optimizer, objective, lb, ub, settings, job.seed)
+        mats, scalars = layout.split(result.best_z[None, :])
+        best_mats = {k: v[0] for k, v in mats.items()}
+        best_scalars = {k: float(v[0]) for k, v in scalars.items()}
+        detail = prob.evaluate(best_mats, best_scalars or None)
+        converged = bool(detail.get("converged", False))
+        record.update({
+            "status": "ok" if converged else "diverged",
+            "error": "" if converged else f"best candidate did not converge "
+                                          f"({detail.get('status', 'unknown')})",
+            "best_cost": float(result.best_cost),
+            "best_converged": converged,
+            "best_status": str(detail.get("status", "")),
+            "t_final": float(detail.get("t_final", float("nan"))),
+            "best_z": result.best_z.tolist(),
+            "z_names": layout.names(),
+            "matrices": _jsonable(best_mats),
+            "scalars": best_scalars,
+            "metrics": _jsonable(detail),
+            "n_evals": int(result.n_evals),
+            "n_iters": int(result.n_iters),
+            "stop_reason": result.stop_reason,
+            "n_nonfinite": int(result.n_nonfinite),
+            "history": [float(h) for h in result.history],
+        })
+    except Exception as exc:  # a failing job is recorded, never crashes the run
+        logger.error("job %s failed: %s", job.job_id, exc)
+        record.update({"status": "failed",
+                       "error": f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"})
+    record["wall_time_s"] = time.perf_counter() - t0
+    record["finished_at"] = datetime.now(timezone.utc).isoformat()
+    return record

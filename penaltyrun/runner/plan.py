@@ -1,0 +1,94 @@
+"""Plan jobs: one job per (problem, case, parameterization, optimizer, start).
+
+Per-job seeds derive from the root seed and the job's key through numpy's
+``SeedSequence``, so adding cells or starts never changes the seeds of existing jobs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from penaltyrun.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Job:
+    """Everything one optimization run needs (plain data, picklable).
+
+    Attributes
+    ----------
+    problem, case, param, optimizer : str
+        Problem name, case (resolved), parameterization kind, optimizer name.
+    start : int
+        Start index within the cell, 0-based.
+    seed : int
+        Seed of this job (derived, see :func:`job_seed`).
+    problem_params : dict
+        Problem parameter overrides.
+    param_options : dict
+        Parameterization options (``eig_bounds``, ``cayley_bound``).
+    optimizer_options : dict
+        Optimizer settings.
+    meta : dict
+        Run-level metadata copied into the record (config hash, version, commit, config).
+    """
+
+    problem: str
+    case: str
+    param: str
+    optimizer: str
+    start: int
+    seed: int
+    problem_params: dict[str, Any] = field(default_factory=dict)
+    param_options: dict[str, Any] = field(default_factory=dict)
+    optimizer_options: dict[str, Any] = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def job_id(self) -> str:
+        """Stable identifier, also the job's file name in the run directory."""
+        return f"{self.problem}-{self.case}-{self.param}-{self.optimizer}-s{self.start:03d}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-dict form (JSON-serializable)."""
+        return asdict(self)
+
+
+def job_seed(root_seed: int, key: str) -> int:
+    """Seed of one job from the root seed and the job key (stable across runs/machines)."""
+    digest = int.from_bytes(hashlib.sha256(key.encode()).digest()[:8], "little")
+    return int(np.random.SeedSequence([int(root_seed), digest]).generate_state(1)[0])
+
+
+def config_hash(obj: Any) -> str:
+    """Short SHA-256 of a JSON-serializable object (canonical key order)."""
+    text = json.dumps(obj, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int,
+              root_seed: int, problem_params: dict[str, Any] | None = None,
+              param_options: dict[str, Any] | None = None,
+              optimizer_options: dict[str, Any] | None = None,
+              meta: dict[str, Any] | None = None) -> list[Job]:
+    """One job per start of a single (problem, case, param, optimizer) cell.
+
+    Raises
+    ------
+    ConfigError
+        If ``n_starts`` is not a positive integer.
+    """
+    if not isinstance(n_starts, int) or isinstance(n_starts, bool) or n_starts < 1:
+        raise ConfigError("runner.n_starts", f"must be a positive integer, got {n_starts!r}")
+    jobs = []
+    for start in range(n_starts):
+        key = f"{problem}/{case}/{param}/{optimizer}/{start}"
+        jobs.append(Job(problem, case, param, optimizer, start, job_seed(root_seed, key),
+                        dict(problem_params or {}), dict(param_options or {}),
+                        dict(optimizer_options or {}), dict(meta or {})))
+    return jobs

@@ -1,0 +1,46 @@
+"""Build the problem, decision layout and optimizer settings of a job (validated)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from penaltyrun import optim, penalty, problems
+from penaltyrun.errors import ConfigError
+from penaltyrun.penalty.layout import DecisionLayout
+from penaltyrun.problems.base import Problem
+
+
+def build_layout(problem: Problem, param: str, options: Mapping[str, Any]) -> DecisionLayout:
+    """Decision layout: every matrix of ``problem`` parameterized by ``param``.
+
+    ``options["eig_bounds"]`` (if not None) overrides the problem's eigenvalue bounds.
+    """
+    specs = []
+    for spec in problem.matrices:
+        bounds = options.get("eig_bounds") or spec.eig_bounds
+        if len(bounds) != 2:
+            raise ConfigError("param.eig_bounds", "expected [lower, upper]")
+        specs.append((spec.name, penalty.make(param, spec.size, tuple(bounds),
+                                              options.get("cayley_bound", 100.0))))
+    scalars = [(s.name, s.bounds) for s in problem.scalars]
+    return DecisionLayout(tuple(specs), tuple(scalars))
+
+
+def build(problem: str, case: str | None, problem_params: Mapping[str, Any], param: str,
+          param_options: Mapping[str, Any], optimizer: str,
+          optimizer_options: Mapping[str, Any]) -> tuple[Problem, DecisionLayout, Any]:
+    """Validate and build (problem instance, decision layout, optimizer settings).
+
+    Raises
+    ------
+    ConfigError
+        On any invalid name or value, naming the key.
+    """
+    settings = optim.make_settings(optimizer, optimizer_options)
+    if param not in penalty.KINDS:
+        raise ConfigError("param", f"unknown parameterization {param!r}",
+                          allowed=penalty.KINDS)
+    prob = problems.make(problem, case, problem_params)
+    layout = build_layout(prob, param, param_options)
+    return prob, layout, settings

@@ -248,7 +248,7 @@ class LowThrustProblem:
 
     # -- helpers -------------------------------------------------------------------------
     def _prm_for(self, scalars: Mapping[str, Any] | None, index: int | None) -> np.ndarray:
-        if not self.scalars or not scalars or "eta_cut" not in scalars:
+        if not self.scalars or not scalars or scalars.get("eta_cut") is None:
             return self._prm
         value = np.asarray(scalars["eta_cut"], dtype=float)
         prm = self._prm.copy()
@@ -316,7 +316,8 @@ class LowThrustProblem:
         ``final_mass_kg``, ``propellant_kg``, ``revolutions``, ``n_steps``, ``final_errors``
         (a_km, e, i_deg, Omega_deg, omega_deg), ``final_elements`` (a_km, e, i_deg,
         Omega_deg, omega_deg, nu_deg), ``q_final``, ``objective``, ``control_step_s``,
-        ``rk4_substeps``, ``eta_cut`` (min-fuel only), ``case``, ``problem``, ``targeted``.
+        ``rk4_substeps``, ``eta_cut`` (min-fuel only), ``case``, ``problem``, ``targeted``,
+        ``tolerances`` (a_km, e, angle_deg).
         """
         K = self._matrix(mats, batch=False)
         prm = self._prm_for(scalars, None)
@@ -344,6 +345,8 @@ class LowThrustProblem:
             "control_step_s": float(self.params.control_step_s),
             "rk4_substeps": int(self.params.rk4_substeps),
             "targeted": list(self.params.targeted),
+            "tolerances": {"a_km": self.params.tol_a_km, "e": self.params.tol_e,
+                           "angle_deg": self.params.tol_angle_deg},
             "final_errors": {
                 "a_km": float(err[0]), "e": float(err[1]), "i_deg": float(err[2] / DEG),
                 "Omega_deg": float(err[3] / DEG), "omega_deg": float(err[4] / DEG),

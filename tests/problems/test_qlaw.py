@@ -140,6 +140,8 @@ def test_min_fuel_coasting_trades_time_for_propellant() -> None:
     assert coasting["propellant_kg"] < always["propellant_kg"] - 3.0
     assert coasting["tof_days"] > always["tof_days"]
     assert coasting["eta_cut"] == 0.5
+    default = prob.evaluate(EYE, {"eta_cut": None})
+    assert default["eta_cut"] == prob.params.eta_cut
     sim = prob.simulate(EYE, {"eta_cut": 0.5})
     assert 0.0 < sim["thrust_on"].mean() < 1.0
     relative = qlaw.make_problem("C", {"objective": "min_fuel", "coast_mode": "eta_r",

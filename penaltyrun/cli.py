@@ -20,7 +20,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__, io, problems, report, runner
+from penaltyrun import __version__
 from penaltyrun.errors import ConfigError
 
 logger = logging.getLogger("penaltyrun")
@@ -53,6 +53,8 @@ def problem_params(cfg: DictConfig) -> dict[str, Any]:
 
 
 def _setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
+    from penaltyrun import runner
+
     return runner.build(cfg.problem.name, cfg.case, problem_params(cfg), cfg.param.name,
                         _plain(cfg.param), cfg.optimizer.name,
                         {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"})
@@ -60,6 +62,8 @@ def _setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
 
 def run_optimize(cfg: DictConfig) -> Path:
     """Plan and run the jobs of one cell, then write results.parquet (and the report)."""
+    from penaltyrun import io, report, runner
+
     prob, _, _ = _setup(cfg)  # validate everything before any job starts
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     resolved = OmegaConf.to_container(cfg, resolve=True)
@@ -88,6 +92,8 @@ def run_optimize(cfg: DictConfig) -> Path:
 
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     """Evaluate the matrices given in ``matrices.*`` and print one JSON line."""
+    from penaltyrun import problems
+
     prob = problems.make(cfg.problem.name, cfg.case, problem_params(cfg))
     given = {k: v for k, v in (_plain(cfg.matrices) or {}).items() if v is not None}
     wanted = [spec.name for spec in prob.matrices]
@@ -114,6 +120,8 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
 
 def run_report(cfg: DictConfig) -> Path:
     """Tables and figures from Parquet results under ``report.input``."""
+    from penaltyrun import report
+
     if not cfg.report.input:
         raise ConfigError("report.input", "missing; pass report.input=<results.parquet or "
                           "folder>")
@@ -125,6 +133,76 @@ def run_report(cfg: DictConfig) -> Path:
     report.build_report(src, out, paper=bool(cfg.report.paper))
     print(f"report written to {out}")
     return out
+
+
+CONF_DIR = Path(__file__).resolve().parent / "conf"
+GROUPS = ("problem", "param", "optimizer", "experiment")
+
+
+def group_options(group: str) -> list[str]:
+    """Config names available in a config group (the YAML files of ``conf/<group>``)."""
+    return sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    return " ".join(lines[:2]) if lines else type(exc).__name__
+
+
+def preflight(argv: list[str]) -> None:
+    """Check the command line before Hydra runs, so every mistake is one clear line.
+
+    Parses the overrides (syntax), checks config-group choices against the files in
+    ``conf/``, then composes the config once (first value of each sweep) to catch
+    unknown keys and type errors.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key and, where there is a list, the allowed values.
+    """
+    from hydra import compose, initialize_config_dir
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    args = [a for a in argv if "=" in a and not a.startswith("-")]
+    parser = OverridesParser.create()
+    parsed = []
+    for arg in args:
+        try:
+            parsed.extend(parser.parse_overrides([arg]))
+        except HydraException as exc:
+            key = arg.split("=", 1)[0].lstrip("+~")
+            raise ConfigError(key, f"malformed override {arg!r}: {_first_line(exc)}") from None
+    dry = []
+    for o in parsed:
+        if o.key_or_group.startswith("hydra"):
+            continue
+        values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
+            [o.get_value_element_as_str()]
+        if o.key_or_group in GROUPS and not o.is_delete():
+            allowed = group_options(o.key_or_group)
+            for value in values:
+                if value not in allowed:
+                    raise ConfigError(o.key_or_group, f"unknown choice {value!r}",
+                                      allowed=allowed)
+        dry.append(o.input_line if not o.is_sweep_override()
+                   else f"{o.get_key_element()}={values[0]}")
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        try:
+            compose(config_name="config", overrides=dry)
+        except (HydraException, OmegaConfBaseException) as exc:
+            hits = [o for o in parsed if o.key_or_group in str(exc)]
+            bad = max(hits, key=lambda o: len(o.key_or_group)) if hits else None
+            key = bad.key_or_group if bad else "override"
+            if "Could not override" not in str(exc) or bad is None:
+                raise ConfigError(key, _first_line(exc)) from None
+            groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
+            parent = OmegaConf.select(compose(config_name="config", overrides=groups),
+                                      key.rpartition(".")[0] or "")
+            allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
+            raise ConfigError(key, "unknown config key", allowed=allowed) from None
 
 
 def _guard(func: Callable[[], Any]) -> Any:
@@ -151,7 +229,8 @@ def _hydra_main(cfg: DictConfig) -> None:
 
 
 def main() -> None:
-    """Entry point of ``penaltyrun``."""
+    """Entry point of ``penaltyrun``: check the command line, then run the Hydra app."""
+    _guard(lambda: preflight(sys.argv[1:]))
     _hydra_main()
 
 
@@ -165,6 +244,8 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("--no-paper", action="store_true",
                         help="leave out the paper's numbers")
     args = parser.parse_args(argv)
+    from penaltyrun import report
+
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     src = Path(args.input)
 

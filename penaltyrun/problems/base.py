@@ -103,7 +103,7 @@ class ParamsMixin:
     usable by frozen dataclasses)."""
 
     @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any], prefix: str = "problem") -> Any:
+    def from_mapping(cls, mapping: Mapping[str, Any], prefix: str = "problem.params") -> Any:
         """Build from defaults plus ``mapping`` overrides, rejecting unknown keys."""
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(mapping) - names)

@@ -1,0 +1,134 @@
+"""The command line, run as a user would (subprocesses): outputs, errors, resume."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from penaltyrun.io import RESULTS_FILE
+
+K2 = "[[1.7421,0.9560],[0.9560,1.1414]]"
+
+
+def cli(*args, cwd: Path, check: bool = True) -> subprocess.CompletedProcess:
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=300)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}")
+    return proc
+
+
+def test_evaluate_prints_json_last_line(tmp_path):
+    proc = cli("mode=evaluate", "problem=zermelo", f"matrices.K={K2}",
+               f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert result["converged"] is True
+    assert result["cost"] == pytest.approx(24.8264582, rel=1e-6)
+    assert result["t_final"] == pytest.approx(20.848056, rel=1e-6)
+
+
+def test_evaluate_accepts_plus_form(tmp_path):
+    proc = cli("mode=evaluate", f"+matrices.K={K2}", f"hydra.run.dir={tmp_path / 'run'}",
+               cwd=tmp_path, check=False)
+    # `matrices.K` is pre-declared, so Hydra refuses `+` for it; the error must be readable.
+    if proc.returncode != 0:
+        assert "matrices.K" in proc.stderr and "Traceback" not in proc.stderr
+    else:
+        assert json.loads(proc.stdout.strip().splitlines()[-1])["converged"]
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["problem=nope"], ["problem", "zermelo"]),
+        (["param=spiral"], ["param", "diagonal", "givens"]),
+        (["optimizer=adam"], ["optimizer", "pso"]),
+        (["case=Z"], ["case", "allowed: default"]),
+        (["optimizer.n_particles=0"], ["optimizer.n_particles", "positive"]),
+        (["optimizer.iters=-5"], ["optimizer.iters", "positive"]),
+        (["runner.n_starts=0"], ["runner.n_starts", "positive"]),
+        (["runner.workers=0"], ["runner.workers", "positive"]),
+        (["runner.backend=slurm"], ["runner.backend", "local, dask"]),
+        (["mode=train"], ["mode", "optimize, evaluate, report"]),
+        (["mode=evaluate"], ["matrices.K", "missing"]),
+        (["mode=evaluate", "matrices.K=[[1,2],[3,4]]"], ["matrices.K", "not symmetric"]),
+        (["mode=evaluate", "matrices.K=[[1,2],[2,1]]"], ["matrices.K", "positive definite"]),
+        (["mode=evaluate", "matrices.K=[[1,0,0],[0,1,0],[0,0,1]]"], ["matrices.K", "2x2"]),
+        (["mode=evaluate", "matrices.K=[[1,0],[0,1]]", "matrices.Kp=[[1]]"],
+         ["matrices.Kp", "not a matrix"]),
+        (["mode=evaluate", "matrices.K=[[1,0],[0"], ["matrices.K"]),
+        (["mode=report"], ["report.input", "missing"]),
+        (["param.eig_bounds=[0,10]"], ["param.eig_bounds"]),
+        (["problem.params.speed=2"], ["problem.params.speed"]),
+    ],
+)
+def test_bad_input_is_one_readable_error(tmp_path, args, fragments):
+    proc = cli(*args, "runner.n_starts=1", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path,
+               check=False)
+    assert proc.returncode != 0
+    assert "Traceback" not in proc.stderr + proc.stdout
+    for fragment in fragments:
+        assert fragment in proc.stderr, proc.stderr
+    assert len(proc.stderr.strip().splitlines()) <= 6, proc.stderr
+
+
+def test_optimize_writes_parquet_report_and_resumes(tmp_path):
+    run = tmp_path / "run"
+    args = ["problem=zermelo", "param=diagonal", "runner.n_starts=3", "runner.workers=2",
+            "optimizer.iters=30", f"hydra.run.dir={run}"]
+    cli(*args, cwd=tmp_path)
+    df = pd.read_parquet(run / RESULTS_FILE)
+    assert len(df) == 3 and set(df["status"]) == {"ok"}
+    assert df["seed"].nunique() == 3
+    assert (df["git_commit"].str.len() > 0).all() and (df["package_version"] == "0.1.0").all()
+    assert df["config"].str.contains("problem:").all()
+    assert (run / "report" / "report.md").exists()
+    assert (run / "report" / "zermelo_phase_plane.png").exists()
+    assert not (tmp_path / "report.log").exists()
+
+    # A killed run keeps its finished jobs: drop one record and resume.
+    jobs = sorted((run / "jobs").glob("*.json"))
+    kept = {p.name: p.stat().st_mtime_ns for p in jobs[1:]}
+    jobs[0].unlink()
+    proc = cli(*args, "runner.resume=true", "runner.n_starts=4", cwd=tmp_path)
+    assert "2 of 4 jobs already finished" in proc.stderr + proc.stdout
+    after = {p.name: p.stat().st_mtime_ns for p in (run / "jobs").glob("*.json")}
+    assert len(after) == 4
+    assert all(after[name] == mtime for name, mtime in kept.items())
+    df2 = pd.read_parquet(run / RESULTS_FILE)
+    assert len(df2) == 4
+    # resumed jobs reproduce the seeds of the first run
+    assert set(df["seed"]) <= set(df2["seed"])
+
+
+def test_multirun_sweep_and_report_command(tmp_path):
+    sweep = tmp_path / "sweep"
+    cli("-m", "param=diagonal,full", "runner.n_starts=2", "optimizer.iters=25",
+        "runner.report=false", f"hydra.sweep.dir={sweep}", cwd=tmp_path)
+    assert len(list(sweep.rglob(RESULTS_FILE))) == 2
+    out = tmp_path / "rep"
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", str(sweep), "-o",
+                           str(out)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    comparison = pd.read_csv(out / "comparison.csv")
+    assert list(comparison["full_map"]) == ["full"]
+    assert {"improvement_mean_pct", "p_value_mwu"} <= set(comparison.columns)
+    text = (out / "report.md").read_text()
+    assert "Diagonal vs full" in text and "paper K" in text
+    for name in ("convergence_zermelo_default.png", "costs_zermelo_default.png",
+                 "zermelo_phase_plane.png", "summary.md", "comparison.md"):
+        assert (out / name).exists(), name
+    # mode=report is the same report through the Hydra app
+    cli("mode=report", f"report.input={sweep}", f"report.output={tmp_path / 'rep2'}",
+        f"hydra.run.dir={tmp_path / 'r2'}", cwd=tmp_path)
+    assert (tmp_path / "rep2" / "comparison.csv").exists()
+
+
+def test_report_of_missing_input_is_clear(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli",
+                           str(tmp_path / "nothing")], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "does not exist" in proc.stderr and "Traceback" not in proc.stderr

@@ -1,0 +1,70 @@
+"""The compiled Dormand–Prince integrator against closed forms."""
+
+import numpy as np
+import pytest
+from numba import njit
+
+from penaltyrun.dynamics import integrate
+
+
+@njit
+def decay_rhs(t, y, p, out):
+    out[0] = -p[0] * y[0]
+    out[1] = 0.5 * y[0] * y[0]
+
+
+@njit
+def decay_event(t, y, p):
+    return y[0] - p[1]
+
+
+@njit
+def oscillator_rhs(t, y, p, out):
+    out[0] = y[1]
+    out[1] = -y[0]
+
+
+@njit
+def near_zero_event(t, y, p):
+    # |x| − tol with a cosine solution: dips below tol only briefly around t = π/2.
+    return abs(y[0]) - p[0]
+
+
+@njit
+def run(rhs, event, y0, p, t_max, rtol, max_step, samples):
+    return integrate.dopri5(rhs, event, y0, p, t_max, rtol, rtol, max_step, samples, 100000)
+
+
+def test_exponential_decay_event_time_and_integral():
+    a, x0, level = 0.7, 3.0, 1e-3
+    t, y, status, _ = run(decay_rhs, decay_event, np.array([x0, 0.0]), np.array([a, level]),
+                          1000.0, 1e-11, np.inf, 1)
+    t_exact = np.log(x0 / level) / a
+    integral = x0**2 / (4 * a) * (1 - np.exp(-2 * a * t_exact))
+    assert status == integrate.EVENT
+    assert t == pytest.approx(t_exact, rel=1e-9)
+    assert y[1] == pytest.approx(integral, rel=1e-9)
+
+
+def test_horizon_reached_without_event():
+    t, y, status, _ = run(decay_rhs, decay_event, np.array([1.0, 0.0]), np.array([0.1, 1e-9]),
+                          5.0, 1e-10, np.inf, 1)
+    assert status == integrate.HORIZON
+    assert t == pytest.approx(5.0)
+    assert y[0] == pytest.approx(np.exp(-0.5), rel=1e-9)
+
+
+def test_event_inside_a_step_is_found_on_dense_output():
+    # x = cos t passes |x| ≤ 0.05 only for |t − π/2| ≤ 0.05; a large step jumps over it
+    # unless the event is sampled inside the step.
+    p = np.array([0.05])
+    y0 = np.array([1.0, 0.0])
+    t_dense, _, status, _ = run(oscillator_rhs, near_zero_event, y0, p, 10.0, 1e-6, 2.0, 16)
+    assert status == integrate.EVENT
+    assert t_dense == pytest.approx(np.arccos(0.05), rel=1e-6)
+
+
+def test_event_already_true_at_start():
+    t, _, status, steps = run(decay_rhs, decay_event, np.array([1e-4, 0.0]),
+                              np.array([1.0, 1e-3]), 10.0, 1e-10, np.inf, 1)
+    assert (t, status, steps) == (0.0, integrate.EVENT, 0)

@@ -1,0 +1,88 @@
+"""Zermelo problem: compiled path vs scipy solve_ivp, paper matrices, failures, errors."""
+
+import numpy as np
+import pytest
+
+from penaltyrun import problems
+from penaltyrun.errors import ConfigError
+from penaltyrun.problems import zermelo
+
+
+@pytest.fixture(scope="module")
+def prob():
+    return problems.make("zermelo", None, {})
+
+
+def random_spd(rng, n, lo=0.05, hi=10.0):
+    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    return Q @ np.diag(rng.uniform(lo, hi, n)) @ Q.T
+
+
+def test_costs_agree_with_solve_ivp_reference(prob):
+    rng = np.random.default_rng(7)
+    Ks = np.array([random_spd(rng, 2) for _ in range(12)])
+    batch = prob.evaluate_batch({"K": Ks})
+    for K, cost, ok in zip(Ks, batch.cost, batch.converged):
+        ref_cost, _, ref_ok = zermelo.reference_cost(K, prob.params)
+        assert ok and ref_ok
+        assert cost == pytest.approx(ref_cost, rel=1e-6)
+
+
+def test_paper_matrices(prob):
+    k1 = prob.evaluate({"K": zermelo.PAPER_K_DIAGONAL})
+    k2 = prob.evaluate({"K": zermelo.PAPER_K_FULL})
+    assert k1["converged"] and k2["converged"]
+    assert k2["cost"] < k1["cost"]
+    for res, K in ((k1, zermelo.PAPER_K_DIAGONAL), (k2, zermelo.PAPER_K_FULL)):
+        ref_cost, ref_t, _ = zermelo.reference_cost(K)
+        assert res["cost"] == pytest.approx(ref_cost, rel=1e-8)
+        assert res["t_final"] == pytest.approx(ref_t, rel=1e-8)
+        assert res["final_distance"] == pytest.approx(1e-3, rel=1e-9)
+
+
+def test_closed_loop_is_linear_and_energy_decreases(prob):
+    K = zermelo.PAPER_K_FULL
+    path = prob.simulate({"K": K})
+    X = np.stack([path["x"], path["y"]], axis=1)
+    # Exact solution X(t) = expm(−Kᵀ t) X0 of the cancelled-current closed loop.
+    from scipy.linalg import expm
+
+    for i in (50, 200, 399):
+        assert X[i] == pytest.approx(expm(-K.T * path["t"][i]) @ X[0], abs=1e-7)
+    V = 0.5 * np.sum(X**2, axis=1)
+    assert np.all(np.diff(V) < 0)
+
+
+def test_non_converging_gain_gets_graded_finite_penalty():
+    prob = problems.make("zermelo", None, {"t_max": 5.0})
+    Ks = np.array([np.eye(2) * 0.01, np.eye(2) * 0.1])
+    batch = prob.evaluate_batch({"K": Ks})
+    assert not batch.converged.any()
+    assert np.all(np.isfinite(batch.cost))
+    assert list(batch.status) == ["horizon", "horizon"]
+    # the slower gain is further away at t_max, so it is penalized more
+    assert batch.cost[0] > batch.cost[1] > prob.params.failure_penalty
+
+
+@pytest.mark.parametrize(
+    ("matrix", "fragment"),
+    [
+        ([[1.0, 0.5], [0.4, 1.0]], "not symmetric"),
+        ([[1.0, 2.0], [2.0, 1.0]], "not positive definite"),
+        ([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], "2x2"),
+        ([[1.0, "a"], ["a", 1.0]], "numeric"),
+    ],
+)
+def test_bad_matrices_are_clear_errors(prob, matrix, fragment):
+    with pytest.raises(ConfigError, match=fragment) as info:
+        prob.evaluate({"K": matrix})
+    assert info.value.key == "matrices.K"
+
+
+def test_unknown_case_and_param():
+    with pytest.raises(ConfigError, match="allowed: default"):
+        problems.make("zermelo", "B", {})
+    with pytest.raises(ConfigError, match="problem.params.speed"):
+        problems.make("zermelo", None, {"speed": 3})
+    with pytest.raises(ConfigError, match="unknown problem 'nope'"):
+        problems.make("nope", None, {})

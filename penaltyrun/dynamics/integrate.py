@@ -81,7 +81,7 @@ def _dense(y_old, h, Q, x, out):
         out[i] = y_old[i] + h * (Q[i, 0] * x + Q[i, 1] * x2 + Q[i, 2] * x3 + Q[i, 3] * x4)
 
 
-@njit(cache=True)
+@njit(cache=False)  # specialized per rhs/event; numba cannot cache function-typed args
 def dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps):
     """Integrate from t = 0 until the event fires or ``t_max`` is reached.
 

@@ -66,7 +66,7 @@ def test_evaluate_accepts_plus_form(tmp_path):
     ],
 )
 def test_bad_input_is_one_readable_error(tmp_path, args, fragments):
-    proc = cli(*args, "runner.n_starts=1", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path,
+    proc = cli("runner.n_starts=1", *args, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path,
                check=False)
     assert proc.returncode != 0
     assert "Traceback" not in proc.stderr + proc.stdout

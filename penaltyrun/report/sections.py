@@ -23,10 +23,11 @@ from penaltyrun.report.tables import markdown  # noqa: E402
 MATCH_TOL = 0.005
 
 
-def best_rows(df: pd.DataFrame) -> dict[str, pd.Series]:
-    """Best non-failed job per parameterization."""
+def best_rows(df: pd.DataFrame) -> dict[tuple[str, str], pd.Series]:
+    """Best non-failed job per (parameterization, optimizer)."""
     ok = df[df["status"] != "failed"]
-    return {p: g.loc[g["best_cost"].idxmin()] for p, g in ok.groupby("param", sort=True)}
+    return {key: g.loc[g["best_cost"].idxmin()]
+            for key, g in ok.groupby(["param", "optimizer"], sort=True)}
 
 
 def matrices_of(row: pd.Series) -> dict[str, np.ndarray]:
@@ -53,14 +54,16 @@ def zermelo_section(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
     prob = problem_of(next(iter(best.values())))
     rows, paths = [], {}
     ref_mats = BEST_MATRICES[("zermelo", "default")]
-    for param, row in best.items():
+    for (param, optimizer), row in best.items():
         K = matrices_of(row)["K"]
-        paths[f"best {param} (J = {row['best_cost']:.4f})"] = prob.simulate({"K": K})
-        entry = {"param": param, "best K": json.dumps(np.round(K, 4).tolist()),
-                 "best J": float(row["best_cost"])}
+        if param in ("diagonal", "full", "geagsp") and optimizer == "pso":
+            paths[f"best {param} (J = {row['best_cost']:.4f})"] = prob.simulate({"K": K})
+        entry = {"param": param, "optimizer": optimizer,
+                 "best K": json.dumps(np.round(K, 4).tolist()), "best J": float(row["best_cost"])}
         ref = ref_mats.get("full" if param != "diagonal" else "diagonal")
         if paper and ref is not None:
-            cell = df[(df["param"] == param) & (df["status"] != "failed")]
+            cell = df[(df["param"] == param) & (df["optimizer"] == optimizer)
+                      & (df["status"] != "failed")]
             devs = [relative_deviation(matrices_of(r)["K"], ref["K"]) for _, r in cell.iterrows()]
             entry.update({
                 "paper K": json.dumps(ref["K"].round(4).tolist()),
@@ -72,6 +75,9 @@ def zermelo_section(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
     if paper:
         for param, ref in ref_mats.items():
             paths[f"paper {param} K"] = prob.simulate(ref)
+    if not any(label.startswith("best") for label in paths):
+        paths.update({f"best {p} / {o}": prob.simulate(matrices_of(r))
+                      for (p, o), r in best.items()})
     fig, ax = plt.subplots(figsize=(6.5, 6.5))
     mod.plot_phase_plane(paths, ax=ax)
     ax.set_title("Zermelo: closed-loop paths over the current")

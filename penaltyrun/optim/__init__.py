@@ -10,15 +10,20 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.optim.base import BatchObjective, OptimResult
+from penaltyrun.optim.baseline import BaselineSettings, run_baseline
 from penaltyrun.optim.de import DESettings, run_de
 from penaltyrun.optim.pso import PSOSettings, run_pso
 
-OPTIMIZERS = {"pso": (PSOSettings, run_pso), "de": (DESettings, run_de)}
+OPTIMIZERS = {"pso": (PSOSettings, run_pso), "de": (DESettings, run_de),
+              "baseline": (BaselineSettings, run_baseline)}
 
 _POSITIVE_INT = ("n_particles", "iters", "popsize", "ftol_iter")
 
 
-def make_settings(name: str, options: Mapping[str, Any]) -> PSOSettings | DESettings:
+Settings = PSOSettings | DESettings | BaselineSettings
+
+
+def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
     """Validated settings for optimizer ``name`` from a config mapping.
 
     Raises
@@ -48,10 +53,18 @@ def make_settings(name: str, options: Mapping[str, Any]) -> PSOSettings | DESett
 
 
 def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
-             settings: PSOSettings | DESettings, seed: int) -> OptimResult:
-    """Run optimizer ``name`` with ``settings`` on ``objective`` over [lb, ub]."""
+             settings: Settings, seed: int, x0: np.ndarray | None = None) -> OptimResult:
+    """Run optimizer ``name`` with ``settings`` on ``objective`` over [lb, ub].
+
+    ``x0`` is the point the ``baseline`` optimizer evaluates (required for it, ignored by
+    the search optimizers).
+    """
+    if name == "baseline":
+        if x0 is None:
+            raise ValueError("the baseline optimizer needs x0")
+        return run_baseline(objective, x0)
     return OPTIMIZERS[name][1](objective, lb, ub, settings, seed)
 
 
-__all__ = ["OPTIMIZERS", "DESettings", "OptimResult", "PSOSettings", "make_settings",
-           "minimize"]
+__all__ = ["OPTIMIZERS", "BaselineSettings", "DESettings", "OptimResult", "PSOSettings",
+           "Settings", "make_settings", "minimize"]

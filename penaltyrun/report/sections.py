@@ -16,6 +16,7 @@ import pandas as pd  # noqa: E402
 
 from penaltyrun import problems  # noqa: E402
 from penaltyrun.io import decode_json  # noqa: E402
+from penaltyrun.report import lowthrust  # noqa: E402
 from penaltyrun.report.paper import BEST_MATRICES  # noqa: E402
 from penaltyrun.report.tables import markdown  # noqa: E402
 
@@ -92,6 +93,8 @@ def zermelo_section(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
 #: problem name → section builder(df of one case, out dir, paper flag) → Markdown lines.
 SECTIONS: dict[str, Callable[[pd.DataFrame, Path, bool], list[str]]] = {
     "zermelo": zermelo_section,
+    "lyapunov_transfer": lowthrust.case_section,
+    "qlaw": lowthrust.case_section,
 }
 
 
@@ -103,5 +106,5 @@ def problem_section(problem: str, case: str, df: pd.DataFrame, out: Path,
 
 
 def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
-    """Cross-case sections (e.g. paper-layout tables spanning several cases)."""
-    return []
+    """Cross-case sections (paper-layout tables spanning several cases)."""
+    return lowthrust.study_sections(df, out, paper)

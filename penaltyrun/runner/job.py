@@ -67,7 +67,11 @@ def run_job(job: Job) -> dict[str, Any]:
             mats, scalars = layout.split(Z)
             return prob.evaluate_batch(mats, scalars or None).cost
 
-        result = optim.minimize(job.optimizer, objective, lb, ub, settings, job.seed)
+        x0 = None
+        if job.optimizer == "baseline":
+            eye = {name: settings.scale * np.eye(p.n) for name, p in layout.matrices}
+            x0 = layout.join(eye, {name: 0.5 * (lo + hi) for name, (lo, hi) in layout.scalars})
+        result = optim.minimize(job.optimizer, objective, lb, ub, settings, job.seed, x0)
         mats, scalars = layout.split(result.best_z[None, :])
         best_mats = {k: v[0] for k, v in mats.items()}
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}

@@ -1,0 +1,36 @@
+"""The standard-weights baseline: evaluate one given point (K = scale · I), no search.
+
+Recorded like any optimizer run, so reports can put the baseline (e.g. the Q-law with
+K = I) beside the tuned matrices from the same Parquet tables.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from penaltyrun.optim.base import BatchObjective, CountingObjective, OptimResult
+
+
+@dataclass(frozen=True)
+class BaselineSettings:
+    """Settings of the baseline evaluation.
+
+    Attributes
+    ----------
+    scale : float
+        Every penalty matrix is ``scale · I`` (all eigenvalues equal ``scale``; the
+        orthogonal part is then irrelevant, so every parameterization gives the same K).
+    """
+
+    scale: float = 1.0
+
+
+def run_baseline(objective: BatchObjective, x0: np.ndarray) -> OptimResult:
+    """Evaluate the single point ``x0`` (dim,)."""
+    counted = CountingObjective(objective)
+    cost = float(counted(np.asarray(x0, float)[None, :])[0])
+    return OptimResult(best_cost=cost, best_z=np.asarray(x0, float), history=[cost],
+                       n_evals=counted.n_evals, n_iters=1, stop_reason="baseline",
+                       n_nonfinite=counted.n_nonfinite)

@@ -10,24 +10,29 @@ import pandas as pd
 from penaltyrun.io import read_results
 from penaltyrun.report import figures, sections
 from penaltyrun.report.paper import MEAN_COST
-from penaltyrun.report.stats import cell_summary, comparison
+from penaltyrun.report.stats import add_variant, cell_summary, comparison
 from penaltyrun.report.tables import write_table
 
 logger = logging.getLogger(__name__)
 
-SUMMARY_COLUMNS = ["problem", "case", "optimizer", "param", "n_jobs", "success_rate", "best",
-                   "median", "mean", "worst", "std", "mean_ci95_lo", "mean_ci95_hi",
-                   "mean_evals", "mean_wall_s", "paper_mean"]
-COMPARISON_COLUMNS = ["problem", "case", "optimizer", "full_map", "diag_best", "full_best",
-                      "diag_mean", "full_mean", "diag_median", "full_median", "diag_worst",
-                      "full_worst", "diag_std", "full_std", "diag_success", "full_success",
-                      "improvement_mean_pct", "improvement_best_pct", "p_value_mwu",
-                      "paper_diag_mean", "paper_full_mean", "paper_improvement_mean_pct"]
+SUMMARY_COLUMNS = [
+    "problem", "case", "variant", "optimizer", "param", "n_jobs", "success_rate", "best",
+    "median", "mean", "worst", "std", "mean_ci95_lo", "mean_ci95_hi", "mean_evals",
+    "mean_wall_s", "paper_mean",
+]
+COMPARISON_COLUMNS = [
+    "problem", "case", "variant", "optimizer", "full_map", "diag_best", "full_best",
+    "diag_mean", "full_mean", "diag_median", "full_median", "diag_worst", "full_worst",
+    "diag_std", "full_std", "diag_success", "full_success", "improvement_mean_pct",
+    "improvement_best_pct", "p_value_mwu", "paper_diag_mean", "paper_full_mean",
+    "paper_improvement_mean_pct",
+]
 
 
 def _why_full_worse(df: pd.DataFrame, row: pd.Series) -> str:
     """Explain a cell where the best full start is worse than the best diagonal start."""
     sel = df[(df["problem"] == row["problem"]) & (df["case"] == row["case"])
+             & (df["variant"] == row["variant"]) & (df["optimizer"] == row["optimizer"])
              & (df["param"] == row["full_map"])]
     stops = sel["stop_reason"].value_counts().to_dict()
     return (f"- **{row['problem']} / {row['case']} / {row['full_map']}**: best full "
@@ -53,7 +58,7 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    df = read_results(src)
+    df = add_variant(read_results(src))
     summary = cell_summary(df)
     comp = comparison(df)
     summary_cols = [c for c in SUMMARY_COLUMNS if paper or c != "paper_mean"]
@@ -77,17 +82,18 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
         lines += ["## Failed jobs", ""]
         lines += [f"- `{r.job_id}`: {str(r.error).splitlines()[0]}" for r in failed.itertuples()]
         lines.append("")
-    for (problem, case), g in df.groupby(["problem", "case"], sort=True):
-        stem = f"{problem}_{case}"
-        lines += [f"## {problem} / {case}", ""]
-        conv = figures.convergence(g, f"{problem} / {case}: convergence",
-                                   out / f"convergence_{stem}.png")
-        dist = figures.cost_distribution(g, f"{problem} / {case}: best cost per start",
+    for (problem, case, variant), g in df.groupby(["problem", "case", "variant"], sort=True):
+        slug = "".join(ch if ch.isalnum() else "_" for ch in variant)[:60]
+        stem = f"{problem}_{case}" + (f"_{slug}" if variant else "")
+        title = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
+        lines += [f"## {title}", ""]
+        conv = figures.convergence(g, f"{title}: convergence", out / f"convergence_{stem}.png")
+        dist = figures.cost_distribution(g, f"{title}: best cost per start",
                                          out / f"costs_{stem}.png",
                                          MEAN_COST.get((problem, case)) if paper else None)
         lines += [f"![convergence]({conv.name})", "", f"![costs]({dist.name})", ""]
         try:
-            lines += sections.problem_section(problem, case, g, out, paper)
+            lines += sections.problem_section(problem, case, g, out, paper, stem)
         except Exception as exc:  # a figure that cannot be drawn must not lose the tables
             logger.warning("section %s/%s failed: %s", problem, case, exc)
             lines += [f"(problem-specific section failed: {exc})", ""]

@@ -71,7 +71,7 @@ def _simulate(row: pd.Series) -> dict[str, np.ndarray]:
     return prob.simulate(mats, decode_json(row["scalars"]) or None)
 
 
-def case_section(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
+def case_section(df: pd.DataFrame, out: Path, paper: bool, stem: str) -> list[str]:
     """Table and figures (3-D path, element histories, thrust pattern) for one case."""
     problem, case = df["problem"].iloc[0], df["case"].iloc[0]
     mod = problems.module(problem)
@@ -84,7 +84,6 @@ def case_section(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
             sims[f"{label} ({row['param']}, J = {row['best_cost']:.4g})"] = _simulate(row)
     if not sims:
         return lines
-    stem = f"{problem}_{case}"
     fig = plt.figure(figsize=(6 * len(sims), 5.5))
     for i, (label, sim) in enumerate(sims.items(), start=1):
         mod.plot_trajectory(sim, ax=fig.add_subplot(1, len(sims), i, projection="3d"),

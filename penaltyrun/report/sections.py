@@ -46,7 +46,7 @@ def relative_deviation(K: np.ndarray, ref: np.ndarray) -> float:
     return float(np.max(np.abs(K - ref)) / np.max(np.abs(ref)))
 
 
-def zermelo_section(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
+def zermelo_section(df: pd.DataFrame, out: Path, paper: bool, stem: str) -> list[str]:
     """Best K vs the paper's K1/K2, match counts, and the phase-plane figure."""
     mod = problems.module("zermelo")
     best = best_rows(df)
@@ -83,26 +83,27 @@ def zermelo_section(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
     mod.plot_phase_plane(paths, ax=ax)
     ax.set_title("Zermelo: closed-loop paths over the current")
     fig.tight_layout()
-    fig.savefig(out / "zermelo_phase_plane.png", dpi=120)
+    fig.savefig(out / f"{stem}_phase_plane.png", dpi=120)
     plt.close(fig)
     table = pd.DataFrame(rows)
     return ["### Best matrices vs the paper's K1 (diagonal) and K2 (full)", "",
-            markdown(table), "", "![phase plane](zermelo_phase_plane.png)", ""]
+            markdown(table), "", f"![phase plane]({stem}_phase_plane.png)", ""]
 
 
-#: problem name → section builder(df of one case, out dir, paper flag) → Markdown lines.
-SECTIONS: dict[str, Callable[[pd.DataFrame, Path, bool], list[str]]] = {
+#: problem name → section builder(df of one case and variant, out dir, paper flag, file stem)
+#: → Markdown lines.
+SECTIONS: dict[str, Callable[[pd.DataFrame, Path, bool, str], list[str]]] = {
     "zermelo": zermelo_section,
     "lyapunov_transfer": lowthrust.case_section,
     "qlaw": lowthrust.case_section,
 }
 
 
-def problem_section(problem: str, case: str, df: pd.DataFrame, out: Path,
-                    paper: bool) -> list[str]:
+def problem_section(problem: str, case: str, df: pd.DataFrame, out: Path, paper: bool,
+                    stem: str) -> list[str]:
     """Markdown lines of the problem-specific section (empty if none is registered)."""
     builder = SECTIONS.get(problem)
-    return builder(df, out, paper) if builder else []
+    return builder(df, out, paper, stem) if builder else []
 
 
 def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:

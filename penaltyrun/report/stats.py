@@ -8,7 +8,31 @@ from scipy import stats
 
 from penaltyrun.report.paper import FULL_KINDS, paper_mean
 
-CELL = ["problem", "case", "optimizer", "param"]
+CELL = ["problem", "case", "variant", "optimizer", "param"]
+
+
+def add_variant(df: pd.DataFrame) -> pd.DataFrame:
+    """Add a ``variant`` column: the problem parameters that differ from the case's defaults
+    (e.g. ``objective=min_fuel``), so that cells run with other settings are not pooled."""
+    from dataclasses import asdict
+
+    from penaltyrun import problems
+    from penaltyrun.io import decode_json
+
+    labels: dict[tuple[str, str, str], str] = {}
+    for key in df[["problem", "case", "problem_params"]].drop_duplicates().itertuples(
+            index=False):
+        problem, case, params = key
+        try:
+            default = asdict(problems.make(problem, case, {}).params)
+            used = asdict(problems.make(problem, case, decode_json(params) or {}).params)
+            diff = [f"{k}={used[k]}" for k in sorted(used) if used[k] != default[k]]
+            labels[key] = ",".join(diff)
+        except Exception as exc:  # an unknown problem in old results still gets reported
+            labels[key] = f"unresolved ({type(exc).__name__})"
+    out = df.copy()
+    out["variant"] = [labels[k] for k in zip(df["problem"], df["case"], df["problem_params"])]
+    return out
 
 
 def bootstrap_ci(values: np.ndarray, level: float = 0.95, n_boot: int = 2000,
@@ -29,6 +53,8 @@ def cell_summary(df: pd.DataFrame) -> pd.DataFrame:
     Costs of failed jobs (no cost) are excluded from the statistics but counted in
     ``n_jobs``; ``success_rate`` is the share of jobs whose best candidate converged.
     """
+    if "variant" not in df:
+        df = df.assign(variant="")
     rows = []
     for key, g in df.groupby(CELL, sort=True):
         cost = g.loc[g["status"] != "failed", "best_cost"].astype(float).to_numpy()
@@ -59,9 +85,11 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
     means and for the bests. ``p_value`` is the one-sided Mann–Whitney U test that full
     costs are stochastically smaller than diagonal costs.
     """
+    if "variant" not in df:
+        df = df.assign(variant="")
     summary = cell_summary(df)
     rows = []
-    for key, g in summary.groupby(["problem", "case", "optimizer"], sort=True):
+    for key, g in summary.groupby(["problem", "case", "variant", "optimizer"], sort=True):
         diag = g[g["param"] == "diagonal"]
         if diag.empty:
             continue
@@ -73,7 +101,8 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
             if dcost.size and fcost.size:
                 p = float(stats.mannwhitneyu(fcost, dcost, alternative="less").pvalue)
             rows.append({
-                "problem": key[0], "case": key[1], "optimizer": key[2], "full_map": f["param"],
+                "problem": key[0], "case": key[1], "variant": key[2], "optimizer": key[3],
+                "full_map": f["param"],
                 "n_diagonal": int(d["n_jobs"]), "n_full": int(f["n_jobs"]),
                 "diag_best": d["best"], "full_best": f["best"],
                 "diag_mean": d["mean"], "full_mean": f["mean"],
@@ -92,8 +121,9 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _costs(df: pd.DataFrame, problem: str, case: str, optimizer: str, param: str
-           ) -> np.ndarray:
-    sel = ((df["problem"] == problem) & (df["case"] == case) & (df["optimizer"] == optimizer)
-           & (df["param"] == param) & (df["status"] != "failed"))
+def _costs(df: pd.DataFrame, problem: str, case: str, variant: str, optimizer: str,
+           param: str) -> np.ndarray:
+    sel = ((df["problem"] == problem) & (df["case"] == case) & (df["variant"] == variant)
+           & (df["optimizer"] == optimizer) & (df["param"] == param)
+           & (df["status"] != "failed"))
     return df.loc[sel, "best_cost"].astype(float).to_numpy()

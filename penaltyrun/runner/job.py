@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import math
 import time
 import traceback
 from datetime import datetime, timezone
@@ -32,9 +31,7 @@ def _jsonable(value: Any) -> Any:
         return _jsonable(value.tolist())
     if isinstance(value, np.generic):
         return value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    return value
+    return value  # non-finite floats stay floats (json writes Infinity / NaN and reads them)
 
 
 def run_job(job: Job) -> dict[str, Any]:

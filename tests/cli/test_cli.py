@@ -86,7 +86,7 @@ def test_optimize_writes_parquet_report_and_resumes(tmp_path):
     assert (df["git_commit"].str.len() > 0).all() and (df["package_version"] == "0.1.0").all()
     assert df["config"].str.contains("problem:").all()
     assert (run / "report" / "report.md").exists()
-    assert (run / "report" / "zermelo_phase_plane.png").exists()
+    assert (run / "report" / "zermelo_default_phase_plane.png").exists()
     assert not (tmp_path / "report.log").exists()
 
     # A killed run keeps its finished jobs: drop one record and resume.
@@ -119,7 +119,7 @@ def test_multirun_sweep_and_report_command(tmp_path):
     text = (out / "report.md").read_text()
     assert "Diagonal vs full" in text and "paper K" in text
     for name in ("convergence_zermelo_default.png", "costs_zermelo_default.png",
-                 "zermelo_phase_plane.png", "summary.md", "comparison.md"):
+                 "zermelo_default_phase_plane.png", "summary.md", "comparison.md"):
         assert (out / name).exists(), name
     # mode=report is the same report through the Hydra app
     cli("mode=report", f"report.input={sweep}", f"report.output={tmp_path / 'rep2'}",

@@ -1,0 +1,269 @@
+"""Compiled closed loop of rigid-body attitude control (quaternion + body rates + cost).
+
+State ``y = (q0, q1, q2, q3, ω1, ω2, ω3, J)`` (quaternion scalar first, Hamilton convention;
+body rates in rad/s; running cost J in N²·m²·s). Dynamics:
+
+* kinematics q̇ = ½ Ω(ω) q;
+* Euler's equation ω̇ = I⁻¹ (u − ω × (I ω)) with a full 3×3 inertia I (kg·m²);
+* linear feedback u = −G x, x = (q1, q2, q3, ω1, ω2, ω3), G of shape (3, 6) (N·m per unit
+  of x); the PD law u = −K_p q_v − K_d ω is G = [K_p, K_d], the LQR law is G = R⁻¹BᵀP;
+* optional per-axis saturation |u_i| ≤ u_max (``u_max = inf`` turns it off);
+* cost rate J̇ = ½ uᵀu.
+
+Terminal event: ‖(q0 − 1, q1, q2, q3, ω)‖ − tol ≤ 0 (the first time).
+
+Kernel parameter vector ``p`` (length :data:`N_PRM`): ``p[0:9]`` I row-major, ``p[9:18]``
+I⁻¹ row-major, ``p[18:36]`` G row-major, ``p[36]`` u_max, ``p[37]`` tol.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from penaltyrun.dynamics.integrate import dopri5
+
+#: Number of states (quaternion 4, rates 3, cost 1).
+N_STATE = 8
+#: Length of the kernel parameter vector.
+N_PRM = 38
+_I = 0
+_IINV = 9
+_G = 18
+_UMAX = 36
+_TOL = 37
+
+
+@njit(cache=True)
+def _torque(y, p, i):
+    """Component i of the saturated torque u = −G (q_v, ω) (N·m)."""
+    acc = 0.0
+    for j in range(3):
+        acc += p[_G + 6 * i + j] * y[1 + j] + p[_G + 6 * i + 3 + j] * y[4 + j]
+    return min(max(-acc, -p[_UMAX]), p[_UMAX])
+
+
+@njit(cache=True)
+def quat_derivative(q, w, out):
+    """Write q̇ = ½ Ω(ω) q into ``out[0:4]``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (≥4,)
+        Quaternion (scalar first) in ``q[0:4]``.
+    w : ndarray, shape (≥3,)
+        Body rates (rad/s) in ``w[0:3]``.
+    out : ndarray, shape (≥4,)
+        Output (1/s).
+    """
+    w1, w2, w3 = w[0], w[1], w[2]
+    q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
+    out[0] = 0.5 * (-w1 * q1 - w2 * q2 - w3 * q3)
+    out[1] = 0.5 * (w1 * q0 + w3 * q2 - w2 * q3)
+    out[2] = 0.5 * (w2 * q0 - w3 * q1 + w1 * q3)
+    out[3] = 0.5 * (w3 * q0 + w2 * q1 - w1 * q2)
+
+
+@njit(cache=True)
+def linear_control(y, p, u):
+    """Torque u = −G (q_v, ω), saturated per axis at ``p[36]``; writes ``u`` (N·m).
+
+    ``y`` is a state (q, ω, ...) of shape (≥7,), ``p`` the kernel parameter vector.
+    """
+    for i in range(3):
+        u[i] = _torque(y, p, i)
+
+
+@njit(cache=True)
+def pd_control(q, w, Kp, Kd, u_max, u):
+    """Lyapunov PD torque u = −K_p q_v − K_d ω, saturated at ``u_max`` (N·m).
+
+    Parameters
+    ----------
+    q : ndarray, shape (4,)
+        Quaternion (scalar first).
+    w : ndarray, shape (3,)
+        Body rates (rad/s).
+    Kp, Kd : ndarray, shape (3, 3)
+        Gains (N·m and N·m·s).
+    u_max : float
+        Per-axis saturation (``inf``: off).
+    u : ndarray, shape (3,)
+        Output torque.
+    """
+    for i in range(3):
+        acc = 0.0
+        for j in range(3):
+            acc += Kp[i, j] * q[1 + j] + Kd[i, j] * w[j]
+        u[i] = min(max(-acc, -u_max), u_max)
+
+
+@njit(cache=True)
+def euler_rate(w, u, p, out):
+    """Write ω̇ = I⁻¹ (u − ω × (I ω)) into ``out[0:3]`` (rad/s²)."""
+    h0 = p[_I + 0] * w[0] + p[_I + 1] * w[1] + p[_I + 2] * w[2]
+    h1 = p[_I + 3] * w[0] + p[_I + 4] * w[1] + p[_I + 5] * w[2]
+    h2 = p[_I + 6] * w[0] + p[_I + 7] * w[1] + p[_I + 8] * w[2]
+    m0 = u[0] - (w[1] * h2 - w[2] * h1)
+    m1 = u[1] - (w[2] * h0 - w[0] * h2)
+    m2 = u[2] - (w[0] * h1 - w[1] * h0)
+    for i in range(3):
+        out[i] = p[_IINV + 3 * i] * m0 + p[_IINV + 3 * i + 1] * m1 + p[_IINV + 3 * i + 2] * m2
+
+
+@njit(cache=True)
+def rhs(t, y, p, out):
+    """Closed-loop right-hand side dy/dt for ``y = (q, ω, J)`` (shape (8,)); no allocation."""
+    u0 = _torque(y, p, 0)
+    u1 = _torque(y, p, 1)
+    u2 = _torque(y, p, 2)
+    q0, q1, q2, q3 = y[0], y[1], y[2], y[3]
+    w0, w1, w2 = y[4], y[5], y[6]
+    out[0] = 0.5 * (-w0 * q1 - w1 * q2 - w2 * q3)
+    out[1] = 0.5 * (w0 * q0 + w2 * q2 - w1 * q3)
+    out[2] = 0.5 * (w1 * q0 - w2 * q1 + w0 * q3)
+    out[3] = 0.5 * (w2 * q0 + w1 * q1 - w0 * q2)
+    h0 = p[_I + 0] * w0 + p[_I + 1] * w1 + p[_I + 2] * w2
+    h1 = p[_I + 3] * w0 + p[_I + 4] * w1 + p[_I + 5] * w2
+    h2 = p[_I + 6] * w0 + p[_I + 7] * w1 + p[_I + 8] * w2
+    m0 = u0 - (w1 * h2 - w2 * h1)
+    m1 = u1 - (w2 * h0 - w0 * h2)
+    m2 = u2 - (w0 * h1 - w1 * h0)
+    for i in range(3):
+        out[4 + i] = (p[_IINV + 3 * i] * m0 + p[_IINV + 3 * i + 1] * m1
+                      + p[_IINV + 3 * i + 2] * m2)
+    out[7] = 0.5 * (u0 * u0 + u1 * u1 + u2 * u2)
+
+
+@njit(cache=True)
+def distance(y):
+    """Distance to the target ‖(q0 − 1, q1, q2, q3, ω1, ω2, ω3)‖ of a state (shape (≥7,))."""
+    d = (y[0] - 1.0) ** 2
+    for i in range(1, 7):
+        d += y[i] * y[i]
+    return np.sqrt(d)
+
+
+@njit(cache=True)
+def event(t, y, p):
+    """Terminal event distance − tol (fires when ≤ 0)."""
+    return distance(y) - p[_TOL]
+
+
+@njit(cache=True)
+def pack_params(inertia, inertia_inv, G, u_max, tol, p):
+    """Fill the kernel parameter vector ``p`` (shape (N_PRM,)).
+
+    Parameters
+    ----------
+    inertia, inertia_inv : ndarray, shape (3, 3)
+        Inertia (kg·m²) and its inverse.
+    G : ndarray, shape (3, 6)
+        Feedback gain of u = −G (q_v, ω).
+    u_max : float
+        Per-axis torque limit (N·m); ``inf`` turns saturation off.
+    tol : float
+        Terminal-event tolerance on the distance.
+    p : ndarray, shape (N_PRM,)
+        Output.
+    """
+    for i in range(3):
+        for j in range(3):
+            p[_I + 3 * i + j] = inertia[i, j]
+            p[_IINV + 3 * i + j] = inertia_inv[i, j]
+        for j in range(6):
+            p[_G + 6 * i + j] = G[i, j]
+    p[_UMAX] = u_max
+    p[_TOL] = tol
+
+
+@njit(cache=False)  # numba cannot cache callers that pass functions to dopri5
+def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
+                   n_event_samples, max_steps):
+    """Closed-loop runs for a batch of gains and/or initial states.
+
+    Gains and initial states are paired run by run; a batch of size 1 on either side is
+    broadcast (one gain over many starts, or many gains from one start).
+
+    Parameters
+    ----------
+    G : ndarray, shape (B, 3, 6)
+        Gains of u = −G (q_v, ω).
+    y0 : ndarray, shape (S, 7)
+        Initial (q, ω); quaternions are used as given (normalize beforehand).
+    inertia, inertia_inv : ndarray, shape (3, 3)
+        Inertia (kg·m²) and its inverse.
+    t_max : float
+        Horizon cap (s).
+    tol : float
+        Terminal-event tolerance on the distance to (1, 0, 0, 0, 0, 0, 0).
+    u_max : float
+        Per-axis torque limit (N·m); ``inf`` turns saturation off.
+    rtol, atol, max_step : float
+        Integrator tolerances and largest step (s).
+    n_event_samples : int
+        Dense-output event checks per step.
+    max_steps : int
+        Step cap per run.
+
+    Returns
+    -------
+    t_end : ndarray, shape (R,)
+        Event time or where integration stopped (s); R = max(B, S).
+    cost : ndarray, shape (R,)
+        J at ``t_end``.
+    dist : ndarray, shape (R,)
+        Distance to the target at ``t_end``.
+    status : ndarray of int64, shape (R,)
+        Integrator status codes (see :mod:`penaltyrun.dynamics.integrate`).
+    """
+    B = G.shape[0]
+    S = y0.shape[0]
+    R = max(B, S)
+    t_end = np.empty(R)
+    cost = np.empty(R)
+    dist = np.empty(R)
+    status = np.empty(R, dtype=np.int64)
+    p = np.empty(N_PRM)
+    y = np.zeros(N_STATE)
+    for r in range(R):
+        b = r if B > 1 else 0
+        s = r if S > 1 else 0
+        pack_params(inertia, inertia_inv, G[b], u_max, tol, p)
+        for i in range(7):
+            y[i] = y0[s, i]
+        y[7] = 0.0
+        t, yf, st, _ = dopri5(rhs, event, y, p, t_max, rtol, atol, max_step,
+                              n_event_samples, max_steps)
+        t_end[r] = t
+        cost[r] = yf[7]
+        dist[r] = distance(yf)
+        status[r] = st
+    return t_end, cost, dist, status
+
+
+@njit(cache=False)  # numba cannot cache callers that pass functions to dopri5
+def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
+                n_event_samples, max_steps):
+    """One closed-loop run returning the full state at its end.
+
+    Parameters are those of :func:`simulate_batch` for one run (``G`` shape (3, 6),
+    ``y0`` shape (7,)).
+
+    Returns
+    -------
+    t_end : float
+        Event time or where integration stopped (s).
+    y_end : ndarray, shape (8,)
+        (q, ω, J) at ``t_end``.
+    status : int
+        Integrator status code.
+    """
+    p = np.empty(N_PRM)
+    pack_params(inertia, inertia_inv, G, u_max, tol, p)
+    y = np.zeros(N_STATE)
+    for i in range(7):
+        y[i] = y0[i]
+    t, yf, st, _ = dopri5(rhs, event, y, p, t_max, rtol, atol, max_step, n_event_samples,
+                          max_steps)
+    return t, yf, st

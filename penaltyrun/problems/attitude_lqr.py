@@ -43,6 +43,10 @@ logger = logging.getLogger(__name__)
 NAME = "attitude_lqr"
 #: Relative Riccati residual above which the batched solution is re-solved by scipy.
 RESIDUAL_TOL = 1e-9
+#: A solution counts as stabilizing when every closed-loop eigenvalue of A − BK has real part
+#: below −STABILITY_MARGIN (1/s). Within eigenvalue bounds ≥ 1e-8 the slowest true pole is
+#: ~6e-4 1/s; round-off leaves the open-loop poles (all at 0) within ~1e-8 of 0.
+STABILITY_MARGIN = 1e-7
 
 
 def linear_model(inertia: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -76,6 +80,12 @@ def _residual(A: np.ndarray, S: np.ndarray, Q: np.ndarray, P: np.ndarray) -> np.
     return np.linalg.norm(res, axis=(-2, -1)) / np.maximum(scale, 1e-300)
 
 
+def _stabilizing(A: np.ndarray, S: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Whether A − SP is Hurwitz with margin :data:`STABILITY_MARGIN`, per batch entry (B,)."""
+    lam = np.linalg.eigvals(A - S @ P)
+    return np.max(lam.real, axis=-1) < -STABILITY_MARGIN
+
+
 def lqr_gains(Q: Any, R: Any, inertia: Any) -> tuple[np.ndarray, np.ndarray]:
     """LQR gains K = R⁻¹BᵀP for a batch of penalties.
 
@@ -93,7 +103,8 @@ def lqr_gains(Q: Any, R: Any, inertia: Any) -> tuple[np.ndarray, np.ndarray]:
     K : ndarray, shape (B, 3, 6)
         Gains (zero where ``ok`` is False).
     ok : ndarray of bool, shape (B,)
-        Whether a stabilizing solution was found.
+        Whether a stabilizing solution was found (A − BK Hurwitz, see
+        :data:`STABILITY_MARGIN`).
     """
     from scipy.linalg import solve_continuous_are
 
@@ -123,13 +134,15 @@ def lqr_gains(Q: Any, R: Any, inertia: Any) -> tuple[np.ndarray, np.ndarray]:
             P = np.real(X2 @ np.linalg.inv(X1))
             P = 0.5 * (P + np.swapaxes(P, 1, 2))
             ok = good & np.all(np.isfinite(P), axis=(1, 2))
-            ok &= _residual(A, S, Q, np.where(ok[:, None, None], P, 0.0)) < RESIDUAL_TOL
+            P = np.where(ok[:, None, None], P, 0.0)
+            ok &= _residual(A, S, Q, P) < RESIDUAL_TOL
+            ok &= _stabilizing(A, S, P)
         except np.linalg.LinAlgError:
             ok[:] = False
     for b in np.flatnonzero(~ok):
         try:
             P[b] = solve_continuous_are(A, Bm, Q[b], R[b])
-            ok[b] = bool(np.all(np.isfinite(P[b])))
+            ok[b] = bool(np.all(np.isfinite(P[b])) and _stabilizing(A, S[b], P[b]))
         except (np.linalg.LinAlgError, ValueError):
             logger.debug("no stabilizing Riccati solution for candidate %d", b)
             ok[b] = False
@@ -195,6 +208,7 @@ __all__ = [
     "DEFAULT_CASE",
     "NAME",
     "RESIDUAL_TOL",
+    "STABILITY_MARGIN",
     "Params",
     "closed_form_gain",
     "evaluate_grid",

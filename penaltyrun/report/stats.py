@@ -73,7 +73,7 @@ def cell_summary(df: pd.DataFrame) -> pd.DataFrame:
             "mean_ci95_hi": hi,
             "mean_evals": float(g["n_evals"].mean()),
             "mean_wall_s": float(g["wall_time_s"].mean()),
-            "paper_mean": paper_mean(key[0], key[1], key[3]),
+            "paper_mean": paper_mean(key[0], key[1], key[CELL.index("param")]),
         })
     return pd.DataFrame(rows)
 

@@ -1,0 +1,167 @@
+"""The Parquet results schema: normalization, collect, read back."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from penaltyrun.io import (
+    COLUMNS,
+    RESULTS_FILE,
+    SCHEMA,
+    collect,
+    decode_json,
+    find_results,
+    read_results,
+    to_table,
+)
+from penaltyrun.io.schema import JSON_COLUMNS, SCHEMA_VERSION, normalize
+
+
+def record(start=0, **overrides):
+    rec = {
+        "job_id": f"zermelo-default-geagsp-pso-s{start:03d}",
+        "problem": "zermelo", "case": "default", "param": "geagsp", "optimizer": "pso",
+        "start": start, "seed": 1000 + start, "status": "ok", "error": None,
+        "best_cost": 1.5 + start, "best_converged": True, "best_status": "converged",
+        "t_final": 2.0, "best_z": [0.1 * start, 0.2, 0.3], "z_names": ["K.lam1", "K.lam2",
+                                                                        "K.ang1"],
+        "matrices": {"K": [[1.0, 0.5], [0.5, 2.0]]}, "scalars": {},
+        "metrics": {"miss": 1e-6, "steps": 120}, "n_evals": 300, "n_iters": 10,
+        "stop_reason": "ftol", "n_nonfinite": 0, "history": [3.0, 2.0, 1.5 + start],
+        "wall_time_s": 0.25, "optimizer_settings": {"n_particles": 30},
+        "problem_params": {}, "param_options": {"eig_bounds": [0.1, 10.0]},
+        "config_hash": "abc", "config": "a: 1\n", "package_version": "0.1.0",
+        "git_commit": "unknown", "started_at": "2026-01-01T00:00:00",
+        "finished_at": "2026-01-01T00:00:01",
+    }
+    rec.update(overrides)
+    return rec
+
+
+def write_run(run_dir, records):
+    jobs = run_dir / "jobs"
+    jobs.mkdir(parents=True)
+    for r in records:
+        (jobs / f"{r['job_id']}.json").write_text(json.dumps(r))
+    return collect(run_dir)
+
+
+# --------------------------------------------------------------------------- normalize
+
+
+def test_normalize_fills_missing_fields_and_serializes_json():
+    row = normalize({"job_id": "j", "metrics": {"a": [1, 2]}, "scalars": '{"x": 1}',
+                     "unknown_field": 5}, run_id="run1")
+    assert list(row) == list(COLUMNS)
+    assert row["run_id"] == "run1"
+    assert row["schema_version"] == SCHEMA_VERSION
+    assert row["best_cost"] is None and row["history"] is None
+    assert "unknown_field" not in row
+    assert isinstance(row["metrics"], str)
+    assert json.loads(row["metrics"]) == {"a": [1, 2]}
+    assert row["scalars"] == '{"x": 1}'  # already text: kept as is
+
+
+def test_normalize_keeps_record_run_id_and_stringifies_odd_values():
+    row = normalize({"run_id": "own", "metrics": {"path": Path("/x")}},
+                    run_id="other")
+    assert row["run_id"] == "own"
+    assert json.loads(row["metrics"]) == {"path": "/x"}
+
+
+def test_to_table_has_the_schema():
+    table = to_table([record(0), {"job_id": "bare"}], run_id="r")
+    assert table.schema.equals(SCHEMA)
+    assert table.num_rows == 2
+    rows = table.to_pylist()
+    assert rows[1]["best_cost"] is None and rows[1]["run_id"] == "r"
+    assert rows[0]["best_z"] == [0.0, 0.2, 0.3]
+    for col in JSON_COLUMNS:
+        assert table.schema.field(col).type == SCHEMA.field(col).type
+
+
+def test_to_table_empty():
+    table = to_table([])
+    assert table.num_rows == 0 and table.schema.equals(SCHEMA)
+
+
+# --------------------------------------------------------------------------- collect / read
+
+
+def test_collect_and_read_back_file_and_folder(tmp_path):
+    run = tmp_path / "run_a"
+    path = write_run(run, [record(0), record(1, status="failed", best_cost=None,
+                                              history=[], error="boom")])
+    assert path == run / RESULTS_FILE and path.exists()
+    assert pq.read_schema(path).equals(SCHEMA)
+    for source in (path, run, str(run)):
+        df = read_results(source)
+        assert len(df) == 2
+        assert list(df.columns) == list(COLUMNS)
+    df = read_results(path).sort_values("start").reset_index(drop=True)
+    assert (df["run_id"] == "run_a").all()
+    assert df.loc[0, "best_cost"] == 1.5
+    assert math.isnan(df.loc[1, "best_cost"])
+    assert df.loc[1, "error"] == "boom"
+    # list columns survive as sequences with the original values
+    np.testing.assert_allclose(list(df.loc[0, "best_z"]), [0.0, 0.2, 0.3])
+    assert list(df.loc[0, "z_names"]) == ["K.lam1", "K.lam2", "K.ang1"]
+    np.testing.assert_allclose(list(df.loc[0, "history"]), [3.0, 2.0, 1.5])
+    assert len(df.loc[1, "history"]) == 0
+    # JSON columns stay text and decode to the original objects
+    assert decode_json(df.loc[0, "matrices"]) == {"K": [[1.0, 0.5], [0.5, 2.0]]}
+    assert decode_json(df.loc[0, "metrics"]) == {"miss": 1e-6, "steps": 120}
+    assert decode_json(df.loc[0, "param_options"]) == {"eig_bounds": [0.1, 10.0]}
+    assert df.loc[0, "start"] == 0 and df.loc[1, "start"] == 1
+    assert df["schema_version"].tolist() == [SCHEMA_VERSION] * 2
+
+
+def test_nonfinite_floats_survive(tmp_path):
+    run = tmp_path / "r"
+    write_run(run, [record(0, best_cost=float("inf"), history=[float("nan"), 1.0])])
+    df = read_results(run)
+    assert df.loc[0, "best_cost"] == float("inf")
+    h = list(df.loc[0, "history"])
+    assert math.isnan(h[0]) and h[1] == 1.0
+
+
+def test_several_run_folders_concatenated(tmp_path):
+    write_run(tmp_path / "multirun" / "r1", [record(0), record(1)])
+    write_run(tmp_path / "multirun" / "r2", [record(0, param="diagonal")])
+    (tmp_path / "multirun" / "r3" / "jobs").mkdir(parents=True)  # not collected: ignored
+    found = find_results(tmp_path)
+    assert [p.parent.name for p in found] == ["r1", "r2"]
+    df = read_results(tmp_path)
+    assert len(df) == 3
+    assert sorted(df["run_id"]) == ["r1", "r1", "r2"]
+    assert set(df.loc[df["run_id"] == "r2", "param"]) == {"diagonal"}
+    # explicit list of files
+    df2 = read_results(found)
+    assert len(df2) == 3
+
+
+def test_collect_without_jobs_writes_empty_table(tmp_path):
+    run = tmp_path / "empty_run"
+    (run / "jobs").mkdir(parents=True)
+    path = collect(run)
+    df = read_results(path)
+    assert len(df) == 0 and list(df.columns) == list(COLUMNS)
+
+
+def test_read_results_on_empty_folder(tmp_path):
+    with pytest.raises(FileNotFoundError, match=RESULTS_FILE):
+        read_results(tmp_path)
+    with pytest.raises(FileNotFoundError):
+        read_results([])
+
+
+def test_decode_json():
+    assert decode_json(None) is None
+    assert decode_json("") is None
+    assert decode_json('{"a": [1, 2]}') == {"a": [1, 2]}

@@ -76,7 +76,8 @@ def run_optimize(cfg: DictConfig) -> Path:
     jobs = runner.plan_jobs(
         cfg.problem.name, prob.case, cfg.param.name, cfg.optimizer.name, rc.n_starts,
         int(rc.seed), problem_params(cfg), _plain(cfg.param),
-        {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"}, meta)
+        {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"}, meta,
+        holdout=bool(rc.holdout))
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 cfg.param.name, cfg.optimizer.name, run_dir)
     runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,

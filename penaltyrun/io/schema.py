@@ -18,7 +18,7 @@ import pyarrow.parquet as pq
 
 logger = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 RESULTS_FILE = "results.parquet"
 
 #: Column name → (arrow type, description). JSON columns hold text.
@@ -42,6 +42,8 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "matrices": (pa.string(), "JSON: decoded best matrices {name: nested list}"),
     "scalars": (pa.string(), "JSON: best extra scalars"),
     "metrics": (pa.string(), "JSON: detailed evaluation of the best candidate"),
+    "holdout": (pa.string(), "JSON: the best candidate on the problem's held-out set "
+                             "(e.g. attitude robustness grid), or null"),
     "n_evals": (pa.int64(), "objective evaluations"),
     "n_iters": (pa.int64(), "optimizer iterations"),
     "stop_reason": (pa.string(), "ftol (stall) | iters (budget)"),
@@ -60,8 +62,8 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "schema_version": (pa.int64(), "version of this schema"),
 }
 SCHEMA = pa.schema([pa.field(name, typ) for name, (typ, _) in COLUMNS.items()])
-JSON_COLUMNS = ("matrices", "scalars", "metrics", "optimizer_settings", "problem_params",
-                "param_options")
+JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "optimizer_settings",
+                "problem_params", "param_options")
 
 
 def normalize(record: dict[str, Any], run_id: str = "") -> dict[str, Any]:
@@ -109,7 +111,13 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
     paths = find_results(path) if isinstance(path, (str, Path)) else [Path(p) for p in path]
     if not paths:
         raise FileNotFoundError(f"no {RESULTS_FILE} found under {path}")
-    frames = [pq.read_table(p, schema=SCHEMA).to_pandas() for p in paths]
+    frames = []
+    for p in paths:
+        frame = pq.read_table(p).to_pandas()
+        for name in COLUMNS:  # files of older schema versions lack newer columns
+            if name not in frame:
+                frame[name] = None
+        frames.append(frame[list(COLUMNS)])
     return pd.concat(frames, ignore_index=True)
 
 

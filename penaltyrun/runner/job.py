@@ -74,6 +74,9 @@ def run_job(job: Job) -> dict[str, Any]:
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}
         detail = prob.evaluate(best_mats, best_scalars or None)
         converged = bool(detail.get("converged", False))
+        holdout = None
+        if job.holdout and hasattr(prob, "holdout"):
+            holdout = prob.holdout(best_mats, best_scalars or None)
         record.update({
             "status": "ok" if converged else "diverged",
             "error": "" if converged else f"best candidate did not converge "
@@ -87,6 +90,7 @@ def run_job(job: Job) -> dict[str, Any]:
             "matrices": _jsonable(best_mats),
             "scalars": best_scalars,
             "metrics": _jsonable(detail),
+            "holdout": _jsonable(holdout),
             "n_evals": int(result.n_evals),
             "n_iters": int(result.n_iters),
             "stop_reason": result.stop_reason,

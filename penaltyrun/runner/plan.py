@@ -36,6 +36,8 @@ class Job:
         Optimizer settings.
     meta : dict
         Run-level metadata copied into the record (config hash, version, commit, config).
+    holdout : bool
+        Evaluate the best candidate on the problem's held-out set (if it defines one).
     """
 
     problem: str
@@ -48,6 +50,7 @@ class Job:
     param_options: dict[str, Any] = field(default_factory=dict)
     optimizer_options: dict[str, Any] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
+    holdout: bool = True
 
     @property
     def job_id(self) -> str:
@@ -75,7 +78,7 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
               root_seed: int, problem_params: dict[str, Any] | None = None,
               param_options: dict[str, Any] | None = None,
               optimizer_options: dict[str, Any] | None = None,
-              meta: dict[str, Any] | None = None) -> list[Job]:
+              meta: dict[str, Any] | None = None, holdout: bool = True) -> list[Job]:
     """One job per start of a single (problem, case, param, optimizer) cell.
 
     Raises
@@ -90,5 +93,5 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
         key = f"{problem}/{case}/{param}/{optimizer}/{start}"
         jobs.append(Job(problem, case, param, optimizer, start, job_seed(root_seed, key),
                         dict(problem_params or {}), dict(param_options or {}),
-                        dict(optimizer_options or {}), dict(meta or {})))
+                        dict(optimizer_options or {}), dict(meta or {}), bool(holdout)))
     return jobs

@@ -40,7 +40,9 @@ def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
         raise ConfigError(f"optimizer.{unknown[0]}", f"not an option of {name!r}",
                           allowed=sorted(allowed))
     for key in _POSITIVE_INT:
-        if key in options and (not isinstance(options[key], int) or options[key] < 1):
+        value = options.get(key)
+        if key in options and (isinstance(value, bool) or not isinstance(value, int)
+                               or value < 1):
             raise ConfigError(f"optimizer.{key}", f"must be a positive integer, got "
                               f"{options[key]!r}")
     if name == "pso" and options.get("bh_strategy", "nearest") not in (

@@ -16,7 +16,7 @@ import pandas as pd  # noqa: E402
 
 from penaltyrun import problems  # noqa: E402
 from penaltyrun.io import decode_json  # noqa: E402
-from penaltyrun.report import lowthrust  # noqa: E402
+from penaltyrun.report import attitude, lowthrust  # noqa: E402
 from penaltyrun.report.paper import BEST_MATRICES  # noqa: E402
 from penaltyrun.report.tables import markdown  # noqa: E402
 
@@ -94,6 +94,8 @@ def zermelo_section(df: pd.DataFrame, out: Path, paper: bool, stem: str) -> list
 #: → Markdown lines.
 SECTIONS: dict[str, Callable[[pd.DataFrame, Path, bool, str], list[str]]] = {
     "zermelo": zermelo_section,
+    "attitude_lyapunov": attitude.case_section,
+    "attitude_lqr": attitude.case_section,
     "lyapunov_transfer": lowthrust.case_section,
     "qlaw": lowthrust.case_section,
 }
@@ -108,4 +110,4 @@ def problem_section(problem: str, case: str, df: pd.DataFrame, out: Path, paper:
 
 def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
     """Cross-case sections (paper-layout tables spanning several cases)."""
-    return lowthrust.study_sections(df, out, paper)
+    return attitude.study_sections(df, out, paper) + lowthrust.study_sections(df, out, paper)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from numbers import Integral, Real
 from typing import Any
 
@@ -50,6 +50,9 @@ ATTITUDE_TYPES = ("euler", "quaternion", "mrp")
 CARE_FAILURE = "care_failure"
 #: Cost multiple of ``failure_penalty`` for non-finite runs and Riccati failures.
 HARD_FAILURE_FACTOR = 1000.0
+#: Held-out set (referee objection 3): rest-to-rest from yaw, pitch, roll each in
+#: linspace(lo, hi, n) degrees (216 starts).
+HOLDOUT_GRID = {"n": 6, "lo": 10.0, "hi": 350.0}
 
 
 @dataclass(frozen=True)
@@ -485,6 +488,30 @@ class AttitudeProblem:
         res.update({"attitudes_deg": att, "q0": q, "initial_distance": d0})
         return res
 
+    def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                ) -> dict[str, np.ndarray] | None:
+        """Evaluate one candidate on the held-out set (runner hook).
+
+        The set is rest-to-rest (ω0 = 0, whatever this problem's case) from the attitudes of
+        :func:`robustness_grid` with :data:`HOLDOUT_GRID`; inertia, horizon and tolerances are
+        this problem's.
+
+        Returns
+        -------
+        dict of ndarray or None
+            As :func:`evaluate_grid` without ``q0``; ``None`` if the candidate has no gain
+            (LQR without a stabilizing Riccati solution).
+        """
+        params = replace(self.params, omega0=(0.0, 0.0, 0.0))
+        rest = AttitudeProblem(self.name, "rest_to_rest", params, self.matrices, self.gains)
+        try:
+            res = rest.evaluate_grid(mats, robustness_grid(**HOLDOUT_GRID))
+        except ConfigError as exc:
+            logger.warning("no held-out evaluation: %s", exc)
+            return None
+        res.pop("q0")
+        return res
+
 
 def evaluate_grid(problem: Any, mats: Mapping[str, Any], attitudes_deg: Any,
                   params: Mapping[str, Any] | None = None) -> dict[str, np.ndarray]:
@@ -688,6 +715,7 @@ __all__ = [
     "CASES",
     "CASE_PARAMS",
     "DEFAULT_CASE",
+    "HOLDOUT_GRID",
     "AttitudeProblem",
     "Params",
     "attitude_to_quaternion",

@@ -220,6 +220,15 @@ def test_evaluate_grid_matches_single_runs():
     assert direct["cost"][0] == prob.evaluate(GOOD)["cost"]
 
 
+def test_holdout_is_rest_to_rest_grid():
+    prob = make("attitude_lyapunov", "detumble")
+    held = prob.holdout(GOOD)
+    grid = ac.evaluate_grid("attitude_lyapunov", GOOD, ac.robustness_grid())
+    np.testing.assert_array_equal(held["cost"], grid["cost"])
+    np.testing.assert_array_equal(held["attitudes_deg"], ac.robustness_grid())
+    assert held["cost"].shape == (216,)
+
+
 def test_plots_smoke():
     import matplotlib
 

@@ -52,7 +52,6 @@ CARE_FAILURE = "care_failure"
 HARD_FAILURE_FACTOR = 1000.0
 #: Held-out set (referee objection 3): rest-to-rest from yaw, pitch, roll each in
 #: linspace(lo, hi, n) degrees (216 starts).
-HOLDOUT_GRID = {"n": 6, "lo": 10.0, "hi": 350.0}
 
 
 @dataclass(frozen=True)
@@ -90,6 +89,12 @@ class Params(ParamsMixin):
         Eigenvalue (or diagonal-entry) bounds of every tuned matrix.
     failure_penalty : float
         Scale of the graded penalty of runs whose event does not fire (N²·m²·s).
+    holdout_n : int
+        Held-out robustness grid: yaw, pitch and roll each take ``holdout_n`` values in
+        linspace(holdout_lo_deg, holdout_hi_deg) → holdout_n³ rest-to-rest starts
+        (0 disables the held-out evaluation).
+    holdout_lo_deg, holdout_hi_deg : float
+        Range of the held-out Euler angles (degrees).
     """
 
     inertia: tuple = (10.0, 15.0, 20.0)
@@ -106,6 +111,9 @@ class Params(ParamsMixin):
     max_steps: int = 1_000_000
     eig_bounds: tuple = (1e-8, 10.0)
     failure_penalty: float = 1000.0
+    holdout_n: int = 6
+    holdout_lo_deg: float = 10.0
+    holdout_hi_deg: float = 350.0
 
     def __post_init__(self) -> None:
         inertia = self.inertia
@@ -493,19 +501,23 @@ class AttitudeProblem:
         """Evaluate one candidate on the held-out set (runner hook).
 
         The set is rest-to-rest (ω0 = 0, whatever this problem's case) from the attitudes of
-        :func:`robustness_grid` with :data:`HOLDOUT_GRID`; inertia, horizon and tolerances are
-        this problem's.
+        :func:`robustness_grid` with ``holdout_n``, ``holdout_lo_deg``, ``holdout_hi_deg``;
+        inertia, horizon and tolerances are this problem's.
 
         Returns
         -------
         dict of ndarray or None
             As :func:`evaluate_grid` without ``q0``; ``None`` if the candidate has no gain
-            (LQR without a stabilizing Riccati solution).
+            (LQR without a stabilizing Riccati solution) or ``holdout_n`` is 0.
         """
-        params = replace(self.params, omega0=(0.0, 0.0, 0.0))
+        p = self.params
+        if p.holdout_n <= 0:
+            return None
+        grid = robustness_grid(p.holdout_n, p.holdout_lo_deg, p.holdout_hi_deg)
+        params = replace(p, omega0=(0.0, 0.0, 0.0))
         rest = AttitudeProblem(self.name, "rest_to_rest", params, self.matrices, self.gains)
         try:
-            res = rest.evaluate_grid(mats, robustness_grid(**HOLDOUT_GRID))
+            res = rest.evaluate_grid(mats, grid)
         except ConfigError as exc:
             logger.warning("no held-out evaluation: %s", exc)
             return None
@@ -715,7 +727,6 @@ __all__ = [
     "CASES",
     "CASE_PARAMS",
     "DEFAULT_CASE",
-    "HOLDOUT_GRID",
     "AttitudeProblem",
     "Params",
     "attitude_to_quaternion",

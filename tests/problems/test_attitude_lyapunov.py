@@ -229,6 +229,14 @@ def test_holdout_is_rest_to_rest_grid():
     assert held["cost"].shape == (216,)
 
 
+def test_holdout_grid_is_configurable():
+    small = lyap.make_problem("detumble", {"holdout_n": 2, "holdout_lo_deg": 20.0,
+                                           "holdout_hi_deg": 40.0}).holdout(GOOD)
+    assert small["cost"].shape == (8,)
+    np.testing.assert_array_equal(np.unique(small["attitudes_deg"]), [20.0, 40.0])
+    assert lyap.make_problem("detumble", {"holdout_n": 0}).holdout(GOOD) is None
+
+
 def test_plots_smoke():
     import matplotlib
 

@@ -4,7 +4,8 @@ PIP ?= $(PYTHON) -m pip
 PYTEST_ARGS ?=
 WORKERS ?= 2
 
-.PHONY: help install install-dev run test test-slow lint bench reproduce-tables clean
+.PHONY: help install install-dev run test test-slow lint bench reproduce-tables \
+	reproduce-zermelo reproduce-attitude reproduce-lowthrust report clean
 
 help:  ## list targets
 	@grep -E '^[a-zA-Z_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  %-18s %s\n", $$1, $$2}'
@@ -35,11 +36,31 @@ bench: install  ## benchmarks (ratios against references measured in the same ru
 	@for f in bench/bench_attitude.py bench/bench_lowthrust.py; do \
 		if [ -f $$f ]; then $(PYTHON) $$f || exit 1; fi; done
 
-reproduce-tables: install  ## paper studies (default profiles) and the report
-	$(PYTHON) -m penaltyrun.cli -m +experiment=zermelo_paper runner.workers=$(WORKERS) \
-		hydra.sweep.dir=outputs/reproduce/zermelo
-	$(PYTHON) -m penaltyrun.report_cli outputs/reproduce -o outputs/reproduce/report
-	@echo "report: outputs/reproduce/report/report.md"
+REPRO ?= outputs/reproduce
+RESUME ?= false
+SWEEP = $(PYTHON) -m penaltyrun.cli -m runner.workers=$(WORKERS) runner.report=false \
+	runner.resume=$(RESUME)
+
+reproduce-zermelo: install  ## Zermelo study: 4 maps × PSO and DE × 10 starts (≈ 1 min)
+	$(SWEEP) +experiment=zermelo_paper hydra.sweep.dir=$(REPRO)/zermelo
+
+reproduce-attitude: install  ## attitude Tables 1-2 + robustness, and the t_f sweep
+	$(SWEEP) +experiment=attitude_paper hydra.sweep.dir=$(REPRO)/attitude
+	$(SWEEP) +experiment=attitude_horizon hydra.sweep.dir=$(REPRO)/attitude_horizon
+
+reproduce-lowthrust: install  ## low-thrust Tables 3-5: K = I baselines, generic law, Q-law
+	$(SWEEP) +experiment=lowthrust_baseline hydra.sweep.dir=$(REPRO)/lowthrust_baseline
+	$(SWEEP) +experiment=lowthrust_cap hydra.sweep.dir=$(REPRO)/lowthrust_cap
+	$(SWEEP) +experiment=lowthrust_generic hydra.sweep.dir=$(REPRO)/lowthrust_generic
+	$(SWEEP) +experiment=lowthrust_qlaw hydra.sweep.dir=$(REPRO)/lowthrust_qlaw
+	$(SWEEP) +experiment=lowthrust_qlaw_minfuel hydra.sweep.dir=$(REPRO)/lowthrust_qlaw_minfuel
+
+report:  ## report of everything under $(REPRO)
+	$(PYTHON) -m penaltyrun.report_cli $(REPRO) -o $(REPRO)/report
+	@echo "report: $(REPRO)/report/report.md"
+
+reproduce-tables: reproduce-zermelo reproduce-attitude reproduce-lowthrust  ## all paper studies, then the report (RESUME=true continues an interrupted run)
+	$(MAKE) report REPRO=$(REPRO)
 
 clean:  ## remove outputs and caches
 	rm -rf outputs .pytest_cache .ruff_cache .hypothesis

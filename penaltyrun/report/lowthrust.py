@@ -121,12 +121,14 @@ def comparison_table(df: pd.DataFrame, problem: str, paper: bool) -> pd.DataFram
     """Tables 4/5: diagonal vs full per case (converged starts only), savings, K = I."""
     m = _metrics(df[df["problem"] == problem])
     rows = []
-    for (case, objective), g in m.groupby(["case", "objective"], sort=True):
+    if "variant" not in m:
+        m = m.assign(variant="")
+    for (case, variant, objective), g in m.groupby(["case", "variant", "objective"], sort=True):
         search = g[g["optimizer"].isin(SEARCH)]
         d = _cell_stats(search[search["param"] == "diagonal"])
         f = _cell_stats(search[search["param"] != "diagonal"])
         base = g[g["optimizer"] == "baseline"]
-        row = {"case": case, "objective": objective,
+        row = {"case": case, "variant": variant, "objective": objective,
                "K=I": (f"{base['tof_days'].iloc[0]:.3f} d" if len(base)
                        and base["best_converged"].iloc[0] else
                        (str(base["end_status"].iloc[0]) if len(base) else "—")),
@@ -148,7 +150,9 @@ def case_e_note(df: pd.DataFrame) -> list[str]:
     """Original Case E vs E*: how each ended, with which law, weights and caps."""
     lines = []
     m = _metrics(df[df["case"].isin(["E", "Estar"])])
-    for (problem, case), g in m.groupby(["problem", "case"], sort=True):
+    if "variant" not in m:
+        m = m.assign(variant="")
+    for (problem, case, variant), g in m.groupby(["problem", "case", "variant"], sort=True):
         for _, r in g.sort_values(["optimizer", "param", "start"]).groupby(
                 ["optimizer", "param"]).head(1).iterrows():
             cap = (decode_json(r["problem_params"]) or {}).get("a_cap_km", 0.0) or "none"
@@ -156,7 +160,8 @@ def case_e_note(df: pd.DataFrame) -> list[str]:
                          ["best_converged"].fillna(False).astype(bool).sum())
             n_all = int(((g["optimizer"] == r["optimizer"]) & (g["param"] == r["param"])).sum())
             errors = ", ".join(f"{k} {v:.3g}" for k, v in (r["final_errors"] or {}).items())
-            lines.append(f"- **{problem} / {case}**, {r['optimizer']} / {r['param']}: "
+            label = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
+            lines.append(f"- **{label}**, {r['optimizer']} / {r['param']}: "
                          f"{n_conv}/{n_all} starts converged; a-cap {cap}; first start ended "
                          f"`{r['end_status']}` after {r['tof_days']:.1f} d"
                          f"{'; final errors: ' + errors if errors else ''}.")

@@ -44,8 +44,9 @@ SWEEP = $(PYTHON) -m penaltyrun.cli -m runner.workers=$(WORKERS) runner.report=f
 reproduce-zermelo: install  ## Zermelo study: 4 maps × PSO and DE × 10 starts (≈ 1 min)
 	$(SWEEP) +experiment=zermelo_paper hydra.sweep.dir=$(REPRO)/zermelo
 
-reproduce-attitude: install  ## attitude Tables 1-2 + robustness, and the t_f sweep
+reproduce-attitude: install  ## attitude Tables 1-2 + robustness, DE check of diagonal, t_f sweep
 	$(SWEEP) +experiment=attitude_paper hydra.sweep.dir=$(REPRO)/attitude
+	$(SWEEP) +experiment=attitude_de_check hydra.sweep.dir=$(REPRO)/attitude_de_check
 	$(SWEEP) +experiment=attitude_horizon hydra.sweep.dir=$(REPRO)/attitude_horizon
 
 reproduce-lowthrust: install  ## low-thrust Tables 3-5: K = I baselines, generic law, Q-law

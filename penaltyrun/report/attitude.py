@@ -155,7 +155,7 @@ def horizon_section(df: pd.DataFrame, out: Path) -> list[str]:
     ax.set_yscale("log")
     ax.set_xlabel("horizon t_f (s)")
     ax.set_ylabel("best J over starts")
-    ax.set_title("Attitude: best cost vs horizon (J falls roughly like t_f⁻³)")
+    ax.set_title("Attitude: best cost vs horizon t_f")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()

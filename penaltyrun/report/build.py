@@ -39,7 +39,7 @@ def _why_full_worse(df: pd.DataFrame, row: pd.Series) -> str:
             f"{row['full_best']:.6g} > best diagonal {row['diag_best']:.6g}. The diagonal set "
             f"is contained in the full set, so this is an optimizer shortfall, not a property "
             f"of the parameterization: stop reasons of the full starts {stops}, mean "
-            f"evaluations {sel['n_evals'].mean():.0f} for {sel['best_z'].map(len).max()} "
+            f"evaluations {sel['n_evals'].mean():.0f} for {sel['best_z'].dropna().map(len).max()} "
             f"variables. A larger budget (optimizer.iters, optimizer.n_particles) or a "
             f"longer stall window (optimizer.ftol_iter) is needed.")
 

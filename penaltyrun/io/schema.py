@@ -24,7 +24,7 @@ RESULTS_FILE = "results.parquet"
 #: Column name → (arrow type, description). JSON columns hold text.
 COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "run_id": (pa.string(), "run directory name"),
-    "job_id": (pa.string(), "problem-case-param-optimizer-sNNN"),
+    "job_id": (pa.string(), "problem-case-param-optimizer-<settings hash>-sNNN"),
     "problem": (pa.string(), "problem name"),
     "case": (pa.string(), "problem case"),
     "param": (pa.string(), "parameterization (diagonal, full, geagsp, givens, cayley)"),

@@ -38,6 +38,9 @@ from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ParamsMixin, S
 
 logger = logging.getLogger(__name__)
 
+#: Parameters that do not change a run's result (reports do not split cells by them).
+VARIANT_IGNORE = ("holdout_n", "holdout_lo_deg", "holdout_hi_deg")
+
 CASES = ("detumble", "rest_to_rest")
 DEFAULT_CASE = "detumble"
 CASE_PARAMS: dict[str, dict[str, Any]] = {
@@ -727,6 +730,7 @@ __all__ = [
     "CASES",
     "CASE_PARAMS",
     "DEFAULT_CASE",
+    "VARIANT_IGNORE",
     "AttitudeProblem",
     "Params",
     "attitude_to_quaternion",

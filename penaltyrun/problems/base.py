@@ -6,7 +6,9 @@ A problem module (``penaltyrun/problems/<name>.py``) exposes
 * a frozen parameters dataclass (``Params``) with units in its docstring;
 * ``make_problem(case, params) -> Problem`` where ``params`` is a plain mapping of
   overrides (from the ``problem`` config group, already merged with the case's entry);
-* plot helpers (``plot_*``) that take the dictionaries returned by ``Problem.simulate``.
+* plot helpers (``plot_*``) that take the dictionaries returned by ``Problem.simulate``;
+* optionally ``VARIANT_IGNORE``: parameter names that do not change a run's result (e.g.
+  the size of a held-out grid), so reports do not split cells by them.
 
 The layer below (``penaltyrun.dynamics``) holds the compiled kernels; this layer wraps them
 into objects that know the problem's matrices, bounds and cost. Hydra and pandas stay out.

@@ -51,6 +51,9 @@ _BASE_E = {
     "targeted": ("a", "e", "i", "Omega", "omega"),
 }
 
+#: Parameters that do not change a run's result (reports do not split cells by them).
+VARIANT_IGNORE = ("sim_max_points",)
+
 CASE_PARAMS: dict[str, dict[str, Any]] = {
     "A": {
         "a0_km": 7000.0, "e0": 0.01, "i0_deg": 0.05, "a_target_km": 42000.0, "e_target": 0.01,

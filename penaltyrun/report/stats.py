@@ -24,9 +24,11 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
             index=False):
         problem, case, params = key
         try:
+            ignore = getattr(problems.module(problem), "VARIANT_IGNORE", ())
             default = asdict(problems.make(problem, case, {}).params)
             used = asdict(problems.make(problem, case, decode_json(params) or {}).params)
-            diff = [f"{k}={used[k]}" for k in sorted(used) if used[k] != default[k]]
+            diff = [f"{k}={used[k]}" for k in sorted(used)
+                    if used[k] != default[k] and k not in ignore]
             labels[key] = ",".join(diff)
         except Exception as exc:  # an unknown problem in old results still gets reported
             labels[key] = f"unresolved ({type(exc).__name__})"

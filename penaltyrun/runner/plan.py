@@ -53,9 +53,20 @@ class Job:
     holdout: bool = True
 
     @property
+    def settings_hash(self) -> str:
+        """Hash of the settings that change the result (problem, map and optimizer options).
+
+        Part of :attr:`job_id`, so a resumed run never mistakes a job finished with other
+        settings for one of its own.
+        """
+        return config_hash([self.problem_params, self.param_options,
+                            self.optimizer_options])[:8]
+
+    @property
     def job_id(self) -> str:
         """Stable identifier, also the job's file name in the run directory."""
-        return f"{self.problem}-{self.case}-{self.param}-{self.optimizer}-s{self.start:03d}"
+        return (f"{self.problem}-{self.case}-{self.param}-{self.optimizer}-"
+                f"{self.settings_hash}-s{self.start:03d}")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-dict form (JSON-serializable)."""

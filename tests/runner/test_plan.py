@@ -16,11 +16,22 @@ def test_job_ids_unique_and_formatted():
     jobs = plan_jobs(*CELL, n_starts=12, root_seed=0)
     ids = [j.job_id for j in jobs]
     assert len(set(ids)) == 12
-    assert ids[0] == "zermelo-default-geagsp-pso-s000"
-    assert ids[11] == "zermelo-default-geagsp-pso-s011"
+    settings = jobs[0].settings_hash
+    assert len(settings) == 8 and all(j.settings_hash == settings for j in jobs)
+    assert ids[0] == f"zermelo-default-geagsp-pso-{settings}-s000"
+    assert ids[11] == f"zermelo-default-geagsp-pso-{settings}-s011"
     assert [j.start for j in jobs] == list(range(12))
     other = plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=12, root_seed=0)
     assert not set(ids) & {j.job_id for j in other}
+
+
+def test_other_settings_give_other_job_ids_but_same_seeds():
+    base = plan_jobs(*CELL, n_starts=2, root_seed=0, optimizer_options={"iters": 10})
+    more = plan_jobs(*CELL, n_starts=2, root_seed=0, optimizer_options={"iters": 20})
+    tf80 = plan_jobs(*CELL, n_starts=2, root_seed=0, optimizer_options={"iters": 10},
+                     problem_params={"t_max": 80.0})
+    assert len({j.job_id for j in base + more + tf80}) == 6
+    assert [j.seed for j in base] == [j.seed for j in more] == [j.seed for j in tf80]
 
 
 def test_plan_is_stable_across_calls():

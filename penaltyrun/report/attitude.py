@@ -208,7 +208,10 @@ def robustness_section(df: pd.DataFrame, out: Path) -> list[str]:
     axes[0].set_xlabel(f"held-out starts converged within t_f (of {rows[0]['held-out starts']})")
     axes[0].legend(fontsize=8)
     if improvements:
-        axes[1].boxplot(list(improvements.values()), vert=False, showfliers=True)
+        horizontal = ({"orientation": "horizontal"}
+                      if tuple(int(v) for v in matplotlib.__version__.split(".")[:2]) >= (3, 10)
+                      else {"vert": False})
+        axes[1].boxplot(list(improvements.values()), showfliers=True, **horizontal)
         axes[1].set_yticks(range(1, len(improvements) + 1), list(improvements), fontsize=7)
         axes[1].axvline(0.0, color="k", lw=0.8)
     axes[1].set_xlabel("improvement of full over diagonal where both converge (%)")

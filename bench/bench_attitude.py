@@ -21,12 +21,10 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import os
-import platform
-import subprocess
 import time
 
 import numpy as np
+from machine import machine
 
 from penaltyrun import problems
 from penaltyrun.penalty import make as make_param
@@ -35,17 +33,6 @@ from penaltyrun.problems import attitude_lqr, attitude_lyapunov
 
 REFERENCE = {"attitude_lyapunov": attitude_lyapunov.reference_cost,
              "attitude_lqr": attitude_lqr.reference_cost}
-
-
-def machine() -> str:
-    """CPU model (lscpu), core count and Python version."""
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True, check=True).stdout
-        model = next(line.split(":", 1)[1].strip() for line in out.splitlines()
-                     if line.startswith("Model name"))
-    except (OSError, subprocess.CalledProcessError, StopIteration):
-        model = platform.processor() or "unknown CPU"
-    return f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
 def layout_for(prob: problems.Problem, kind: str):  # noqa: ANN201 (DecisionLayout)

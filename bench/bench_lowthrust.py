@@ -22,11 +22,10 @@ import argparse
 import contextlib
 import io
 import math
-import platform
-import subprocess
 import time
 
 import numpy as np
+from machine import machine
 from scipy.integrate import solve_ivp
 
 from penaltyrun.dynamics import lowthrust as lt
@@ -35,19 +34,6 @@ from penaltyrun.problems import qlaw
 EYE = {"K": np.eye(5)}
 PYQLAW_EXIT = {0: "not run", 1: "converged", 2: "converged (relaxed tolerance)",
                -1: "mass floor", -2: "time cap", -3: "NaN thrust angles (stopped)"}
-
-
-def machine() -> str:
-    """CPU model (lscpu) and core count."""
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True, check=True).stdout
-        model = next(line.split(":", 1)[1].strip() for line in out.splitlines()
-                     if line.startswith("Model name"))
-    except (OSError, subprocess.CalledProcessError, StopIteration):
-        model = platform.processor() or "unknown CPU"
-    import os
-
-    return f"{model}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
 def run_penaltyrun(case: str, repeat: int) -> tuple[float, float, dict]:

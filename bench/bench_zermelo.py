@@ -7,10 +7,10 @@ the ratio is measured in the same run. Usage: ``python bench/bench_zermelo.py [-
 from __future__ import annotations
 
 import argparse
-import platform
 import time
 
 import numpy as np
+from machine import machine
 
 from penaltyrun import problems
 from penaltyrun.penalty import make as make_param
@@ -46,8 +46,7 @@ def main() -> None:
         par.decode(Z)
     decode_rate = args.n * args.repeats / (time.perf_counter() - decode_t0)
 
-    print(f"machine: {platform.processor() or platform.machine()}, python "
-          f"{platform.python_version()}")
+    print(f"machine: {machine()}")
     print(f"production (numba DOPRI5, batch of {args.n}): {fast_rate:10.0f} evaluations/s")
     print(f"reference (scipy solve_ivp DOP853):        {ref_rate:10.1f} evaluations/s")
     print(f"speed-up: {fast_rate / ref_rate:.0f}x   (max relative cost difference {err:.1e})")

@@ -65,6 +65,7 @@ def run_optimize(cfg: DictConfig) -> Path:
     from penaltyrun import io, report, runner
 
     prob, _, _ = _setup(cfg)  # validate everything before any job starts
+    runner.check_settings(cfg.runner.workers, cfg.runner.backend)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     resolved = OmegaConf.to_container(cfg, resolve=True)
     hashed = {k: resolved[k] for k in ("problem", "case", "param", "optimizer")}

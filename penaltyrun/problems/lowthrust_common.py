@@ -318,7 +318,7 @@ class LowThrustProblem:
         Keys: ``cost``, ``converged``, ``status``, ``t_final`` (s), ``tof_days``,
         ``final_mass_kg``, ``propellant_kg``, ``revolutions``, ``n_steps``, ``final_errors``
         (a_km, e, i_deg, Omega_deg, omega_deg), ``final_elements`` (a_km, e, i_deg,
-        Omega_deg, omega_deg, nu_deg), ``q_final``, ``objective``, ``control_step_s``,
+        Omega_deg, omega_deg, nu_deg in [0, 360)), ``q_final``, ``objective``, ``control_step_s``,
         ``rk4_substeps``, ``eta_cut`` (min-fuel only), ``case``, ``problem``, ``targeted``,
         ``tolerances`` (a_km, e, angle_deg).
         """
@@ -357,7 +357,7 @@ class LowThrustProblem:
             "final_elements": {
                 "a_km": float(oe[0]), "e": float(oe[1]), "i_deg": float(oe[2] / DEG),
                 "Omega_deg": float(oe[3] / DEG), "omega_deg": float(oe[4] / DEG),
-                "nu_deg": float(oe[5] / DEG),
+                "nu_deg": float(np.mod(oe[5], 2.0 * np.pi) / DEG),
             },
         }
         if self.scalars:

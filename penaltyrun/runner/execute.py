@@ -109,6 +109,20 @@ def _dask(jobs: list[Job], workers: int, scheduler: str | None
             cluster.close()
 
 
+def check_settings(workers: Any, backend: Any) -> None:
+    """Validate ``runner.workers`` and ``runner.backend``.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key (and the allowed backends).
+    """
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise ConfigError("runner.workers", f"must be a positive integer, got {workers!r}")
+    if backend not in BACKENDS:
+        raise ConfigError("runner.backend", f"unknown backend {backend!r}", allowed=BACKENDS)
+
+
 def execute(jobs: Iterable[Job], run_dir: Path, workers: int = 1, backend: str = "local",
             scheduler: str | None = None, resume: bool = False, retry_failed: bool = False,
             on_record: Callable[[dict[str, Any]], None] | None = None) -> list[Path]:
@@ -134,10 +148,7 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int = 1, backend: str =
     list of Path
         Record files written in this call.
     """
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-        raise ConfigError("runner.workers", f"must be a positive integer, got {workers!r}")
-    if backend not in BACKENDS:
-        raise ConfigError("runner.backend", f"unknown backend {backend!r}", allowed=BACKENDS)
+    check_settings(workers, backend)
     todo = pending_jobs(jobs, run_dir, resume, retry_failed)
     Path(run_dir, JOBS_DIR).mkdir(parents=True, exist_ok=True)
     stream = _local(todo, workers) if backend == "local" else _dask(todo, workers, scheduler)

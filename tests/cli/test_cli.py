@@ -73,6 +73,7 @@ def test_bad_input_is_one_readable_error(tmp_path, args, fragments):
     for fragment in fragments:
         assert fragment in proc.stderr, proc.stderr
     assert len(proc.stderr.strip().splitlines()) <= 6, proc.stderr
+    assert not (tmp_path / "run" / "jobs").exists()
 
 
 def test_optimize_writes_parquet_report_and_resumes(tmp_path):

@@ -35,7 +35,9 @@ def _why_full_worse(df: pd.DataFrame, row: pd.Series) -> str:
              & (df["variant"] == row["variant"]) & (df["optimizer"] == row["optimizer"])
              & (df["param"] == row["full_map"])]
     stops = sel["stop_reason"].value_counts().to_dict()
-    return (f"- **{row['problem']} / {row['case']} / {row['full_map']}**: best full "
+    variant = f" [{row['variant']}]" if row["variant"] else ""
+    return (f"- **{row['problem']} / {row['case']}{variant} / {row['optimizer']} / "
+            f"{row['full_map']}**: best full "
             f"{row['full_best']:.6g} > best diagonal {row['diag_best']:.6g}. The diagonal set "
             f"is contained in the full set, so this is an optimizer shortfall, not a property "
             f"of the parameterization: stop reasons of the full starts {stops}, mean "

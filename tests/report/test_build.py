@@ -74,3 +74,21 @@ def test_lowthrust_tables_and_case_e(tmp_path):
     assert table4.iloc[0]["K=I"] == "impact"
     for name in ("qlaw_C_trajectory.png", "qlaw_C_elements.png", "qlaw_C_thrust.png"):
         assert (out / name).stat().st_size > 0
+
+
+def test_full_worse_explanation_names_the_cell_and_its_variant():
+    from penaltyrun.report.build import _why_full_worse
+
+    df = pd.DataFrame({
+        "problem": ["qlaw"] * 2, "case": ["Estar"] * 2,
+        "variant": ["objective=min_fuel"] * 2, "optimizer": ["pso"] * 2,
+        "param": ["full"] * 2, "stop_reason": ["iters", "ftol"], "n_evals": [120, 96],
+        "best_z": [np.zeros(16), np.zeros(16)],
+    })
+    row = pd.Series({"problem": "qlaw", "case": "Estar", "variant": "objective=min_fuel",
+                     "optimizer": "pso", "full_map": "full", "full_best": 514.4,
+                     "diag_best": 476.6})
+    text = _why_full_worse(df, row)
+    assert "qlaw / Estar [objective=min_fuel] / pso / full" in text
+    assert "514.4 > best diagonal 476.6" in text
+    assert "mean evaluations 108 for 16 variables" in text

@@ -469,9 +469,16 @@ def plot_trajectory(sim: Mapping[str, np.ndarray], out: Any = None, ax: Any = No
     return _finish(fig, out)
 
 
+#: Histories plotted unwrapped (rad in ``simulate`` output).
+ANGLE_KEYS = ("Omega", "omega")
+
+
 def plot_elements(sims: Mapping[str, Mapping[str, np.ndarray]], out: Any = None,
                   axes: Any = None) -> Any:
     """Element histories (a, e, i, Ω, ω, mass vs days) of labelled runs, e.g. diagonal vs full.
+
+    Ω and ω are unwrapped (continuous through ±180°), so an angle settling at 180° does not
+    draw a wall of jumps between −180° and 180°.
 
     Parameters
     ----------
@@ -483,12 +490,15 @@ def plot_elements(sims: Mapping[str, Mapping[str, np.ndarray]], out: Any = None,
     """
     fig, axes = _figure_axes(axes, nrows=6)
     rows = (("a", "a [km]", 1.0), ("e", "e [-]", 1.0), ("i", "i [deg]", 1.0 / DEG),
-            ("Omega", "Ω [deg]", 1.0 / DEG), ("omega", "ω [deg]", 1.0 / DEG),
+            ("Omega", "Ω [deg, unwrapped]", 1.0 / DEG), ("omega", "ω [deg, unwrapped]", 1.0 / DEG),
             ("mass", "m [kg]", 1.0))
     for label, sim in sims.items():
         days = np.asarray(sim["t"]) / 86400.0
         for ax, (key, _, fac) in zip(axes, rows, strict=True):
-            ax.plot(days, np.asarray(sim[key]) * fac, lw=0.8, label=label)
+            values = np.asarray(sim[key], float)
+            if key in ANGLE_KEYS:
+                values = np.unwrap(values)
+            ax.plot(days, values * fac, lw=0.8, label=label)
     for ax, (_, ylabel, _) in zip(axes, rows, strict=True):
         ax.set_ylabel(ylabel)
     axes[0].legend(loc="best", fontsize="small")

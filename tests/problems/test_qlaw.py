@@ -169,6 +169,21 @@ def test_simulate_histories_and_plots(tmp_path) -> None:
         assert (tmp_path / name).stat().st_size > 1000
 
 
+def test_element_plot_unwraps_angles_settling_at_180_degrees() -> None:
+    import matplotlib.pyplot as plt
+
+    n = 50
+    omega = np.deg2rad(np.where(np.arange(n) % 2 == 0, 179.9, -179.9))
+    sim = {"t": np.linspace(0.0, 86400.0, n), "a": np.full(n, 26500.0), "e": np.full(n, 0.7),
+           "i": np.full(n, 1.5), "Omega": omega, "omega": omega, "mass": np.full(n, 1500.0)}
+    fig = qlaw.plot_elements({"run": sim})
+    for ax in fig.axes[3:5]:
+        y = ax.lines[0].get_ydata()
+        assert np.max(np.abs(np.diff(y))) < 1.0
+        assert abs(y[0] - 179.9) < 1e-9
+    plt.close(fig)
+
+
 def test_one_sided_selector_option() -> None:
     res = qlaw.make_problem("C", {"selector_sides": 1}).evaluate(EYE)
     assert res["status"] in {"converged", "tof_cap", "stall", "impact", "escape", "rev_cap"}

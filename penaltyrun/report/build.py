@@ -99,7 +99,12 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
         except Exception as exc:  # a figure that cannot be drawn must not lose the tables
             logger.warning("section %s/%s failed: %s", problem, case, exc)
             lines += [f"(problem-specific section failed: {exc})", ""]
-    lines += sections.study_sections(df, out, paper)
+    for family, study in sections.STUDIES.items():
+        try:
+            lines += study(df, out, paper)
+        except Exception as exc:  # one family's study must not lose the rest of the report
+            logger.warning("%s study sections failed: %s", family, exc)
+            lines += [f"({family} study sections failed: {exc!r})", ""]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     logger.info("report: %s", out / "report.md")
     return out

@@ -149,7 +149,10 @@ def comparison_table(df: pd.DataFrame, problem: str, paper: bool) -> pd.DataFram
 def case_e_note(df: pd.DataFrame) -> list[str]:
     """Original Case E vs E*: how each ended, with which law, weights and caps."""
     lines = []
-    m = _metrics(df[df["case"].isin(["E", "Estar"])])
+    rows = df[df["case"].isin(["E", "Estar"])]
+    if rows.empty:
+        return []
+    m = _metrics(rows)
     if "variant" not in m:
         m = m.assign(variant="")
     for (problem, case, variant), g in m.groupby(["problem", "case", "variant"], sort=True):

@@ -108,6 +108,8 @@ def problem_section(problem: str, case: str, df: pd.DataFrame, out: Path, paper:
     return builder(df, out, paper, stem) if builder else []
 
 
-def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
-    """Cross-case sections (paper-layout tables spanning several cases)."""
-    return attitude.study_sections(df, out, paper) + lowthrust.study_sections(df, out, paper)
+#: Cross-case sections (paper-layout tables spanning several cases), by problem family.
+STUDIES: dict[str, Callable[[pd.DataFrame, Path, bool], list[str]]] = {
+    "attitude": attitude.study_sections,
+    "low thrust": lowthrust.study_sections,
+}

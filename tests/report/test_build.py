@@ -38,6 +38,7 @@ def test_attitude_tables_figures_and_studies(attitude_report):
     for heading in ("Table 1 — attitude LQR", "Table 2 — attitude Lyapunov PD",
                     "horizon study", "robustness on held-out initial attitudes"):
         assert heading in text
+    assert "section failed" not in text and "sections failed" not in text
     table = pd.read_csv(attitude_report / "table_attitude_lqr_pso.csv")
     assert list(table["start"][:2]) == ["1", "2"]
     paper = table.set_index("start").loc["paper mean"]
@@ -63,6 +64,7 @@ def test_lowthrust_tables_and_case_e(tmp_path):
     for heading in ("Table 3 (case definitions used)", "Table 5 — Q-law",
                     "Table 4 — generic Lyapunov law", "original Case E"):
         assert heading in text
+    assert "section failed" not in text and "sections failed" not in text
     table5 = pd.read_csv(out / "table_qlaw.csv")
     row_c = table5[(table5["case"] == "C") & table5["variant"].isna()].iloc[0]
     assert row_c["K=I"] == "1.412 d"
@@ -74,6 +76,15 @@ def test_lowthrust_tables_and_case_e(tmp_path):
     assert table4.iloc[0]["K=I"] == "impact"
     for name in ("qlaw_C_trajectory.png", "qlaw_C_elements.png", "qlaw_C_thrust.png"):
         assert (out / name).stat().st_size > 0
+
+
+def test_lowthrust_report_without_case_e(tmp_path):
+    """A plain `penaltyrun problem=qlaw case=A` has no E/E* rows: the report must still build."""
+    run_cells(tmp_path / "run", [("qlaw", "C", "diagonal", "baseline", 1, {})])
+    text = (build_report(tmp_path / "run", tmp_path / "report") / "report.md").read_text()
+    assert "Table 5 — Q-law" in text
+    assert "original Case E" not in text
+    assert "failed" not in text
 
 
 def test_full_worse_explanation_names_the_cell_and_its_variant():

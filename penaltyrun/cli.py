@@ -3,6 +3,7 @@
 
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
 line ``penaltyrun: error: <key>: <message> (allowed: ...)`` on stderr and exit code 2.
+Ctrl-C ends a run with one line saying how to resume it and exit code 130.
 """
 
 from __future__ import annotations
@@ -21,12 +22,13 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun import __version__
-from penaltyrun.errors import ConfigError
+from penaltyrun.errors import ConfigError, RunInterruptedError
 
 logger = logging.getLogger("penaltyrun")
 
 MODES = ("optimize", "evaluate", "report")
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
 
 
 def git_commit() -> str:
@@ -84,7 +86,7 @@ def run_optimize(cfg: DictConfig) -> Path:
     runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
                    scheduler=rc.scheduler, resume=bool(rc.resume),
                    retry_failed=bool(rc.retry_failed))
-    path = io.collect(run_dir)
+    path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
@@ -208,15 +210,19 @@ def preflight(argv: list[str]) -> None:
 
 
 def _guard(func: Callable[[], Any]) -> Any:
-    """Run ``func``; turn user errors into one line on stderr and exit code 2."""
+    """Run ``func``; turn user errors into one line on stderr and exit code 2, and Ctrl-C
+    into one line and exit code 130 (finished jobs are on disk already)."""
     try:
         return func()
-    except ConfigError as exc:
+    except (ConfigError, FileNotFoundError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
-    except FileNotFoundError as exc:
-        print(f"penaltyrun: error: {exc}", file=sys.stderr)
-        sys.exit(EXIT_USAGE)
+    except RunInterruptedError as exc:
+        print(f"penaltyrun: {exc}", file=sys.stderr)
+        sys.exit(EXIT_INTERRUPTED)
+    except KeyboardInterrupt:
+        print("penaltyrun: interrupted", file=sys.stderr)
+        sys.exit(EXIT_INTERRUPTED)
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")

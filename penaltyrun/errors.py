@@ -25,3 +25,23 @@ class ConfigError(ValueError):
         if self.allowed:
             text += f" (allowed: {', '.join(self.allowed)})"
         super().__init__(text)
+
+
+class RunInterruptedError(Exception):
+    """A run stopped by the user (Ctrl-C / SIGINT); its finished jobs stay on disk.
+
+    Parameters
+    ----------
+    run_dir : str
+        Run directory holding ``jobs/<job_id>.json``.
+    n_done, n_todo : int
+        Jobs finished in this call and jobs this call had to run.
+    """
+
+    def __init__(self, run_dir: str, n_done: int, n_todo: int) -> None:
+        self.run_dir = run_dir
+        self.n_done = n_done
+        self.n_todo = n_todo
+        super().__init__(
+            f"interrupted after {n_done} of {n_todo} jobs; finished jobs are kept in "
+            f"{run_dir}/jobs; rerun the same command with runner.resume=true to run the rest")

@@ -85,10 +85,27 @@ def to_table(records: Iterable[dict[str, Any]], run_id: str = "") -> pa.Table:
     return pa.Table.from_pylist(rows, schema=SCHEMA)
 
 
-def collect(run_dir: Path) -> Path:
-    """Gather ``run_dir/jobs/*.json`` into ``run_dir/results.parquet``; returns its path."""
+def collect(run_dir: Path, job_ids: Iterable[str] | None = None) -> Path:
+    """Gather ``run_dir/jobs/*.json`` into ``run_dir/results.parquet``; returns its path.
+
+    Parameters
+    ----------
+    run_dir : Path
+        Run directory.
+    job_ids : iterable of str, optional
+        Only these jobs (the run's plan). Records of other jobs in the folder, e.g. from an
+        earlier call with other settings, stay on disk but are left out of the table.
+    """
     run_dir = Path(run_dir)
-    records = [json.loads(p.read_text()) for p in sorted((run_dir / "jobs").glob("*.json"))]
+    files = sorted((run_dir / "jobs").glob("*.json"))
+    if job_ids is not None:
+        wanted = set(job_ids)
+        kept = [f for f in files if f.stem in wanted]
+        if len(kept) < len(files):
+            logger.info("left out %d job records of other settings in %s",
+                        len(files) - len(kept), run_dir / "jobs")
+        files = kept
+    records = [json.loads(f.read_text()) for f in files]
     path = run_dir / RESULTS_FILE
     pq.write_table(to_table(records, run_id=run_dir.name), path)
     logger.info("wrote %d job records to %s", len(records), path)

@@ -16,7 +16,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
-from penaltyrun.errors import ConfigError
+from penaltyrun.errors import ConfigError, RunInterruptedError
 from penaltyrun.runner.job import run_job
 from penaltyrun.runner.plan import Job
 
@@ -63,13 +63,30 @@ def _local(jobs: list[Job], workers: int) -> Iterator[tuple[Job, dict[str, Any]]
         for job in jobs:
             yield job, run_job(job)
         return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers)
+    try:
         futures = {pool.submit(run_job, job): job for job in jobs}
         remaining = set(futures)
         while remaining:
             done, remaining = wait(remaining, return_when=FIRST_COMPLETED)
             for fut in done:
                 yield futures[fut], _result_or_failure(futures[fut], fut)
+    except BaseException:  # Ctrl-C or an abandoned stream: do not wait for jobs in flight
+        _stop_pool(pool)
+        raise
+    pool.shutdown()
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Cancel queued jobs and end the workers now (their jobs in flight are not recorded)."""
+    terminate = getattr(pool, "terminate_workers", None)  # Python >= 3.14
+    if terminate is not None:
+        terminate()
+        return
+    workers = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in workers:
+        proc.terminate()
 
 
 def _result_or_failure(job: Job, fut: Any) -> dict[str, Any]:
@@ -147,6 +164,12 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int = 1, backend: str =
     -------
     list of Path
         Record files written in this call.
+
+    Raises
+    ------
+    RunInterruptedError
+        On Ctrl-C (SIGINT): queued jobs are cancelled, workers stopped, and every record
+        written so far stays on disk for ``resume``.
     """
     check_settings(workers, backend)
     todo = pending_jobs(jobs, run_dir, resume, retry_failed)
@@ -154,15 +177,20 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int = 1, backend: str =
     stream = _local(todo, workers) if backend == "local" else _dask(todo, workers, scheduler)
     written = []
     t0 = time.perf_counter()
-    for i, (job, record) in enumerate(stream, start=1):
-        written.append(write_record(run_dir, job, record))
-        elapsed = time.perf_counter() - t0
-        eta = elapsed / i * (len(todo) - i)
-        cost = record.get("best_cost")
-        logger.info("[%d/%d] %s: %s%s (%.1f s; elapsed %.0f s, ETA %.0f s)", i, len(todo),
-                    job.job_id, record.get("status"),
-                    f", cost {cost:.6g}" if isinstance(cost, float) else "",
-                    record.get("wall_time_s", float("nan")), elapsed, eta)
-        if on_record is not None:
-            on_record(record)
+    try:
+        for i, (job, record) in enumerate(stream, start=1):
+            written.append(write_record(run_dir, job, record))
+            elapsed = time.perf_counter() - t0
+            eta = elapsed / i * (len(todo) - i)
+            cost = record.get("best_cost")
+            logger.info("[%d/%d] %s: %s%s (%.1f s; elapsed %.0f s, ETA %.0f s)", i, len(todo),
+                        job.job_id, record.get("status"),
+                        f", cost {cost:.6g}" if isinstance(cost, float) else "",
+                        record.get("wall_time_s", float("nan")), elapsed, eta)
+            if on_record is not None:
+                on_record(record)
+    except KeyboardInterrupt:
+        raise RunInterruptedError(str(run_dir), len(written), len(todo)) from None
+    finally:
+        stream.close()
     return written

@@ -1,8 +1,11 @@
 """The command line, run as a user would (subprocesses): outputs, errors, resume."""
 
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pandas as pd
@@ -133,3 +136,29 @@ def test_report_of_missing_input_is_clear(tmp_path):
                            str(tmp_path / "nothing")], capture_output=True, text=True)
     assert proc.returncode == 2
     assert "does not exist" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_ctrl_c_keeps_finished_jobs_and_resume_completes(tmp_path):
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) mid-run."""
+    run = tmp_path / "run"
+    args = ["problem=zermelo", "param=full", "runner.n_starts=12", "runner.workers=2",
+            "optimizer.n_particles=400", "optimizer.ftol_iter=100", "runner.report=false",
+            f"hydra.run.dir={run}"]
+    proc = subprocess.Popen([sys.executable, "-m", "penaltyrun.cli", *args], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not list((run / "jobs").glob("*.json")) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    assert "runner.resume=true" in err.strip().splitlines()[-1]
+    records = [json.loads(p.read_text()) for p in (run / "jobs").glob("*.json")]
+    assert 1 <= len(records) < 12
+    assert {r["status"] for r in records} == {"ok"}  # jobs in flight are not recorded
+
+    resumed = cli(*args, "runner.resume=true", cwd=tmp_path)
+    assert f"{len(records)} of 12 jobs already finished" in resumed.stderr + resumed.stdout
+    assert len(pd.read_parquet(run / RESULTS_FILE)) == 12

@@ -122,6 +122,16 @@ def test_collect_and_read_back_file_and_folder(tmp_path):
     assert df["schema_version"].tolist() == [SCHEMA_VERSION] * 2
 
 
+def test_collect_only_the_planned_jobs(tmp_path):
+    run = tmp_path / "run"
+    write_run(run, [record(0), record(1), record(2, job_id="zermelo-other-settings-s000")])
+    planned = [record(0)["job_id"], record(1)["job_id"], "not-run-yet"]
+    df = read_results(collect(run, planned))
+    assert sorted(df["job_id"]) == sorted(planned[:2])
+    assert (run / "jobs" / "zermelo-other-settings-s000.json").exists()  # nothing deleted
+    assert len(read_results(collect(run))) == 3
+
+
 def test_nonfinite_floats_survive(tmp_path):
     run = tmp_path / "r"
     write_run(run, [record(0, best_cost=float("inf"), history=[float("nan"), 1.0])])

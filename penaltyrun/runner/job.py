@@ -19,6 +19,8 @@ logger = logging.getLogger(__name__)
 #: Job-level statuses: ``ok`` (best candidate converged), ``diverged`` (the optimizer's
 #: best candidate did not meet the terminal condition), ``failed`` (the job raised).
 JOB_STATUSES = ("ok", "diverged", "failed")
+#: Seconds between the progress lines of a long job (see :class:`Heartbeat`).
+HEARTBEAT_S = 60.0
 
 
 def _jsonable(value: Any) -> Any:
@@ -32,6 +34,44 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value  # non-finite floats stay floats (json writes Infinity / NaN and reads them)
+
+
+class Heartbeat:
+    """Batched objective that logs a progress line at most every ``interval_s`` seconds.
+
+    A low-thrust job can run for an hour between the runner's per-job lines; this says it
+    is alive, how many candidates it has evaluated and the best cost so far.
+
+    Parameters
+    ----------
+    func : callable
+        Batched objective Z (B, dim) → (B,).
+    label : str
+        Job id shown in the line.
+    interval_s : float, optional
+        Seconds between lines (default :data:`HEARTBEAT_S`).
+    """
+
+    def __init__(self, func: Any, label: str, interval_s: float | None = None) -> None:
+        self.func = func
+        self.label = label
+        self.interval_s = float(HEARTBEAT_S if interval_s is None else interval_s)
+        self.n_evals = 0
+        self.best = float("inf")
+        self.t0 = self.last = time.perf_counter()
+
+    def __call__(self, Z: np.ndarray) -> np.ndarray:
+        cost = np.asarray(self.func(Z), dtype=float)
+        self.n_evals += cost.size
+        finite = cost[np.isfinite(cost)]
+        if finite.size:
+            self.best = min(self.best, float(finite.min()))
+        now = time.perf_counter()
+        if now - self.last >= self.interval_s:
+            self.last = now
+            logger.info("%s: running, %d evaluations in %.0f s, best cost so far %.6g",
+                        self.label, self.n_evals, now - self.t0, self.best)
+        return cost
 
 
 def run_job(job: Job) -> dict[str, Any]:
@@ -60,9 +100,11 @@ def run_job(job: Job) -> dict[str, Any]:
                                        job.optimizer_options)
         lb, ub = layout.bounds()
 
-        def objective(Z: np.ndarray) -> np.ndarray:
+        def evaluate(Z: np.ndarray) -> np.ndarray:
             mats, scalars = layout.split(Z)
             return prob.evaluate_batch(mats, scalars or None).cost
+
+        objective = Heartbeat(evaluate, job.job_id)
 
         x0 = None
         if job.optimizer == "baseline":

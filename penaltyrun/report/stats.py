@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from typing import Any
+
 import numpy as np
 import pandas as pd
 from scipy import stats
@@ -34,6 +37,41 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
             labels[key] = f"unresolved ({type(exc).__name__})"
     out = df.copy()
     out["variant"] = [labels[k] for k in zip(df["problem"], df["case"], df["problem_params"])]
+    return _add_budget_variant(out)
+
+
+def _canonical(settings_json: Any) -> str:
+    from penaltyrun.io import decode_json
+
+    return json.dumps(decode_json(settings_json) or {}, sort_keys=True)
+
+
+def _add_budget_variant(df: pd.DataFrame) -> pd.DataFrame:
+    """Split cells whose jobs ran with different optimizer settings.
+
+    Within one (problem, case, variant, optimizer), the settings used by most jobs keep the
+    variant as it is; every other settings set gets its differences appended, e.g.
+    ``iters=300,n_particles=100``, so a small-budget side study is never pooled into a
+    main cell (nor the other way round).
+    """
+    if "optimizer_settings" not in df or df.empty:
+        return df
+    settings = df["optimizer_settings"].map(_canonical)
+    suffix = pd.Series("", index=df.index)
+    for _, g in settings.groupby([df["problem"], df["case"], df["variant"], df["optimizer"]]):
+        counts = g.value_counts()
+        if len(counts) < 2:
+            continue
+        main = max(counts.index, key=lambda k: (counts[k], k))
+        reference = json.loads(main)
+        for key in counts.index.drop(main):
+            used = json.loads(key)
+            diff = [f"{k}={used.get(k)}" for k in sorted(set(used) | set(reference))
+                    if used.get(k) != reference.get(k)]
+            suffix[g.index[g == key]] = ",".join(diff)
+    out = df.copy()
+    out["variant"] = [",".join(part for part in (v, b) if part)
+                      for v, b in zip(df["variant"], suffix)]
     return out
 
 

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from penaltyrun.report.stats import bootstrap_ci, cell_summary, comparison
+from penaltyrun.report.stats import add_variant, bootstrap_ci, cell_summary, comparison
 from penaltyrun.report.tables import fmt, markdown, write_table
 
 DIAG = [4.0, 5.0, 6.0, 9.0]
@@ -166,3 +166,20 @@ def test_write_table(tmp_path):
     assert (tmp_path / "out" / "t.md").read_text() == text + "\n"
     back = pd.read_csv(tmp_path / "out" / "t.csv")
     assert back.equals(df)
+
+
+def test_add_variant_splits_cells_run_with_another_budget():
+    main = '{"n_particles": 200, "iters": 400, "ftol": 1e-06}'
+    side = '{"iters": 300, "ftol": 1e-06, "n_particles": 100}'
+    same_as_main = '{"ftol": 1e-06, "iters": 400, "n_particles": 200}'  # other key order
+    frame = pd.DataFrame({
+        "problem": ["zermelo"] * 6, "case": ["default"] * 6,
+        "problem_params": ["{}"] * 5 + ['{"t_max": 500.0}'],
+        "optimizer": ["pso"] * 5 + ["pso"], "param": ["diagonal", "full"] * 3,
+        "optimizer_settings": [main, main, same_as_main, side, side, side],
+    })
+    variants = add_variant(frame)["variant"].tolist()
+    assert variants[:3] == ["", "", ""]
+    assert variants[3:5] == ["iters=300,n_particles=100"] * 2
+    # alone in its problem variant, the side budget is that cell's main budget
+    assert variants[5] == "t_max=500.0"

@@ -10,6 +10,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -173,6 +174,9 @@ def horizon_section(df: pd.DataFrame, out: Path) -> list[str]:
                 label=label + (f" ({budget})" if several else ""))
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ax.set_xticks(sorted(best["t_f"].unique()))
+    ax.xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.set_xlabel("horizon t_f (s)")
     ax.set_ylabel("best J over starts")
     ax.set_title("Attitude: best cost vs horizon t_f")

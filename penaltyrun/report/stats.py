@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from penaltyrun.io import decode_json
 from penaltyrun.report.paper import FULL_KINDS, paper_mean
 
 CELL = ["problem", "case", "variant", "optimizer", "param"]
@@ -20,7 +21,6 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     from dataclasses import asdict
 
     from penaltyrun import problems
-    from penaltyrun.io import decode_json
 
     labels: dict[tuple[str, str, str], str] = {}
     for key in df[["problem", "case", "problem_params"]].drop_duplicates().itertuples(
@@ -41,8 +41,7 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def _canonical(settings_json: Any) -> str:
-    from penaltyrun.io import decode_json
-
+    """Optimizer settings as JSON with sorted keys (equal settings, equal strings)."""
     return json.dumps(decode_json(settings_json) or {}, sort_keys=True)
 
 

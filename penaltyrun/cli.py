@@ -62,6 +62,32 @@ def _setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
                         {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"})
 
 
+def _warm_start_share(cfg: DictConfig) -> float:
+    """Share of the budget spent on the diagonal stage (0: no warm start).
+
+    Raises
+    ------
+    ConfigError
+        A warm start without ``optimizer.max_evals``, or a share outside (0, 1).
+    """
+    rc = cfg.runner
+    if not rc.get("warm_start", False):
+        return 0.0
+    if not isinstance(rc.warm_start, bool):
+        raise ConfigError("runner.warm_start", f"must be true or false, got {rc.warm_start!r}")
+    share = rc.get("warm_start_share", 0.3)
+    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0 < share < 1:
+        raise ConfigError("runner.warm_start_share", f"must be in (0, 1), got {share!r}")
+    if cfg.optimizer.get("max_evals") is None:
+        raise ConfigError("runner.warm_start", "needs an evaluation budget: set "
+                          "optimizer.max_evals (the diagonal stage spends "
+                          "warm_start_share of it)")
+    if cfg.optimizer.name == "grid" or cfg.optimizer.name == "baseline":
+        raise ConfigError("runner.warm_start", f"not for optimizer {cfg.optimizer.name!r}",
+                          allowed=("pso", "de", "cmaes"))
+    return float(share)
+
+
 def run_optimize(cfg: DictConfig) -> Path:
     """Plan and run the jobs of one cell, then write results.parquet (and the report)."""
     from penaltyrun import io, report, runner
@@ -76,11 +102,12 @@ def run_optimize(cfg: DictConfig) -> Path:
             "package_version": __version__, "git_commit": git_commit(),
             "run_id": run_dir.name}
     rc = cfg.runner
+    warm_share = _warm_start_share(cfg)
     jobs = runner.plan_jobs(
         cfg.problem.name, prob.case, cfg.param.name, cfg.optimizer.name, rc.n_starts,
         int(rc.seed), problem_params(cfg), _plain(cfg.param),
         {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"}, meta,
-        holdout=bool(rc.holdout))
+        holdout=bool(rc.holdout), warm_start_share=warm_share)
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 cfg.param.name, cfg.optimizer.name, run_dir)
     runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,

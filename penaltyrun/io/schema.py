@@ -18,7 +18,7 @@ import pyarrow.parquet as pq
 
 logger = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 RESULTS_FILE = "results.parquet"
 
 #: Column name → (arrow type, description). JSON columns hold text.
@@ -28,7 +28,7 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "problem": (pa.string(), "problem name"),
     "case": (pa.string(), "problem case"),
     "param": (pa.string(), "parameterization (diagonal, full, geagsp, givens, cayley)"),
-    "optimizer": (pa.string(), "optimizer name (pso, de)"),
+    "optimizer": (pa.string(), "optimizer name (pso, de, cmaes, grid, baseline)"),
     "start": (pa.int64(), "start index within the cell"),
     "seed": (pa.int64(), "job seed derived from runner.seed"),
     "status": (pa.string(), "ok | diverged | failed"),
@@ -46,9 +46,17 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
                              "(e.g. attitude robustness grid), or null"),
     "n_evals": (pa.int64(), "objective evaluations"),
     "n_iters": (pa.int64(), "optimizer iterations"),
-    "stop_reason": (pa.string(), "ftol (stall) | iters (budget)"),
+    "stop_reason": (pa.string(), "ftol (stall) | iters | max_evals (budget) | restarts | "
+                                 "grid+local, '+polish' after a local polish"),
     "n_nonfinite": (pa.int64(), "non-finite costs replaced by a penalty"),
     "history": (pa.list_(pa.float64()), "best cost after each iteration"),
+    "trace_evals": (pa.list_(pa.int64()), "anytime trace: cumulative evaluations at each "
+                                          "improvement of the best cost (and at the end)"),
+    "trace_best": (pa.list_(pa.float64()), "anytime trace: best cost so far at trace_evals"),
+    "max_evals": (pa.int64(), "evaluation budget of the job (null: none)"),
+    "warm_start": (pa.string(), "JSON: the diagonal stage of a warm-started full job "
+                                "(share, evaluations, best cost, best diagonal matrices), or "
+                                "null"),
     "wall_time_s": (pa.float64(), "wall time of the job"),
     "optimizer_settings": (pa.string(), "JSON: optimizer settings"),
     "problem_params": (pa.string(), "JSON: problem parameter overrides"),
@@ -62,8 +70,8 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "schema_version": (pa.int64(), "version of this schema"),
 }
 SCHEMA = pa.schema([pa.field(name, typ) for name, (typ, _) in COLUMNS.items()])
-JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "optimizer_settings",
-                "problem_params", "param_options")
+JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "warm_start",
+                "optimizer_settings", "problem_params", "param_options")
 
 
 def normalize(record: dict[str, Any], run_id: str = "") -> dict[str, Any]:

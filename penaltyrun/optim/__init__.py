@@ -1,4 +1,10 @@
-"""Optimizers over a box with a batched objective (``pso``: pyswarms; ``de``: scipy)."""
+"""Optimizers over a box with a batched objective and an evaluation budget.
+
+``pso`` (pyswarms), ``de`` (scipy differential evolution), ``cmaes`` (IPOP-CMA-ES from
+``cma``), ``grid`` (exhaustive grid + local search, dimension ≤ 4) and ``baseline`` (one
+given point). :func:`minimize` runs one of them, then the shared bounded polish
+(``optimizer.polish``) inside the same ``max_evals``.
+"""
 
 from __future__ import annotations
 
@@ -9,18 +15,29 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.optim.base import BatchObjective, OptimResult
+from penaltyrun.optim.base import (
+    POLISH_METHODS,
+    BatchObjective,
+    CommonSettings,
+    CountingObjective,
+    OptimResult,
+    main_budget,
+)
 from penaltyrun.optim.baseline import BaselineSettings, run_baseline
+from penaltyrun.optim.cmaes import CMAESSettings, run_cmaes
 from penaltyrun.optim.de import DESettings, run_de
+from penaltyrun.optim.grid import GridSettings, run_grid
+from penaltyrun.optim.polish import local_search
 from penaltyrun.optim.pso import PSOSettings, run_pso
 
 OPTIMIZERS = {"pso": (PSOSettings, run_pso), "de": (DESettings, run_de),
+              "cmaes": (CMAESSettings, run_cmaes), "grid": (GridSettings, run_grid),
               "baseline": (BaselineSettings, run_baseline)}
 
 _POSITIVE_INT = ("n_particles", "iters", "popsize", "ftol_iter")
 
 
-Settings = PSOSettings | DESettings | BaselineSettings
+Settings = PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
 
 
 def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
@@ -29,7 +46,7 @@ def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
     Raises
     ------
     ConfigError
-        Unknown optimizer, unknown option, or a non-positive budget.
+        Unknown optimizer, unknown option, or a value out of range (naming the key).
     """
     if name not in OPTIMIZERS:
         raise ConfigError("optimizer.name", f"unknown optimizer {name!r}", allowed=OPTIMIZERS)
@@ -41,32 +58,64 @@ def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
                           allowed=sorted(allowed))
     for key in _POSITIVE_INT:
         value = options.get(key)
+        if key in options and value is None and key == "popsize" and name == "cmaes":
+            continue
         if key in options and (isinstance(value, bool) or not isinstance(value, int)
                                or value < 1):
             raise ConfigError(f"optimizer.{key}", f"must be a positive integer, got "
                               f"{options[key]!r}")
-    if name == "pso" and options.get("bh_strategy", "nearest") not in (
-            "nearest", "random", "shrink", "reflective", "intermediate", "periodic"):
-        raise ConfigError("optimizer.bh_strategy", "unknown boundary strategy",
-                          allowed=("nearest", "random", "shrink", "reflective",
-                                   "intermediate", "periodic"))
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
-    return cls(**values)
+    if isinstance(values.get("polish"), bool):  # older configs: DE's `polish: true`
+        values["polish"] = "L-BFGS-B" if values["polish"] else "none"
+    try:
+        settings = cls(**values)
+    except TypeError as exc:
+        raise ConfigError("optimizer", str(exc)) from None
+    validate = getattr(settings, "validate", None)
+    if validate is not None:
+        validate()
+    return settings
+
+
+def check_dimension(settings: Settings, dim: int) -> None:
+    """Refuse a decision box the optimizer cannot handle (the grid above 4 variables).
+
+    Raises
+    ------
+    ConfigError
+    """
+    check = getattr(settings, "check_dimension", None)
+    if check is not None:
+        check(dim)
 
 
 def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
              settings: Settings, seed: int, x0: np.ndarray | None = None) -> OptimResult:
     """Run optimizer ``name`` with ``settings`` on ``objective`` over [lb, ub].
 
-    ``x0`` is the point the ``baseline`` optimizer evaluates (required for it, ignored by
-    the search optimizers).
+    The search spends at most ``max_evals`` minus the polish share; the polish (if
+    ``settings.polish`` is not ``none``) starts from the search's best and spends the rest.
+    ``x0`` is the point the ``baseline`` optimizer evaluates (required for it) and the warm
+    start of the search optimizers (evaluated once before the search, so the result is never
+    worse than ``x0``).
     """
     if name == "baseline":
         if x0 is None:
             raise ValueError("the baseline optimizer needs x0")
         return run_baseline(objective, x0)
-    return OPTIMIZERS[name][1](objective, lb, ub, settings, seed)
+    counted = CountingObjective(objective, max_evals=settings.max_evals)
+    counted.limit = main_budget(settings)
+    if x0 is not None:  # a warm start is evaluated first: the run's best is never worse
+        counted(np.asarray(x0, float)[None, :])
+    result = OPTIMIZERS[name][1](counted, lb, ub, settings, seed, x0)
+    if settings.polish == "none":
+        return result
+    counted.limit = settings.max_evals
+    outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
+    stop = result.stop_reason + ("+polish" if outcome != "max_evals" else "+polish:max_evals")
+    return counted.result(result.history, result.n_iters, stop)
 
 
-__all__ = ["OPTIMIZERS", "BaselineSettings", "DESettings", "OptimResult", "PSOSettings",
-           "Settings", "make_settings", "minimize"]
+__all__ = ["OPTIMIZERS", "POLISH_METHODS", "BaselineSettings", "CMAESSettings",
+           "CommonSettings", "DESettings", "GridSettings", "OptimResult", "PSOSettings",
+           "Settings", "check_dimension", "make_settings", "minimize"]

@@ -1,7 +1,10 @@
-"""Optimizer contract: minimize a batched objective over a box.
+"""Optimizer contract: minimize a batched objective over a box within an evaluation budget.
 
-An objective takes a batch Z of shape (B, dim) and returns B finite costs. Every
-optimizer returns an :class:`OptimResult`.
+An objective takes a batch Z of shape (B, dim) and returns B finite costs. Every optimizer
+wraps it in a :class:`CountingObjective`, which counts evaluations, enforces the hard cap
+``max_evals`` (a batch that would cross it is cut, then :class:`BudgetExhaustedError` ends the
+search), keeps the best candidate ever evaluated and records the anytime trace (best-so-far
+cost against cumulative evaluations). Every optimizer returns an :class:`OptimResult`.
 """
 
 from __future__ import annotations
@@ -12,9 +15,61 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from penaltyrun.errors import ConfigError
+
 logger = logging.getLogger(__name__)
 
 BatchObjective = Callable[[np.ndarray], np.ndarray]
+
+#: Local-search methods of ``scipy.optimize.minimize`` that accept box bounds.
+POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP")
+
+
+class BudgetExhaustedError(Exception):
+    """Raised by :class:`CountingObjective` once ``max_evals`` evaluations are spent."""
+
+
+@dataclass(frozen=True)
+class CommonSettings:
+    """Settings shared by every search optimizer (the first fields of each settings class).
+
+    Attributes
+    ----------
+    max_evals : int or None
+        Hard cap on objective evaluations of one start (``None``: only the optimizer's own
+        iteration limit and stall rule). Every job records ``n_evals ≤ max_evals``.
+    polish : str
+        Bounded local search from the optimizer's best, inside the same budget: ``none`` or
+        a ``scipy.optimize.minimize`` method (``L-BFGS-B``, ``Nelder-Mead``, ``Powell``,
+        ``TNC``, ``SLSQP``).
+    polish_share : float
+        Share of ``max_evals`` kept for the polish (the search stops earlier to leave it).
+        Without ``max_evals`` the polish runs until the local method's own tolerance.
+    """
+
+    max_evals: int | None = None
+    polish: str = "none"
+    polish_share: float = 0.1
+
+    def validate(self) -> None:
+        """Check the shared fields.
+
+        Raises
+        ------
+        ConfigError
+            Naming the key.
+        """
+        if self.max_evals is not None and (isinstance(self.max_evals, bool)
+                                           or not isinstance(self.max_evals, int)
+                                           or self.max_evals < 1):
+            raise ConfigError("optimizer.max_evals", f"must be a positive integer or null, "
+                              f"got {self.max_evals!r}")
+        if self.polish not in POLISH_METHODS:
+            raise ConfigError("optimizer.polish", f"unknown local search {self.polish!r}",
+                              allowed=POLISH_METHODS)
+        if not 0.0 < float(self.polish_share) < 1.0:
+            raise ConfigError("optimizer.polish_share", f"must be in (0, 1), got "
+                              f"{self.polish_share!r}")
 
 
 @dataclass
@@ -24,19 +79,24 @@ class OptimResult:
     Attributes
     ----------
     best_cost : float
-        Lowest objective value found.
+        Lowest objective value evaluated.
     best_z : ndarray, shape (dim,)
         Decision vector achieving it.
     history : list of float
-        Best cost after each iteration (generation).
+        Best cost after each iteration (generation) of the main search.
     n_evals : int
-        Objective evaluations (candidates, not batches).
+        Objective evaluations (candidates, not batches), polish included.
     n_iters : int
         Iterations (generations) performed.
     stop_reason : str
-        ``"ftol"`` (stall rule), ``"iters"`` (budget exhausted) or optimizer-specific text.
+        ``"ftol"`` (stall rule), ``"iters"`` (iteration limit), ``"max_evals"`` (evaluation
+        budget spent) or optimizer-specific text; ``"+polish"`` is appended after a polish.
     n_nonfinite : int
         Evaluations that returned a non-finite cost (replaced by the penalty).
+    trace_evals, trace_best : list
+        Anytime trace: after ``trace_evals[k]`` evaluations the best cost so far was
+        ``trace_best[k]``. A point is stored at every improvement and at the end, so the
+        step function best-so-far(n) is exact.
     """
 
     best_cost: float
@@ -46,10 +106,12 @@ class OptimResult:
     n_iters: int = 0
     stop_reason: str = ""
     n_nonfinite: int = 0
+    trace_evals: list[int] = field(default_factory=list)
+    trace_best: list[float] = field(default_factory=list)
 
 
 class CountingObjective:
-    """Wrap a batched objective: count evaluations and replace non-finite costs.
+    """Wrap a batched objective: count, cap, trace, keep the best, replace non-finite costs.
 
     Parameters
     ----------
@@ -58,16 +120,37 @@ class CountingObjective:
     nonfinite_cost : float
         Value substituted for NaN / inf costs (these are counted and logged, never
         silently passed to the optimizer).
+    max_evals : int, optional
+        Hard cap on evaluations. A batch that would cross it is cut to the evaluations
+        left, and :class:`BudgetExhaustedError` is raised after the allowed part is recorded.
     """
 
-    def __init__(self, func: BatchObjective, nonfinite_cost: float = 1e12) -> None:
+    def __init__(self, func: BatchObjective, nonfinite_cost: float = 1e12,
+                 max_evals: int | None = None) -> None:
         self.func = func
         self.nonfinite_cost = float(nonfinite_cost)
+        self.max_evals = max_evals
+        self.limit = max_evals
         self.n_evals = 0
         self.n_nonfinite = 0
+        self.best_cost = float("inf")
+        self.best_z: np.ndarray | None = None
+        self.trace_evals: list[int] = []
+        self.trace_best: list[float] = []
+
+    @property
+    def remaining(self) -> float:
+        """Evaluations left under the current limit (``inf`` without a cap)."""
+        return float("inf") if self.limit is None else self.limit - self.n_evals
 
     def __call__(self, Z: np.ndarray) -> np.ndarray:
-        Z = np.atleast_2d(Z)
+        Z = np.atleast_2d(np.asarray(Z, float))
+        left = self.remaining
+        if left <= 0:
+            raise BudgetExhaustedError
+        cut = Z.shape[0] > left
+        if cut:
+            Z = Z[:int(left)]
         cost = np.asarray(self.func(Z), dtype=float).reshape(Z.shape[0])
         bad = ~np.isfinite(cost)
         if bad.any():
@@ -76,4 +159,53 @@ class CountingObjective:
                            self.nonfinite_cost)
             cost = np.where(bad, self.nonfinite_cost, cost)
         self.n_evals += Z.shape[0]
+        i = int(np.argmin(cost))
+        if cost[i] < self.best_cost:
+            self.best_cost = float(cost[i])
+            self.best_z = Z[i].copy()
+            self.trace_evals.append(self.n_evals)
+            self.trace_best.append(self.best_cost)
+        if cut:
+            raise BudgetExhaustedError
         return cost
+
+    def scalar(self, z: np.ndarray) -> float:
+        """Cost of one decision vector (for scipy local searches)."""
+        return float(self(np.asarray(z, float)[None, :])[0])
+
+    def result(self, history: list[float], n_iters: int, stop_reason: str) -> OptimResult:
+        """The run's :class:`OptimResult`: best evaluated candidate, counts and trace."""
+        if self.best_z is None:
+            raise RuntimeError("no candidate was evaluated")
+        trace_evals, trace_best = list(self.trace_evals), list(self.trace_best)
+        if trace_evals[-1] != self.n_evals:  # close the step function at the last evaluation
+            trace_evals.append(self.n_evals)
+            trace_best.append(self.best_cost)
+        return OptimResult(best_cost=self.best_cost, best_z=self.best_z.copy(),
+                           history=[float(h) for h in history], n_evals=self.n_evals,
+                           n_iters=int(n_iters), stop_reason=stop_reason,
+                           n_nonfinite=self.n_nonfinite, trace_evals=trace_evals,
+                           trace_best=trace_best)
+
+
+def as_counting(objective: BatchObjective, max_evals: int | None = None) -> CountingObjective:
+    """``objective`` itself if it already counts, else a new :class:`CountingObjective`."""
+    if isinstance(objective, CountingObjective):
+        return objective
+    return CountingObjective(objective, max_evals=max_evals)
+
+
+def main_budget(settings: CommonSettings) -> int | None:
+    """Evaluations the main search may spend (``max_evals`` minus the polish share)."""
+    if settings.max_evals is None:
+        return None
+    if settings.polish == "none":
+        return settings.max_evals
+    return max(1, settings.max_evals - int(settings.polish_share * settings.max_evals))
+
+
+def uniform_box(rng: np.random.Generator, lb: np.ndarray, ub: np.ndarray, n: int
+                ) -> np.ndarray:
+    """``n`` points uniform in the box [lb, ub], shape (n, dim)."""
+    lb, ub = np.asarray(lb, float), np.asarray(ub, float)
+    return lb + rng.random((n, lb.size)) * (ub - lb)

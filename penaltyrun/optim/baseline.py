@@ -31,6 +31,4 @@ def run_baseline(objective: BatchObjective, x0: np.ndarray) -> OptimResult:
     """Evaluate the single point ``x0`` (dim,)."""
     counted = CountingObjective(objective)
     cost = float(counted(np.asarray(x0, float)[None, :])[0])
-    return OptimResult(best_cost=cost, best_z=np.asarray(x0, float), history=[cost],
-                       n_evals=counted.n_evals, n_iters=1, stop_reason="baseline",
-                       n_nonfinite=counted.n_nonfinite)
+    return counted.result([cost], 1, "baseline")

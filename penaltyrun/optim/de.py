@@ -1,7 +1,9 @@
 """Differential evolution (scipy) as an independent second optimizer.
 
 Used to check that a diagonal optimum found by PSO is really the optimum (the referee's
-first objection), under the same batched objective and an equal evaluation budget.
+first objection), under the same batched objective and an equal evaluation budget. scipy's
+own L-BFGS-B polish does not respect an evaluation budget, so it is always off here; the
+shared ``optimizer.polish`` (run by :func:`penaltyrun.optim.minimize`) replaces it.
 """
 
 from __future__ import annotations
@@ -12,14 +14,22 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from penaltyrun.optim.base import BatchObjective, CountingObjective, OptimResult
+from penaltyrun.errors import ConfigError
+from penaltyrun.optim.base import (
+    BatchObjective,
+    BudgetExhaustedError,
+    CommonSettings,
+    OptimResult,
+    as_counting,
+    main_budget,
+)
 
 logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class DESettings:
-    """Settings of scipy's ``differential_evolution``.
+class DESettings(CommonSettings):
+    """Settings of scipy's ``differential_evolution`` (plus :class:`CommonSettings`).
 
     Attributes
     ----------
@@ -33,8 +43,6 @@ class DESettings:
         Dithering range of the mutation constant.
     recombination : float
         Crossover probability.
-    polish : bool
-        Finish with L-BFGS-B from the best member (extra evaluations are counted).
     """
 
     popsize: int = 15
@@ -42,46 +50,57 @@ class DESettings:
     tol: float = 1e-8
     mutation: tuple[float, float] = (0.5, 1.0)
     recombination: float = 0.7
-    polish: bool = True
+
+    def validate(self) -> None:
+        """Check ranges (and the shared fields)."""
+        super().validate()
+        lo, hi = self.mutation
+        if not 0.0 <= lo <= hi <= 2.0:
+            raise ConfigError("optimizer.mutation", f"must be [lo, hi] with 0 ≤ lo ≤ hi ≤ 2, "
+                              f"got {list(self.mutation)!r}")
+        if not 0.0 <= self.recombination <= 1.0:
+            raise ConfigError("optimizer.recombination", f"must be in [0, 1], got "
+                              f"{self.recombination!r}")
 
 
 def run_de(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: DESettings,
-           seed: int) -> OptimResult:
-    """Minimize ``objective`` over [lb, ub] with vectorized differential evolution."""
-    counted = CountingObjective(objective)
+           seed: int, x0: np.ndarray | None = None) -> OptimResult:
+    """Minimize ``objective`` over [lb, ub] with vectorized differential evolution.
+
+    ``x0`` (warm start) replaces one member of the initial population.
+    """
+    counted = as_counting(objective, main_budget(settings))
     history: list[float] = []
 
     def batched(x: np.ndarray) -> np.ndarray:
-        # scipy passes (dim,) for single evaluations (polish) and (dim, S) when vectorized.
-        Z = x.T if x.ndim == 2 else x[None, :]
-        cost = counted(Z)
-        return cost if x.ndim == 2 else float(cost[0])
+        # scipy passes (dim, S) when vectorized.
+        return counted(np.atleast_2d(x.T))
 
     def record(intermediate_result: object) -> None:
         history.append(float(intermediate_result.fun))
 
-    res = differential_evolution(
-        batched,
-        bounds=list(zip(np.asarray(lb, float), np.asarray(ub, float))),
-        maxiter=settings.iters,
-        popsize=settings.popsize,
-        tol=settings.tol,
-        mutation=tuple(settings.mutation),
-        recombination=settings.recombination,
-        polish=settings.polish,
-        seed=np.random.default_rng(seed),
-        vectorized=True,
-        updating="deferred",
-        callback=record,
-    )
-    if history and res.fun < history[-1]:
-        history.append(float(res.fun))
-    return OptimResult(
-        best_cost=float(res.fun),
-        best_z=np.asarray(res.x, float),
-        history=history,
-        n_evals=counted.n_evals,
-        n_iters=int(res.nit),
-        stop_reason="ftol" if res.success else "iters",
-        n_nonfinite=counted.n_nonfinite,
-    )
+    stop = "iters"
+    try:
+        res = differential_evolution(
+            batched,
+            bounds=list(zip(np.asarray(lb, float), np.asarray(ub, float))),
+            maxiter=settings.iters,
+            popsize=settings.popsize,
+            tol=settings.tol,
+            mutation=tuple(settings.mutation),
+            recombination=settings.recombination,
+            polish=False,
+            seed=np.random.default_rng(seed),
+            vectorized=True,
+            updating="deferred",
+            callback=record,
+            x0=None if x0 is None else np.clip(np.asarray(x0, float), lb, ub),
+        )
+        stop = "ftol" if res.success else "iters"
+        n_iters = int(res.nit)
+    except BudgetExhaustedError:
+        stop = "max_evals"
+        n_iters = len(history) + 1
+    if not history or counted.best_cost < history[-1]:
+        history.append(counted.best_cost)
+    return counted.result(history, n_iters, stop)

@@ -40,10 +40,14 @@ def _import_pyswarms_quietly():  # noqa: ANN202
 
 pyswarms, _reporter = _import_pyswarms_quietly()
 
-from penaltyrun.optim.base import (  # noqa: E402  (after the quiet pyswarms import)
+from penaltyrun.errors import ConfigError  # noqa: E402  (after the quiet pyswarms import)
+from penaltyrun.optim.base import (  # noqa: E402
     BatchObjective,
-    CountingObjective,
+    BudgetExhaustedError,
+    CommonSettings,
     OptimResult,
+    as_counting,
+    main_budget,
 )
 
 logger = logging.getLogger(__name__)
@@ -58,10 +62,14 @@ def _quiet_pyswarms() -> None:
 
 _quiet_pyswarms()
 
+BH_STRATEGIES = ("nearest", "random", "shrink", "reflective", "intermediate", "periodic")
+VH_STRATEGIES = ("unmodified", "adjust", "invert", "zero")
+
 
 @dataclass(frozen=True)
-class PSOSettings:
-    """Settings of a global-best PSO run.
+class PSOSettings(CommonSettings):
+    """Settings of a global-best PSO run (plus :class:`CommonSettings`: ``max_evals``,
+    ``polish``, ``polish_share``).
 
     Attributes
     ----------
@@ -94,51 +102,66 @@ class PSOSettings:
     bh_strategy: str = "nearest"
     vh_strategy: str = "unmodified"
 
+    def validate(self) -> None:
+        """Check the strategy names (and the shared fields)."""
+        super().validate()
+        if self.bh_strategy not in BH_STRATEGIES:
+            raise ConfigError("optimizer.bh_strategy", f"unknown boundary strategy "
+                              f"{self.bh_strategy!r}", allowed=BH_STRATEGIES)
+        if self.vh_strategy not in VH_STRATEGIES:
+            raise ConfigError("optimizer.vh_strategy", f"unknown velocity strategy "
+                              f"{self.vh_strategy!r}", allowed=VH_STRATEGIES)
+
 
 def run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: PSOSettings,
-            seed: int, init_pos: np.ndarray | None = None) -> OptimResult:
+            seed: int, x0: np.ndarray | None = None) -> OptimResult:
     """Minimize ``objective`` over the box [lb, ub] with pyswarms' GlobalBestPSO.
 
     Parameters
     ----------
     objective : callable
-        Batched objective Z (n_particles, dim) → (n_particles,).
+        Batched objective Z (n_particles, dim) → (n_particles,), or a
+        :class:`~penaltyrun.optim.base.CountingObjective` already carrying the budget.
     lb, ub : ndarray, shape (dim,)
         Box bounds.
     settings : PSOSettings
     seed : int
         Seed of the global numpy state used by pyswarms.
-    init_pos : ndarray, shape (n_particles, dim), optional
-        Initial swarm (default: uniform in the box).
+    x0 : ndarray, shape (dim,), optional
+        A known good point (warm start): it replaces the first particle of the uniform
+        initial swarm.
 
     Returns
     -------
     OptimResult
+        Stops on the stall rule (``ftol``), the iteration limit (``iters``) or the
+        evaluation budget (``max_evals``, the last swarm possibly evaluated in part).
     """
-    counted = CountingObjective(objective)
+    counted = as_counting(objective, main_budget(settings))
+    lb, ub = np.asarray(lb, float), np.asarray(ub, float)
     np.random.seed(seed % 2**32)  # noqa: NPY002  (pyswarms draws from the global state)
+    init_pos = None
+    if x0 is not None:
+        init_pos = lb + np.random.random_sample((settings.n_particles, lb.size)) * (ub - lb)  # noqa: NPY002
+        init_pos[0] = np.clip(np.asarray(x0, float), lb, ub)
     opt = pyswarms.single.GlobalBestPSO(
         n_particles=settings.n_particles,
         dimensions=len(lb),
         options={"c1": settings.c1, "c2": settings.c2, "w": settings.w},
-        bounds=(np.asarray(lb, float), np.asarray(ub, float)),
+        bounds=(lb, ub),
         bh_strategy=settings.bh_strategy,
         vh_strategy=settings.vh_strategy,
         ftol=settings.ftol,
         ftol_iter=settings.ftol_iter,
         init_pos=init_pos,
     )
-    best_cost, best_pos = opt.optimize(counted, iters=settings.iters, verbose=False)
-    history = [float(c) for c in opt.cost_history]
-    stop = "iters" if len(history) >= settings.iters else "ftol"
+    try:
+        opt.optimize(counted, iters=settings.iters, verbose=False)
+        history = [float(c) for c in opt.cost_history]
+        stop = "iters" if len(history) >= settings.iters else "ftol"
+    except BudgetExhaustedError:
+        history = [float(c) for c in opt.cost_history] + [counted.best_cost]
+        stop = "max_evals"
     logger.debug("PSO stopped after %d iterations (%s), best %.6g", len(history), stop,
-                 best_cost)
-    return OptimResult(
-        best_cost=float(best_cost),
-        best_z=np.asarray(best_pos, float),
-        history=history,
-        n_evals=counted.n_evals,
-        n_iters=len(history),
-        stop_reason=stop,
-        n_nonfinite=counted.n_nonfinite,
-    )
+                 counted.best_cost)
+    return counted.result(history, len(history), stop)

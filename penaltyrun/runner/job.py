@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import time
 import traceback
+from dataclasses import replace
 from datetime import datetime, timezone
 from typing import Any
 
@@ -12,7 +13,7 @@ import numpy as np
 
 from penaltyrun import optim
 from penaltyrun.runner.plan import Job
-from penaltyrun.runner.setup import build
+from penaltyrun.runner.setup import build, build_layout
 
 logger = logging.getLogger(__name__)
 
@@ -74,6 +75,61 @@ class Heartbeat:
         return cost
 
 
+def _objective(prob: Any, layout: Any, label: str) -> Heartbeat:
+    """Batched objective of ``prob`` over ``layout``'s box, with progress lines."""
+
+    def evaluate(Z: np.ndarray) -> np.ndarray:
+        mats, scalars = layout.split(Z)
+        return prob.evaluate_batch(mats, scalars or None).cost
+
+    return Heartbeat(evaluate, label)
+
+
+def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
+                  ) -> tuple[optim.OptimResult, dict[str, Any]]:
+    """Diagonal stage, then the full search seeded with the best diagonal matrix.
+
+    The diagonal stage spends ``warm_start_share · max_evals``; its best matrices are
+    encoded in the full map's coordinates (``DecisionLayout.join``) and handed to the
+    optimizer as ``x0`` (a particle, a population member, the CMA-ES mean). The full stage
+    spends the rest, so the job's total is ``max_evals``, and because the seed point is
+    evaluated again, the job's best is never worse than its diagonal stage.
+
+    Returns
+    -------
+    OptimResult
+        The whole job: both stages' evaluations, one anytime trace, the full stage's best.
+    dict
+        The diagonal stage (share, evaluations, best cost, matrices) for the record.
+    """
+    budget = settings.max_evals
+    diag_layout = build_layout(prob, "diagonal", job.param_options)
+    diag_budget = max(1, int(job.warm_start_share * budget))
+    dlb, dub = diag_layout.bounds()
+    diag = optim.minimize(job.optimizer, _objective(prob, diag_layout, job.job_id), dlb, dub,
+                          replace(settings, max_evals=diag_budget), job.seed)
+    mats, scalars = diag_layout.split(diag.best_z[None, :])
+    diag_mats = {k: v[0] for k, v in mats.items()}
+    diag_scalars = {k: float(v[0]) for k, v in scalars.items()}
+    x0 = layout.join(diag_mats, diag_scalars)
+    lb, ub = layout.bounds()
+    full = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id), lb, ub,
+                          replace(settings, max_evals=max(1, budget - diag.n_evals)),
+                          job.seed, x0)
+    trace_evals = list(diag.trace_evals) + [diag.n_evals + n for n in full.trace_evals]
+    trace_best = np.minimum.accumulate(list(diag.trace_best) + list(full.trace_best))
+    result = optim.OptimResult(
+        best_cost=full.best_cost, best_z=full.best_z, history=diag.history + full.history,
+        n_evals=diag.n_evals + full.n_evals, n_iters=diag.n_iters + full.n_iters,
+        stop_reason=f"warm:{diag.stop_reason}|{full.stop_reason}",
+        n_nonfinite=diag.n_nonfinite + full.n_nonfinite, trace_evals=trace_evals,
+        trace_best=[float(c) for c in trace_best])
+    warm = {"share": job.warm_start_share, "n_evals": diag.n_evals,
+            "best_cost": diag.best_cost, "stop_reason": diag.stop_reason,
+            "matrices": _jsonable(diag_mats), "scalars": diag_scalars}
+    return result, warm
+
+
 def run_job(job: Job) -> dict[str, Any]:
     """Optimize one job and evaluate its best candidate in detail.
 
@@ -99,18 +155,16 @@ def run_job(job: Job) -> dict[str, Any]:
                                        job.param_options, job.optimizer,
                                        job.optimizer_options)
         lb, ub = layout.bounds()
-
-        def evaluate(Z: np.ndarray) -> np.ndarray:
-            mats, scalars = layout.split(Z)
-            return prob.evaluate_batch(mats, scalars or None).cost
-
-        objective = Heartbeat(evaluate, job.job_id)
-
         x0 = None
         if job.optimizer == "baseline":
             eye = {name: settings.scale * np.eye(p.n) for name, p in layout.matrices}
             x0 = layout.join(eye, {name: 0.5 * (lo + hi) for name, (lo, hi) in layout.scalars})
-        result = optim.minimize(job.optimizer, objective, lb, ub, settings, job.seed, x0)
+        if job.warm_start_share:
+            result, warm = _warm_started(job, prob, layout, settings)
+            record["warm_start"] = warm
+        else:
+            result = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id), lb,
+                                    ub, settings, job.seed, x0)
         mats, scalars = layout.split(result.best_z[None, :])
         best_mats = {k: v[0] for k, v in mats.items()}
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}
@@ -138,6 +192,9 @@ def run_job(job: Job) -> dict[str, Any]:
             "stop_reason": result.stop_reason,
             "n_nonfinite": int(result.n_nonfinite),
             "history": [float(h) for h in result.history],
+            "trace_evals": [int(n) for n in result.trace_evals],
+            "trace_best": [float(c) for c in result.trace_best],
+            "max_evals": getattr(settings, "max_evals", None),
         })
     except Exception as exc:  # a failing job is recorded, never crashes the run
         logger.error("job %s failed: %s", job.job_id, exc)

@@ -38,6 +38,9 @@ class Job:
         Run-level metadata copied into the record (config hash, version, commit, config).
     holdout : bool
         Evaluate the best candidate on the problem's held-out set (if it defines one).
+    warm_start_share : float
+        0: off. Otherwise (full maps only) the share of ``max_evals`` spent first on the
+        diagonal map, whose best matrix then seeds the full search.
     """
 
     problem: str
@@ -51,6 +54,7 @@ class Job:
     optimizer_options: dict[str, Any] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
     holdout: bool = True
+    warm_start_share: float = 0.0
 
     @property
     def settings_hash(self) -> str:
@@ -59,8 +63,10 @@ class Job:
         Part of :attr:`job_id`, so a resumed run never mistakes a job finished with other
         settings for one of its own.
         """
-        return config_hash([self.problem_params, self.param_options,
-                            self.optimizer_options])[:8]
+        hashed: list[Any] = [self.problem_params, self.param_options, self.optimizer_options]
+        if self.warm_start_share:
+            hashed.append({"warm_start_share": self.warm_start_share})
+        return config_hash(hashed)[:8]
 
     @property
     def job_id(self) -> str:
@@ -89,8 +95,11 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
               root_seed: int, problem_params: dict[str, Any] | None = None,
               param_options: dict[str, Any] | None = None,
               optimizer_options: dict[str, Any] | None = None,
-              meta: dict[str, Any] | None = None, holdout: bool = True) -> list[Job]:
+              meta: dict[str, Any] | None = None, holdout: bool = True,
+              warm_start_share: float = 0.0) -> list[Job]:
     """One job per start of a single (problem, case, param, optimizer) cell.
+
+    ``warm_start_share`` applies to full maps only (a diagonal job has nothing to warm).
 
     Raises
     ------
@@ -104,5 +113,6 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
         key = f"{problem}/{case}/{param}/{optimizer}/{start}"
         jobs.append(Job(problem, case, param, optimizer, start, job_seed(root_seed, key),
                         dict(problem_params or {}), dict(param_options or {}),
-                        dict(optimizer_options or {}), dict(meta or {}), bool(holdout)))
+                        dict(optimizer_options or {}), dict(meta or {}), bool(holdout),
+                        0.0 if param == "diagonal" else float(warm_start_share)))
     return jobs

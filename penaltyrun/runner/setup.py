@@ -43,4 +43,5 @@ def build(problem: str, case: str | None, problem_params: Mapping[str, Any], par
                           allowed=penalty.KINDS)
     prob = problems.make(problem, case, problem_params)
     layout = build_layout(prob, param, param_options)
+    optim.check_dimension(settings, layout.dim)
     return prob, layout, settings

@@ -194,7 +194,7 @@ def test_make_settings_valid():
 
 def test_make_settings_unknown_optimizer():
     with pytest.raises(ConfigError) as info:
-        make_settings("cmaes", {})
+        make_settings("nelder", {})
     assert info.value.key == "optimizer.name"
     assert set(info.value.allowed) == set(OPTIMIZERS)
     for name in ("pso", "de"):

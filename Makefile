@@ -5,7 +5,7 @@ PYTEST_ARGS ?=
 WORKERS ?= 2
 
 .PHONY: help install install-dev run test test-slow lint bench reproduce-tables \
-	reproduce-zermelo reproduce-attitude reproduce-lowthrust report clean
+	reproduce-zermelo reproduce-attitude reproduce-lowthrust referee-zermelo referee-attitude report clean
 
 help:  ## list targets
 	@grep -E '^[a-zA-Z_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  %-18s %s\n", $$1, $$2}'
@@ -55,6 +55,16 @@ reproduce-lowthrust: install  ## low-thrust Tables 3-5: K = I baselines, generic
 	$(SWEEP) +experiment=lowthrust_generic hydra.sweep.dir=$(REPRO)/lowthrust_generic
 	$(SWEEP) +experiment=lowthrust_qlaw hydra.sweep.dir=$(REPRO)/lowthrust_qlaw
 	$(SWEEP) +experiment=lowthrust_qlaw_minfuel hydra.sweep.dir=$(REPRO)/lowthrust_qlaw_minfuel
+
+referee-zermelo: install  ## referee study, Zermelo: 4 maps × pso/de/cmaes × 30 starts at 2000 evaluations + grid
+	$(SWEEP) +experiment=referee_zermelo hydra.sweep.dir=$(REPRO)/referee_zermelo
+	$(SWEEP) problem=zermelo param=diagonal,geagsp optimizer=grid runner.n_starts=1 \
+		hydra.sweep.dir=$(REPRO)/referee_zermelo/grid
+	$(PYTHON) -m penaltyrun.report_cli $(REPRO)/referee_zermelo -o $(REPRO)/referee_zermelo/report
+
+referee-attitude: install  ## referee study, attitude: 2 laws × 2 manoeuvres × 4 maps × pso/de/cmaes × 30 starts at 3000 evaluations (≈ 1 h)
+	$(SWEEP) +experiment=referee_attitude hydra.sweep.dir=$(REPRO)/referee_attitude
+	$(PYTHON) -m penaltyrun.report_cli $(REPRO)/referee_attitude -o $(REPRO)/referee_attitude/report
 
 report:  ## report of everything under $(REPRO)
 	$(PYTHON) -m penaltyrun.report_cli $(REPRO) -o $(REPRO)/report

@@ -25,6 +25,17 @@ BatchObjective = Callable[[np.ndarray], np.ndarray]
 POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP")
 
 
+def require_int(key: str, value: object, least: int, allow_none: bool = False) -> None:
+    """Raise :class:`ConfigError` naming ``optimizer.<key>`` unless ``value`` is an integer
+    ≥ ``least`` (or ``None`` where allowed)."""
+    if value is None and allow_none:
+        return
+    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        what = "a positive integer" if least == 1 else f"an integer ≥ {least}"
+        raise ConfigError(f"optimizer.{key}", f"must be {what}"
+                          f"{' or null' if allow_none else ''}, got {value!r}")
+
+
 class BudgetExhaustedError(Exception):
     """Raised by :class:`CountingObjective` once ``max_evals`` evaluations are spent."""
 
@@ -59,11 +70,7 @@ class CommonSettings:
         ConfigError
             Naming the key.
         """
-        if self.max_evals is not None and (isinstance(self.max_evals, bool)
-                                           or not isinstance(self.max_evals, int)
-                                           or self.max_evals < 1):
-            raise ConfigError("optimizer.max_evals", f"must be a positive integer or null, "
-                              f"got {self.max_evals!r}")
+        require_int("max_evals", self.max_evals, 1, allow_none=True)
         if self.polish not in POLISH_METHODS:
             raise ConfigError("optimizer.polish", f"unknown local search {self.polish!r}",
                               allowed=POLISH_METHODS)

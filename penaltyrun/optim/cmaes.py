@@ -26,6 +26,7 @@ from penaltyrun.optim.base import (
     OptimResult,
     as_counting,
     main_budget,
+    require_int,
 )
 
 logger = logging.getLogger(__name__)
@@ -62,17 +63,10 @@ class CMAESSettings(CommonSettings):
         if not 0.0 < self.sigma0 <= 1.0:
             raise ConfigError("optimizer.sigma0", f"must be in (0, 1] (a fraction of the "
                               f"box), got {self.sigma0!r}")
-        if self.popsize is not None and (isinstance(self.popsize, bool)
-                                         or not isinstance(self.popsize, int)
-                                         or self.popsize < 2):
-            raise ConfigError("optimizer.popsize", f"must be an integer ≥ 2 or null, got "
-                              f"{self.popsize!r}")
+        require_int("popsize", self.popsize, 2, allow_none=True)
         if self.incpopsize < 1.0:
             raise ConfigError("optimizer.incpopsize", f"must be ≥ 1, got {self.incpopsize!r}")
-        if isinstance(self.restarts, bool) or not isinstance(self.restarts, int) \
-                or self.restarts < 0:
-            raise ConfigError("optimizer.restarts", f"must be a non-negative integer, got "
-                              f"{self.restarts!r}")
+        require_int("restarts", self.restarts, 0)
         for key in ("tolfun", "tolx"):
             if not getattr(self, key) > 0:
                 raise ConfigError(f"optimizer.{key}", f"must be positive, got "

@@ -24,6 +24,7 @@ from penaltyrun.optim.base import (
     OptimResult,
     as_counting,
     main_budget,
+    require_int,
 )
 from penaltyrun.optim.polish import local_search
 
@@ -61,11 +62,7 @@ class GridSettings(CommonSettings):
         """Check ranges (and the shared fields)."""
         super().validate()
         for key in ("points_per_dim", "n_local", "local_max_evals", "batch"):
-            value = getattr(self, key)
-            least = 2 if key == "points_per_dim" else 1
-            if isinstance(value, bool) or not isinstance(value, int) or value < least:
-                raise ConfigError(f"optimizer.{key}", f"must be an integer ≥ {least}, got "
-                                  f"{value!r}")
+            require_int(key, getattr(self, key), 2 if key == "points_per_dim" else 1)
         if self.local_method not in POLISH_METHODS[1:]:
             raise ConfigError("optimizer.local_method", f"unknown local search "
                               f"{self.local_method!r}", allowed=POLISH_METHODS[1:])

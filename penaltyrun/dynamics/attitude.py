@@ -10,10 +10,13 @@ body rates in rad/s; running cost J in N²·m²·s). Dynamics:
 * optional per-axis saturation |u_i| ≤ u_max (``u_max = inf`` turns it off);
 * cost rate J̇ = ½ uᵀu.
 
-Terminal event: ‖(q0 − 1, q1, q2, q3, ω)‖ − tol ≤ 0 (the first time).
+Terminal event: ‖(w_q0·(q0 − 1), w_qv·q_v, w_ω·ω)‖ − tol ≤ 0 (the first time). The
+default weights (1, 1, 1) give the main set-up's ‖(q0 − 1, q_v, ω)‖; the companion study's
+‖(10·q_v, ω)‖ is (0, 10, 1) (w_q0 = 0 accepts q0 = ±1).
 
 Kernel parameter vector ``p`` (length :data:`N_PRM`): ``p[0:9]`` I row-major, ``p[9:18]``
-I⁻¹ row-major, ``p[18:36]`` G row-major, ``p[36]`` u_max, ``p[37]`` tol.
+I⁻¹ row-major, ``p[18:36]`` G row-major, ``p[36]`` u_max, ``p[37]`` tol, ``p[38:41]``
+event weights (w_q0, w_qv, w_ω).
 """
 
 from __future__ import annotations
@@ -26,12 +29,13 @@ from penaltyrun.dynamics.integrate import dopri5
 #: Number of states (quaternion 4, rates 3, cost 1).
 N_STATE = 8
 #: Length of the kernel parameter vector.
-N_PRM = 38
+N_PRM = 41
 _I = 0
 _IINV = 9
 _G = 18
 _UMAX = 36
 _TOL = 37
+_W = 38
 
 
 @njit(cache=True)
@@ -145,13 +149,24 @@ def distance(y):
 
 
 @njit(cache=True)
-def event(t, y, p):
-    """Terminal event distance − tol (fires when ≤ 0)."""
-    return distance(y) - p[_TOL]
+def weighted_distance(y, p):
+    """Event distance ‖(w_q0 (q0 − 1), w_qv q_v, w_ω ω)‖ with the weights in ``p[38:41]``."""
+    d = (p[_W] * (y[0] - 1.0)) ** 2
+    for i in range(1, 4):
+        d += (p[_W + 1] * y[i]) ** 2
+    for i in range(4, 7):
+        d += (p[_W + 2] * y[i]) ** 2
+    return np.sqrt(d)
 
 
 @njit(cache=True)
-def pack_params(inertia, inertia_inv, G, u_max, tol, p):
+def event(t, y, p):
+    """Terminal event: weighted distance − tol (fires when ≤ 0)."""
+    return weighted_distance(y, p) - p[_TOL]
+
+
+@njit(cache=True)
+def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=1.0):
     """Fill the kernel parameter vector ``p`` (shape (N_PRM,)).
 
     Parameters
@@ -163,9 +178,11 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p):
     u_max : float
         Per-axis torque limit (N·m); ``inf`` turns saturation off.
     tol : float
-        Terminal-event tolerance on the distance.
+        Terminal-event tolerance on the weighted distance.
     p : ndarray, shape (N_PRM,)
         Output.
+    w_q0, w_qv, w_w : float, optional
+        Event weights on (q0 − 1), q_v and ω (default 1: the unweighted distance).
     """
     for i in range(3):
         for j in range(3):
@@ -175,11 +192,14 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p):
             p[_G + 6 * i + j] = G[i, j]
     p[_UMAX] = u_max
     p[_TOL] = tol
+    p[_W] = w_q0
+    p[_W + 1] = w_qv
+    p[_W + 2] = w_w
 
 
 @njit(cache=False)  # numba cannot cache callers that pass functions to dopri5
 def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
-                   n_event_samples, max_steps):
+                   n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
     """Closed-loop runs for a batch of gains and/or initial states.
 
     Gains and initial states are paired run by run; a batch of size 1 on either side is
@@ -196,7 +216,7 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
     t_max : float
         Horizon cap (s).
     tol : float
-        Terminal-event tolerance on the distance to (1, 0, 0, 0, 0, 0, 0).
+        Terminal-event tolerance on the weighted distance to (1, 0, 0, 0, 0, 0, 0).
     u_max : float
         Per-axis torque limit (N·m); ``inf`` turns saturation off.
     rtol, atol, max_step : float
@@ -205,6 +225,8 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
         Dense-output event checks per step.
     max_steps : int
         Step cap per run.
+    w_q0, w_qv, w_w : float, optional
+        Event weights (see :func:`weighted_distance`; default 1, 1, 1).
 
     Returns
     -------
@@ -213,7 +235,7 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
     cost : ndarray, shape (R,)
         J at ``t_end``.
     dist : ndarray, shape (R,)
-        Distance to the target at ``t_end``.
+        Weighted (event) distance to the target at ``t_end``.
     status : ndarray of int64, shape (R,)
         Integrator status codes (see :mod:`penaltyrun.dynamics.integrate`).
     """
@@ -229,7 +251,7 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
     for r in range(R):
         b = r if B > 1 else 0
         s = r if S > 1 else 0
-        pack_params(inertia, inertia_inv, G[b], u_max, tol, p)
+        pack_params(inertia, inertia_inv, G[b], u_max, tol, p, w_q0, w_qv, w_w)
         for i in range(7):
             y[i] = y0[s, i]
         y[7] = 0.0
@@ -237,14 +259,14 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
                               n_event_samples, max_steps)
         t_end[r] = t
         cost[r] = yf[7]
-        dist[r] = distance(yf)
+        dist[r] = weighted_distance(yf, p)
         status[r] = st
     return t_end, cost, dist, status
 
 
 @njit(cache=False)  # numba cannot cache callers that pass functions to dopri5
 def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
-                n_event_samples, max_steps):
+                n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
     """One closed-loop run returning the full state at its end.
 
     Parameters are those of :func:`simulate_batch` for one run (``G`` shape (3, 6),
@@ -260,7 +282,7 @@ def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_
         Integrator status code.
     """
     p = np.empty(N_PRM)
-    pack_params(inertia, inertia_inv, G, u_max, tol, p)
+    pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0, w_qv, w_w)
     y = np.zeros(N_STATE)
     for i in range(7):
         y[i] = y0[i]

@@ -110,7 +110,8 @@ def test_euler_convention_is_intrinsic_zyx():
 
 
 def test_cases_and_overrides():
-    assert lyap.CASES == ("detumble", "rest_to_rest") and lyap.DEFAULT_CASE == "detumble"
+    assert lyap.CASES == ("detumble", "rest_to_rest", "schaub_detumble", "schaub_detumble_sat")
+    assert lyap.DEFAULT_CASE == "detumble"
     det = make("attitude_lyapunov", None)
     rest = make("attitude_lyapunov", "rest_to_rest")
     assert det.params.omega0 == (0.01, -0.01, 0.01)

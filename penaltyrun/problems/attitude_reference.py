@@ -1,0 +1,150 @@
+"""Independent scipy references of the attitude closed loop (for tests, benches and plots).
+
+Plain numpy right-hand side and ``solve_ivp`` runs with the same (weighted) terminal event,
+tolerances and maximum step as the compiled kernel of :mod:`penaltyrun.dynamics.attitude`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from penaltyrun.dynamics import integrate
+from penaltyrun.problems.attitude_params import Params
+
+#: Cost multiple of ``failure_penalty`` for non-finite runs and Riccati failures.
+HARD_FAILURE_FACTOR = 1000.0
+
+
+def graded_cost(energy: np.ndarray, dist: np.ndarray, d0: Any, status: np.ndarray,
+                failure_penalty: float) -> np.ndarray:
+    """Objective from raw run results, always finite (see
+    :mod:`penaltyrun.problems.attitude_common`).
+
+    Parameters
+    ----------
+    energy : ndarray, shape (R,)
+        J at the end of each run (N²·m²·s).
+    dist : ndarray, shape (R,)
+        Distance to the target at the end of each run.
+    d0 : float or ndarray, shape (R,)
+        Initial distance(s) (floored at a tiny positive value).
+    status : ndarray of int, shape (R,)
+        Integrator status codes.
+    failure_penalty : float
+
+    Returns
+    -------
+    ndarray, shape (R,)
+    """
+    d0 = np.maximum(np.asarray(d0, dtype=float), 1e-300)
+    with np.errstate(invalid="ignore", over="ignore"):
+        failed = energy + failure_penalty * (1.0 + dist / d0)
+    cost = np.where(status == integrate.EVENT, energy, failed)
+    hard = (~np.isfinite(cost)) | (status == integrate.NONFINITE)
+    return np.where(hard, HARD_FAILURE_FACTOR * failure_penalty, cost)
+
+
+def _rhs_numpy(G: np.ndarray, inertia: np.ndarray, inertia_inv: np.ndarray,
+               u_max: float) -> Callable[[float, np.ndarray], np.ndarray]:
+    """Plain-numpy closed-loop right-hand side for scipy (independent of the kernel)."""
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        q, w = y[:4], y[4:7]
+        u = np.clip(-G @ y[1:7], -u_max, u_max)
+        omega = np.array([[0.0, -w[0], -w[1], -w[2]],
+                          [w[0], 0.0, w[2], -w[1]],
+                          [w[1], -w[2], 0.0, w[0]],
+                          [w[2], w[1], -w[0], 0.0]])
+        out = np.empty(8)
+        out[:4] = 0.5 * omega @ q
+        out[4:7] = inertia_inv @ (u - np.cross(w, inertia @ w))
+        out[7] = 0.5 * float(u @ u)
+        return out
+
+    return rhs
+
+
+def reference_run(G: Any, params: Params, y0: Any = None, method: str = "DOP853"
+                  ) -> dict[str, Any]:
+    """Independent scipy ``solve_ivp`` evaluation of one gain (slow; for tests and benches).
+
+    Uses the same event definition, ``max_step`` and tolerances as the kernel; scipy
+    checks the event sign at step ends only, which ``max_step`` makes safe.
+
+    Parameters
+    ----------
+    G : array_like, shape (3, 6)
+        Gain of u = −G (q_v, ω).
+    params : Params
+    y0 : array_like, shape (7,), optional
+        Initial (q, ω); default from ``params``.
+    method : str
+        scipy integrator.
+
+    Returns
+    -------
+    dict
+        ``cost`` (graded, as the production path), ``energy``, ``t_final``, ``converged``,
+        ``final_distance``.
+    """
+    from scipy.integrate import solve_ivp
+
+    G = np.asarray(G, dtype=float)
+    inertia = params.inertia_matrix()
+    y_init = params.initial_state() if y0 is None else np.asarray(y0, dtype=float)
+    rhs = _rhs_numpy(G, inertia, np.linalg.inv(inertia), params.saturation())
+
+    def hit(t: float, y: np.ndarray) -> float:
+        return float(params.event_distance(y) - params.tol)
+
+    hit.terminal = True
+    hit.direction = -1.0
+    sol = solve_ivp(rhs, (0.0, params.t_max), np.concatenate([y_init, [0.0]]), events=hit,
+                    rtol=params.rtol, atol=params.atol, method=method,
+                    max_step=params.max_step)
+    converged = bool(sol.t_events[0].size)
+    y_end = sol.y_events[0][0] if converged else sol.y[:, -1]
+    t_end = float(sol.t_events[0][0]) if converged else float(sol.t[-1])
+    dist = float(params.event_distance(y_end))
+    d0 = float(params.event_distance(y_init))
+    status = np.array([integrate.EVENT if converged else integrate.HORIZON])
+    if not converged and sol.status != 0:
+        status[0] = integrate.STEP_FAILURE
+    energy = float(y_end[7])
+    cost = float(graded_cost(np.array([energy]), np.array([dist]), d0, status,
+                             params.failure_penalty)[0])
+    return {"cost": cost, "energy": energy, "t_final": t_end, "converged": converged,
+            "final_distance": dist}
+
+
+def trajectory(G: Any, params: Params, t_end: float, n_points: int = 500,
+               y0: Any = None) -> dict[str, np.ndarray]:
+    """Closed-loop histories on [0, t_end] by scipy DOP853 dense output.
+
+    Returns
+    -------
+    dict
+        ``t`` (n,) s, ``q`` (n, 4), ``w`` (n, 3) rad/s, ``u`` (n, 3) N·m, ``J`` (n,),
+        ``dist`` (n,) weighted event distance.
+    """
+    from scipy.integrate import solve_ivp
+
+    G = np.asarray(G, dtype=float)
+    inertia = params.inertia_matrix()
+    y_init = params.initial_state() if y0 is None else np.asarray(y0, dtype=float)
+    u_max = params.saturation()
+    rhs = _rhs_numpy(G, inertia, np.linalg.inv(inertia), u_max)
+    t = np.linspace(0.0, t_end, n_points)
+    sol = solve_ivp(rhs, (0.0, max(t_end, 1e-12)), np.concatenate([y_init, [0.0]]), t_eval=t,
+                    rtol=params.rtol, atol=params.atol, method="DOP853",
+                    max_step=params.max_step)
+    y = sol.y.T
+    u = np.clip(-y[:, 1:7] @ G.T, -u_max, u_max)
+    dist = params.event_distance(y)
+    return {"t": sol.t, "q": y[:, :4], "w": y[:, 4:7], "u": u, "J": y[:, 7], "dist": dist}
+
+
+__all__ = ["HARD_FAILURE_FACTOR", "graded_cost", "reference_run", "trajectory"]

@@ -1,0 +1,36 @@
+"""Experiment profiles compose, and ``acc_attitude`` is the companion study's design."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+from hydra import compose, initialize_config_dir
+
+from penaltyrun import problems
+
+CONF = Path(__file__).resolve().parents[2] / "penaltyrun" / "conf"
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in (CONF / "experiment").glob("*.yaml")))
+def test_profile_composes(name):
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[f"+experiment={name}"])
+    assert cfg.problem.name in problems.available()
+
+
+def test_acc_attitude_profile():
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name="config", overrides=["+experiment=acc_attitude"],
+                      return_hydra_config=True)
+    assert cfg.problem.name == "attitude_lyapunov" and cfg.runner.n_starts == 20
+    assert cfg.optimizer.name == "pso" and cfg.optimizer.n_particles == 100
+    assert (cfg.optimizer.ftol, cfg.optimizer.ftol_iter) == (1e-6, 20)
+    sweep = yaml.safe_load((CONF / "experiment" / "acc_attitude.yaml").read_text())
+    params = sweep["hydra"]["sweeper"]["params"]
+    assert params["case"].split(",") == ["schaub_detumble", "schaub_detumble_sat"]
+    assert set(params["param"].split(",")) == {"diagonal", "givens", "cayley", "geagsp"}
+    for case in params["case"].split(","):
+        prob = problems.make("attitude_lyapunov", case)
+        assert all(m.eig_bounds == (1e-8, 20.0) for m in prob.matrices)

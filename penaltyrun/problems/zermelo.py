@@ -4,6 +4,10 @@
 is Ẋ = −KᵀX and V = ½XᵀX decreases for every PD K. Cost J = ∫½UᵀU dt up to the first time
 ‖X‖ = ``event_radius``; a run whose event does not fire before ``t_max`` fails and gets
 the graded penalty ``J(t_max) + failure_penalty · (1 + ‖X(t_max)‖ / ‖X0‖)``.
+
+Training scenario: the start ``x0``. Held-out set: starts on circles around the origin
+(``holdout_radii`` × ``holdout_n_angles`` equally spaced angles), any start equal to ``x0``
+left out.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import numpy as np
 
 from penaltyrun.dynamics import integrate
 from penaltyrun.dynamics.zermelo import drift, simulate_batch
+from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import (
     BatchEvaluation,
     MatrixSpec,
@@ -30,6 +35,8 @@ logger = logging.getLogger(__name__)
 CASES = ("default",)
 DEFAULT_CASE = "default"
 CASE_PARAMS: dict[str, dict[str, Any]] = {"default": {}}
+#: Parameters that do not change a run's result (reports do not split cells by them).
+VARIANT_IGNORE = ("holdout_radii", "holdout_n_angles", "holdout_angle_offset_deg")
 
 #: The paper's best matrices (diagonal K1, full K2).
 PAPER_K_DIAGONAL = np.diag([0.8094, 0.1611])
@@ -58,6 +65,12 @@ class Params(ParamsMixin):
         Eigenvalue / diagonal-entry bounds of K.
     failure_penalty : float
         Penalty scale for runs whose event does not fire.
+    holdout_radii : tuple of float
+        Radii of the held-out circles of starts (empty: no held-out set).
+    holdout_n_angles : int
+        Starts per circle, at angles offset + 360°·k / n.
+    holdout_angle_offset_deg : float
+        Angle of the first start on each circle (degrees from the +x axis).
     """
 
     x0: tuple[float, float] = (-8.0, 6.0)
@@ -69,6 +82,9 @@ class Params(ParamsMixin):
     max_steps: int = 1_000_000
     eig_bounds: tuple[float, float] = (1e-8, 10.0)
     failure_penalty: float = 1e3
+    holdout_radii: tuple[float, ...] = (2.0, 5.0, 10.0)
+    holdout_n_angles: int = 8
+    holdout_angle_offset_deg: float = 0.0
 
 
 class Zermelo:
@@ -82,11 +98,11 @@ class Zermelo:
         self.matrices = (MatrixSpec("K", 2, tuple(float(b) for b in params.eig_bounds)),)
         self.scalars: tuple[ScalarSpec, ...] = ()
 
-    def _run(self, K: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _run(self, K: np.ndarray, x0: Any = None) -> tuple[np.ndarray, ...]:
         p = self.params
         return simulate_batch(
             np.ascontiguousarray(K, dtype=float),
-            np.asarray(p.x0, dtype=float),
+            np.asarray(p.x0 if x0 is None else x0, dtype=float),
             float(p.t_max),
             float(p.event_radius),
             float(p.rtol),
@@ -99,9 +115,11 @@ class Zermelo:
         self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None
     ) -> BatchEvaluation:
         """Costs of a batch of gains ``mats["K"]``, shape (B, 2, 2)."""
-        t_end, cost, dist, status = self._run(mats["K"])
+        return self._graded(*self._run(mats["K"]), float(np.hypot(*self.params.x0)))
+
+    def _graded(self, t_end: np.ndarray, cost: np.ndarray, dist: np.ndarray,
+                status: np.ndarray, d0: float) -> BatchEvaluation:
         converged = status == integrate.EVENT
-        d0 = float(np.hypot(*self.params.x0))
         penalty = cost + self.params.failure_penalty * (1.0 + dist / d0)
         graded = np.where(converged, cost, penalty)
         graded = np.where(np.isfinite(graded), graded, 10.0 * self.params.failure_penalty)
@@ -126,6 +144,61 @@ class Zermelo:
             "t_final": float(t_end[0]),
             "final_distance": float(dist[0]),
         }
+
+    def training_scenario(self) -> dict[str, Any]:
+        """The scenario K is tuned on: the start ``x0``."""
+        return {"scenario": "x0", "x0": [float(v) for v in self.params.x0]}
+
+    def holdout_scenarios(self) -> dict[str, np.ndarray]:
+        """Held-out starts on circles around the origin (the training start left out).
+
+        Returns
+        -------
+        dict
+            ``scenario`` (n,) labels ``r=<radius>,deg=<angle>``, ``x0`` (n, 2) starts.
+        """
+        p = self.params
+        ang = np.radians(p.holdout_angle_offset_deg) + \
+            2.0 * np.pi * np.arange(p.holdout_n_angles) / max(p.holdout_n_angles, 1)
+        starts, labels = [], []
+        for r in p.holdout_radii:
+            for a in ang:
+                x = np.array([r * np.cos(a), r * np.sin(a)])
+                if np.allclose(x, p.x0, rtol=0.0, atol=1e-9):
+                    continue
+                starts.append(x)
+                labels.append(f"r={r:g},deg={np.degrees(a):g}")
+        return {"scenario": np.asarray(labels, dtype=object),
+                "x0": np.asarray(starts, dtype=float).reshape(-1, 2)}
+
+    def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                ) -> dict[str, np.ndarray] | None:
+        """Evaluate one K on the held-out starts (runner hook).
+
+        Returns
+        -------
+        dict of ndarray or None
+            Per scenario: ``scenario``, ``x0`` (n, 2), ``cost`` (graded), ``energy``,
+            ``converged``, ``status``, ``t_final``, ``final_distance``; ``None`` when the
+            held-out set is empty.
+        """
+        K = check_spd("matrices.K", mats["K"], 2)
+        sc = self.holdout_scenarios()
+        if not len(sc["scenario"]):
+            return None
+        out: dict[str, list] = {k: [] for k in ("cost", "energy", "converged", "status",
+                                                "t_final", "final_distance")}
+        for x0 in sc["x0"]:
+            t_end, energy, dist, status = self._run(K[None], x0)
+            be = self._graded(t_end, energy, dist, status, float(np.hypot(*x0)))
+            for key, value in (("cost", be.cost[0]), ("energy", energy[0]),
+                               ("converged", be.converged[0]), ("status", be.status[0]),
+                               ("t_final", t_end[0]), ("final_distance", dist[0])):
+                out[key].append(value)
+        res = {k: np.asarray(v) for k, v in out.items()}
+        res["status"] = np.asarray(out["status"], dtype=object)
+        res.update(sc)
+        return res
 
     def simulate(
         self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None,
@@ -158,6 +231,10 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> Zermelo:
     """Build the Zermelo problem: defaults → case entry → ``overrides``."""
     merged = {**CASE_PARAMS[case], **dict(overrides)}
     params = Params.from_mapping(merged)
+    if any(not (np.isfinite(r) and r > 0) for r in params.holdout_radii):
+        raise ConfigError("problem.params.holdout_radii", "radii must be positive numbers")
+    if not (isinstance(params.holdout_n_angles, int) and params.holdout_n_angles >= 1):
+        raise ConfigError("problem.params.holdout_n_angles", "must be a positive integer")
     return Zermelo(case, params)
 
 

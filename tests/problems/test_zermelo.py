@@ -6,6 +6,7 @@ import pytest
 from penaltyrun import problems
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import zermelo
+from penaltyrun.problems.zermelo import PAPER_K_FULL, Params, make_problem, reference_cost
 
 
 @pytest.fixture(scope="module")
@@ -86,3 +87,35 @@ def test_unknown_case_and_param():
         problems.make("zermelo", None, {"speed": 3})
     with pytest.raises(ConfigError, match="unknown problem 'nope'"):
         problems.make("nope", None, {})
+
+
+# ------------------------------------------------------------------ held-out starts
+
+
+def test_holdout_starts_on_circles_match_reference():
+    prob = make_problem("default", {"holdout_radii": (2.0, 10.0), "holdout_n_angles": 4})
+    sc = prob.holdout_scenarios()
+    assert sc["x0"].shape == (8, 2)
+    np.testing.assert_allclose(np.hypot(*sc["x0"].T), [2.0] * 4 + [10.0] * 4)
+    held = prob.holdout({"K": PAPER_K_FULL})
+    assert list(held["scenario"]) == list(sc["scenario"])
+    for k, x0 in enumerate(sc["x0"]):
+        cost, t_final, converged = reference_cost(PAPER_K_FULL, Params(x0=tuple(x0)))
+        assert held["converged"][k] == converged
+        assert held["cost"][k] == pytest.approx(cost, rel=1e-6)
+        assert held["t_final"][k] == pytest.approx(t_final, rel=1e-6)
+
+
+def test_holdout_leaves_out_the_training_start():
+    x0 = (10.0, 0.0)
+    prob = make_problem("default", {"x0": x0, "holdout_radii": (10.0,), "holdout_n_angles": 4})
+    sc = prob.holdout_scenarios()
+    assert sc["x0"].shape == (3, 2) and "r=10,deg=0" not in list(sc["scenario"])
+    assert prob.training_scenario()["x0"] == [10.0, 0.0]
+    assert make_problem("default", {"holdout_radii": ()}).holdout({"K": PAPER_K_FULL}) is None
+
+
+@pytest.mark.parametrize("key,value", [("holdout_radii", (1.0, -2.0)), ("holdout_n_angles", 0)])
+def test_bad_holdout_settings(key, value):
+    with pytest.raises(ConfigError, match=key):
+        make_problem("default", {key: value})

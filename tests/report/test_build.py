@@ -44,6 +44,9 @@ def test_attitude_tables_figures_and_studies(attitude_report):
     paper = table.set_index("start").loc["paper mean"]
     assert paper["detumble diagonal"] == pytest.approx(0.423)
     assert paper["rest_to_rest full"] == pytest.approx(0.152)
+    assert "## Held-out scenarios: attitude" in text
+    held = pd.read_csv(attitude_report / "holdout_attitude.csv")
+    assert set(held["scenarios"]) == {8} and held["diag_conv"].between(0, 1).all()
     robust = pd.read_csv(attitude_report / "attitude_robustness.csv")
     assert set(robust["held-out starts"]) == {8}
     horizon = pd.read_csv(attitude_report / "attitude_horizon.csv")
@@ -74,6 +77,12 @@ def test_lowthrust_tables_and_case_e(tmp_path):
     assert row_e["K=I"] == "tof_cap"
     table4 = pd.read_csv(out / "table_lyapunov_transfer.csv")
     assert table4.iloc[0]["K=I"] == "impact"
+    assert "## Held-out scenarios: low thrust" in text
+    assert "### Low thrust: discretization check" in text
+    held = pd.read_csv(out / "holdout_low_thrust.csv")
+    assert list(held["scenarios"]) == [12]
+    disc = pd.read_csv(out / "holdout_discretization.csv")
+    assert disc.iloc[0]["verdict"] in ("within discretization noise", "beyond the spread")
     for name in ("qlaw_C_trajectory.png", "qlaw_C_elements.png", "qlaw_C_thrust.png"):
         assert (out / name).stat().st_size > 0
 
@@ -103,3 +112,15 @@ def test_full_worse_explanation_names_the_cell_and_its_variant():
     assert "qlaw / Estar [objective=min_fuel] / pso / full" in text
     assert "514.4 > best diagonal 476.6" in text
     assert "mean evaluations 108 for 16 variables" in text
+
+
+def test_zermelo_held_out_section(tmp_path):
+    cells = [("zermelo", "default", param, "pso", 2, {"holdout_radii": [2.0, 5.0]})
+             for param in ("diagonal", "full")]
+    run_cells(tmp_path / "run", cells)
+    out = build_report(tmp_path / "run", tmp_path / "report")
+    text = (out / "report.md").read_text()
+    assert "## Held-out scenarios: Zermelo" in text
+    held = pd.read_csv(out / "holdout_zermelo.csv")
+    assert list(held["scenarios"]) == [16]
+    assert (out / "holdout_zermelo.png").stat().st_size > 0

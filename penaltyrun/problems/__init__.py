@@ -12,6 +12,7 @@ from types import ModuleType
 from typing import Any
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import multiscenario
 from penaltyrun.problems.base import Problem
 
 REGISTRY: dict[str, str] = {
@@ -51,10 +52,12 @@ def make(name: str, case: str | None, params: Mapping[str, Any] | None = None) -
     case : str or None
         Case name; must be one of the module's ``CASES``.
     params : mapping, optional
-        Parameter overrides (already merged with the case entry by the caller).
+        Parameter overrides (already merged with the case entry by the caller);
+        ``train_scenarios`` / ``train_aggregate`` make a multi-scenario problem (see
+        :mod:`penaltyrun.problems.multiscenario`).
     """
     mod = module(name)
     case = mod.DEFAULT_CASE if case in (None, "", "default") else str(case)
     if case not in mod.CASES:
         raise ConfigError("case", f"unknown case {case!r} for problem {name!r}", allowed=mod.CASES)
-    return mod.make_problem(case, dict(params or {}))
+    return multiscenario.build(mod, case, dict(params or {}))

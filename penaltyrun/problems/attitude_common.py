@@ -280,6 +280,14 @@ class AttitudeProblem:
         return {"scenario": self.case, "q0": self.y0[:4].tolist(),
                 "omega0": self.y0[4:7].tolist()}
 
+    def scenario_key(self) -> tuple:
+        """Hashable key of the training scenario: initial (q, ω) rounded to 1e-9."""
+        return tuple(np.round(self.y0, 9).tolist())
+
+    def holdout_keys(self) -> set[tuple]:
+        """Keys (as :meth:`scenario_key`) of the held-out scenarios."""
+        return {tuple(np.round(y, 9).tolist()) for y in self.holdout_scenarios()["y0"]}
+
     def holdout_scenarios(self) -> dict[str, np.ndarray]:
         """The held-out set, disjoint from the training scenario.
 

@@ -28,6 +28,7 @@ import numpy as np
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.attitude_frames import ATTITUDE_TYPES, attitude_to_quaternion
 from penaltyrun.problems.base import ParamsMixin
+from penaltyrun.problems.multiscenario import TrainingParams
 
 #: Parameters that do not change a run's result (reports do not split cells by them).
 VARIANT_IGNORE = ("holdout_n", "holdout_lo_deg", "holdout_hi_deg", "holdout_n_perturbed",
@@ -50,7 +51,7 @@ CASE_PARAMS: dict[str, dict[str, Any]] = {
 
 
 @dataclass(frozen=True)
-class Params(ParamsMixin):
+class Params(ParamsMixin, TrainingParams):
     """Attitude problem parameters (SI units).
 
     Attributes
@@ -102,6 +103,8 @@ class Params(ParamsMixin):
         Perturbation sizes (degrees; relative).
     holdout_seed : int
         Seed of the perturbations (the held-out set is the same for every job).
+    train_scenarios, train_aggregate
+        Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
 
     inertia: tuple = (10.0, 15.0, 20.0)

@@ -229,6 +229,16 @@ class LowThrustProblem:
                 "control_step_s": float(self.params.control_step_s),
                 "rk4_substeps": int(self.params.rk4_substeps)}
 
+    def scenario_key(self) -> tuple:
+        """Hashable key of the training scenario: departure (rounded) and discretization."""
+        return holdout_set.key(tuple(self._oe0), float(self.params.control_step_s),
+                               int(self.params.rk4_substeps))
+
+    def holdout_keys(self) -> set[tuple]:
+        """Keys (as :meth:`scenario_key`) of the held-out scenarios."""
+        return {holdout_set.key(s.oe0, s.control_step_s, s.rk4_substeps)
+                for s in self._holdout}
+
     def holdout_scenarios(self) -> list[holdout_set.Scenario]:
         """The held-out set (see :mod:`penaltyrun.problems.lowthrust_holdout`)."""
         return list(self._holdout)

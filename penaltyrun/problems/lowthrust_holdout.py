@@ -47,6 +47,12 @@ class Scenario:
     rk4_substeps: int
 
 
+def key(oe0: tuple, control_step_s: float, rk4_substeps: int) -> tuple:
+    """Hashable key of a transfer set-up (elements rounded to 1e-9), for overlap checks."""
+    return tuple(np.round(np.asarray(oe0, float), 9).tolist()) + (float(control_step_s),
+                                                                 int(rk4_substeps))
+
+
 def initial_elements(p: LowThrustParams) -> np.ndarray:
     """Departure (a km, e, i, Ω, ω, ν0 in rad) of the parameters, shape (6,)."""
     return np.array([p.a0_km, p.e0, p.i0_deg * DEG, p.Omega0_deg * DEG, p.omega0_deg * DEG,
@@ -143,5 +149,5 @@ def scenarios(p: LowThrustParams) -> list[Scenario]:
     return out
 
 
-__all__ = ["KINDS", "Scenario", "departures", "discretizations", "initial_elements",
+__all__ = ["KINDS", "Scenario", "departures", "discretizations", "initial_elements", "key",
            "scenarios"]

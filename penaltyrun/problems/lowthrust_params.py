@@ -13,6 +13,7 @@ import numpy as np
 from penaltyrun.dynamics import lowthrust as lt
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import ParamsMixin
+from penaltyrun.problems.multiscenario import TrainingParams
 
 CASES = ("A", "B", "C", "D", "E", "Estar")
 DEFAULT_CASE = "A"
@@ -58,7 +59,7 @@ CASE_PARAMS: dict[str, dict[str, Any]] = {
 
 
 @dataclass(frozen=True)
-class LowThrustParams(ParamsMixin):
+class LowThrustParams(ParamsMixin, TrainingParams):
     """Parameters shared by both low-thrust laws (units in the names; angles in degrees).
 
     Attributes
@@ -114,6 +115,8 @@ class LowThrustParams(ParamsMixin):
         The same transfer at these zero-order-hold control steps, s (discretization check).
     holdout_substeps : tuple of int
         The same transfer at the training control step with these RK4 substep counts.
+    train_scenarios, train_aggregate
+        Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
 
     a0_km: float = 7000.0

@@ -29,6 +29,7 @@ from penaltyrun.problems.base import (
     ScalarSpec,
     check_spd,
 )
+from penaltyrun.problems.multiscenario import TrainingParams
 
 logger = logging.getLogger(__name__)
 
@@ -44,7 +45,7 @@ PAPER_K_FULL = np.array([[1.7421, 0.9560], [0.9560, 1.1414]])
 
 
 @dataclass(frozen=True)
-class Params(ParamsMixin):
+class Params(ParamsMixin, TrainingParams):
     """Zermelo problem parameters (nondimensional units).
 
     Attributes
@@ -71,6 +72,8 @@ class Params(ParamsMixin):
         Starts per circle, at angles offset + 360°·k / n.
     holdout_angle_offset_deg : float
         Angle of the first start on each circle (degrees from the +x axis).
+    train_scenarios, train_aggregate
+        Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
 
     x0: tuple[float, float] = (-8.0, 6.0)
@@ -148,6 +151,14 @@ class Zermelo:
     def training_scenario(self) -> dict[str, Any]:
         """The scenario K is tuned on: the start ``x0``."""
         return {"scenario": "x0", "x0": [float(v) for v in self.params.x0]}
+
+    def scenario_key(self) -> tuple:
+        """Hashable key of the training scenario (the start, rounded to 1e-9)."""
+        return tuple(np.round(np.asarray(self.params.x0, float), 9).tolist())
+
+    def holdout_keys(self) -> set[tuple]:
+        """Keys (as :meth:`scenario_key`) of the held-out scenarios."""
+        return {tuple(np.round(x, 9).tolist()) for x in self.holdout_scenarios()["x0"]}
 
     def holdout_scenarios(self) -> dict[str, np.ndarray]:
         """Held-out starts on circles around the origin (the training start left out).

@@ -1,0 +1,185 @@
+"""Multi-scenario tuning: one objective over several training scenarios of a problem.
+
+A problem's parameters may carry ``train_scenarios`` (a list of parameter overrides, each
+one training scenario on top of the case and the other overrides; ``{}`` is the case's own
+scenario) and ``train_aggregate`` (``mean`` or ``max``). The tuned objective of a candidate
+is then the mean (or the max) of its costs over the training scenarios, each cost as the
+single-scenario problem defines it (graded penalty included, so it stays finite); the
+candidate converges only if it converges in every training scenario.
+
+The held-out set stays the one of the problem built without ``train_scenarios`` (see each
+problem's ``holdout_scenarios``) and must be disjoint from the training scenarios: an
+overlap, an empty list or an unknown aggregate is a config error.
+
+Problems take part through three methods: ``scenario_key()`` (hashable key of the training
+scenario), ``holdout_keys()`` (keys of the held-out scenarios) and the usual
+``make_problem`` / ``evaluate`` / ``evaluate_batch``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from penaltyrun.errors import ConfigError
+from penaltyrun.problems.base import BatchEvaluation
+
+AGGREGATES = ("mean", "max")
+KEYS = ("train_scenarios", "train_aggregate")
+
+
+@dataclass(frozen=True)
+class TrainingParams:
+    """Multi-scenario tuning settings shared by every problem's ``Params``.
+
+    Attributes
+    ----------
+    train_scenarios : tuple of mapping or None
+        Training scenarios as parameter overrides; ``None``: single-scenario tuning (the
+        case itself).
+    train_aggregate : str
+        ``"mean"`` or ``"max"`` of the per-scenario costs.
+    """
+
+    train_scenarios: tuple | None = None
+    train_aggregate: str = "mean"
+
+
+def _aggregate(costs: np.ndarray, how: str) -> np.ndarray:
+    return costs.mean(axis=0) if how == "mean" else costs.max(axis=0)
+
+
+class MultiScenarioProblem:
+    """A problem whose objective aggregates several training scenarios.
+
+    Parameters
+    ----------
+    base : Problem
+        The problem without ``train_scenarios`` (its held-out set is the one used).
+    scenarios : list of Problem
+        One problem per training scenario.
+    overrides : list of dict
+        The training scenarios' overrides (recorded in results).
+    aggregate : str
+        ``"mean"`` or ``"max"``.
+    """
+
+    def __init__(self, base: Any, scenarios: list[Any], overrides: list[dict[str, Any]],
+                 aggregate: str) -> None:
+        self.base = base
+        self.scenarios = scenarios
+        self.overrides = overrides
+        self.aggregate = aggregate
+        self.name = base.name
+        self.case = base.case
+        self.matrices = base.matrices
+        self.scalars = base.scalars
+        self.params = replace(base.params, train_scenarios=tuple(overrides),
+                              train_aggregate=aggregate)
+
+    def __getattr__(self, name: str) -> Any:
+        # Anything not overridden (plots, histories, problem-specific helpers) is the base
+        # problem's.
+        if name == "base":
+            raise AttributeError(name)
+        return getattr(self.base, name)
+
+    def evaluate_batch(self, mats: Mapping[str, np.ndarray],
+                       scalars: Mapping[str, np.ndarray] | None = None) -> BatchEvaluation:
+        """Aggregated costs of B candidates over the training scenarios."""
+        evals = [p.evaluate_batch(mats, scalars) for p in self.scenarios]
+        cost = _aggregate(np.stack([e.cost for e in evals]), self.aggregate)
+        conv = np.stack([e.converged for e in evals])
+        status = []
+        for b in range(cost.shape[0]):
+            bad = [str(e.status[b]) for e in evals if not e.converged[b]]
+            status.append(bad[0] if bad else "converged")
+        return BatchEvaluation(cost=cost, converged=conv.all(axis=0),
+                               status=np.asarray(status, dtype=object))
+
+    def evaluate(self, mats: Mapping[str, Any],
+                 scalars: Mapping[str, float] | None = None) -> dict[str, Any]:
+        """Detailed evaluation: the aggregate plus every training scenario's result.
+
+        Returns
+        -------
+        dict
+            ``cost`` (aggregate), ``converged`` (all), ``status`` (first failure or
+            ``converged``), ``t_final`` (largest over scenarios), ``train_aggregate``,
+            ``train_scenarios`` (list of {``overrides``, ``cost``, ``converged``,
+            ``status``, ``t_final``}), ``problem``, ``case``.
+        """
+        details = [p.evaluate(mats, scalars) for p in self.scenarios]
+        costs = np.array([[d["cost"]] for d in details])
+        bad = [d["status"] for d in details if not d["converged"]]
+        return {
+            "problem": self.name, "case": self.case,
+            "cost": float(_aggregate(costs, self.aggregate)[0]),
+            "converged": all(bool(d["converged"]) for d in details),
+            "status": bad[0] if bad else "converged",
+            "t_final": max(float(d["t_final"]) for d in details),
+            "train_aggregate": self.aggregate,
+            "train_scenarios": [{"overrides": o, "cost": float(d["cost"]),
+                                 "converged": bool(d["converged"]), "status": d["status"],
+                                 "t_final": float(d["t_final"])}
+                                for o, d in zip(self.overrides, details)],
+        }
+
+    def simulate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                 ) -> dict[str, np.ndarray]:
+        """Histories of the first training scenario."""
+        return self.scenarios[0].simulate(mats, scalars)
+
+    def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                ) -> Any:
+        """The base problem's held-out evaluation (disjoint from the training scenarios)."""
+        return self.base.holdout(mats, scalars)
+
+
+def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
+    """``mod.make_problem`` with multi-scenario tuning when ``train_scenarios`` is given.
+
+    Raises
+    ------
+    ConfigError
+        Empty or malformed ``train_scenarios``, an unknown ``train_aggregate``, or a training
+        scenario that is also a held-out scenario.
+    """
+    rest = {k: v for k, v in overrides.items() if k not in KEYS}
+    scenarios = overrides.get("train_scenarios")
+    aggregate = overrides.get("train_aggregate") or "mean"
+    if aggregate not in AGGREGATES:
+        raise ConfigError("problem.params.train_aggregate", f"unknown aggregate {aggregate!r}",
+                          allowed=AGGREGATES)
+    base = mod.make_problem(case, rest)
+    if scenarios is None:
+        return base
+    if isinstance(scenarios, Mapping) or not hasattr(scenarios, "__len__") or not scenarios:
+        raise ConfigError("problem.params.train_scenarios",
+                          "need a non-empty list of parameter overrides (use {} for the "
+                          "case itself), or null for single-scenario tuning")
+    built, recorded = [], []
+    held = base.holdout_keys() if hasattr(base, "holdout_keys") else set()
+    for k, scen in enumerate(scenarios):
+        if not isinstance(scen, Mapping):
+            raise ConfigError("problem.params.train_scenarios",
+                              f"scenario {k} is not a mapping of parameter overrides: {scen!r}")
+        inner = sorted(set(scen) & set(KEYS))
+        if inner:
+            raise ConfigError("problem.params.train_scenarios",
+                              f"scenario {k} sets {inner[0]}, which is not a problem parameter")
+        prob = mod.make_problem(case, {**rest, **dict(scen)})
+        if hasattr(prob, "scenario_key") and prob.scenario_key() in held:
+            raise ConfigError("problem.params.train_scenarios",
+                              f"training scenario {k} ({dict(scen)}) is also in the held-out "
+                              "set; training and held-out scenarios must be disjoint")
+        built.append(prob)
+        recorded.append(dict(scen))
+    return MultiScenarioProblem(base, built, recorded, aggregate)
+
+
+__all__ = ["AGGREGATES", "KEYS", "MultiScenarioProblem", "TrainingParams", "build"]

@@ -1,0 +1,100 @@
+"""Multi-scenario tuning: the aggregated objective against hand computations from
+independently built single-scenario problems; disjointness and bad settings."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from penaltyrun.errors import ConfigError
+from penaltyrun.problems import make
+from penaltyrun.problems.multiscenario import MultiScenarioProblem
+
+STARTS = [{"x0": (-8.0, 6.0)}, {"x0": (3.0, -4.0)}, {"x0": (1.0, 7.5)}]
+KS = np.stack([np.array([[1.7421, 0.9560], [0.9560, 1.1414]]), np.diag([0.8094, 0.1611]),
+               np.eye(2)])
+
+
+@pytest.mark.parametrize("how", ["mean", "max"])
+def test_zermelo_aggregate_matches_hand_computation(how):
+    prob = make("zermelo", None, {"train_scenarios": STARTS, "train_aggregate": how})
+    assert isinstance(prob, MultiScenarioProblem)
+    batch = prob.evaluate_batch({"K": KS})
+    single = np.array([[make("zermelo", None, s).evaluate({"K": K})["cost"] for K in KS]
+                       for s in STARTS])  # (scenario, candidate)
+    want = single.mean(axis=0) if how == "mean" else single.max(axis=0)
+    np.testing.assert_allclose(batch.cost, want, rtol=1e-12)
+    assert batch.converged.all()
+    detail = prob.evaluate({"K": KS[0]})
+    assert detail["cost"] == pytest.approx(want[0], rel=1e-12)
+    assert [d["cost"] for d in detail["train_scenarios"]] == pytest.approx(single[:, 0])
+    json.dumps(detail)
+
+
+def test_attitude_mean_over_training_attitudes():
+    scen = [{"attitude": (60.0, 80.0, -60.0)}, {"attitude": (20.0, -30.0, 45.0)}]
+    prob = make("attitude_lyapunov", "rest_to_rest", {"train_scenarios": scen})
+    gains = {"Kp": 3.0 * np.eye(3), "Kd": 6.0 * np.eye(3)}
+    costs = [make("attitude_lyapunov", "rest_to_rest", s).evaluate(gains)["cost"] for s in scen]
+    assert prob.evaluate(gains)["cost"] == pytest.approx(np.mean(costs), rel=1e-12)
+    assert prob.holdout(gains)["cost"].shape == (216,)
+
+
+def test_one_failing_scenario_fails_the_candidate():
+    scen = [{}, {"t_max": 1.0}]
+    prob = make("zermelo", None, {"train_scenarios": scen, "train_aggregate": "max"})
+    res = prob.evaluate({"K": KS[0]})
+    assert not res["converged"] and res["status"] == "horizon"
+    assert res["cost"] > prob.params.failure_penalty
+    assert not prob.evaluate_batch({"K": KS[:1]}).converged[0]
+
+
+def test_lowthrust_departures_times_steps():
+    scen = [{"nu0_deg": nu, "control_step_s": dt} for nu in (30.0, 200.0) for dt in (70.0, 90.0)]
+    prob = make("qlaw", "C", {"train_scenarios": scen})
+    K = np.diag([1.0, 3.0, 1.0, 1.0, 1.0])
+    want = np.mean([make("qlaw", "C", s).evaluate({"K": K})["cost"] for s in scen])
+    assert prob.evaluate({"K": K})["cost"] == pytest.approx(want, rel=1e-12)
+    assert prob.params.train_scenarios == tuple(scen)
+
+
+@pytest.mark.parametrize("problem,case,over,match", [
+    ("zermelo", None, {"train_scenarios": []}, "non-empty"),
+    ("zermelo", None, {"train_scenarios": [{"x0": (2.0, 0.0)}]}, "held-out"),
+    ("zermelo", None, {"train_scenarios": [{}], "train_aggregate": "median"}, "aggregate"),
+    ("zermelo", None, {"train_scenarios": [5]}, "not a mapping"),
+    ("zermelo", None, {"train_scenarios": [{"nonsense": 1}]}, "nonsense"),
+    ("qlaw", "A", {"train_scenarios": [{}, {"control_step_s": 40.0}]}, "held-out"),
+    ("attitude_lyapunov", "detumble",
+     {"train_scenarios": [{"attitude": (10.0, 10.0, 10.0), "omega0": (0.0, 0.0, 0.0)}]},
+     "held-out"),
+])
+def test_bad_training_settings(problem, case, over, match):
+    with pytest.raises(ConfigError, match=match):
+        make(problem, case, over)
+
+
+def test_bad_training_settings_on_the_command_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.cli", "problem=zermelo",
+                           "problem.params.train_scenarios=[]", "runner.n_starts=1"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("penaltyrun: error: problem.params.train_scenarios")
+
+
+def test_evaluate_mode_prints_the_aggregate(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.cli", "mode=evaluate",
+                           "problem=zermelo", "matrices.K=[[1.7421,0.9560],[0.9560,1.1414]]",
+                           "problem.params.train_scenarios=[{x0:[-8,6]},{x0:[3,-4]}]",
+                           "problem.params.train_aggregate=max"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    res = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert res["train_aggregate"] == "max" and len(res["train_scenarios"]) == 2
+    assert res["cost"] == max(d["cost"] for d in res["train_scenarios"])

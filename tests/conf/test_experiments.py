@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
 
 from penaltyrun import problems
 
@@ -34,3 +35,16 @@ def test_acc_attitude_profile():
     for case in params["case"].split(","):
         prob = problems.make("attitude_lyapunov", case)
         assert all(m.eig_bounds == (1e-8, 20.0) for m in prob.matrices)
+
+
+@pytest.mark.parametrize("name,kind", [("attitude_multiscenario", 8),
+                                       ("lowthrust_multiscenario", 4)])
+def test_multiscenario_profiles_build_disjoint_problems(name, kind):
+    from penaltyrun.problems.multiscenario import MultiScenarioProblem
+
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[f"+experiment={name}"])
+    params = {k: v for k, v in OmegaConf.to_container(cfg.problem.params, resolve=True).items()
+              if v is not None}
+    prob = problems.make(cfg.problem.name, cfg.case, params)
+    assert isinstance(prob, MultiScenarioProblem) and len(prob.scenarios) == kind

@@ -260,8 +260,9 @@ def robustness_section(df: pd.DataFrame, out: Path) -> list[str]:
 
 
 def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
-    """Tables 1–2, horizon and robustness sections for the attitude rows of ``df``."""
-    att = df[df["problem"].isin(ATTITUDE)]
+    """Tables 1–2, horizon and robustness sections for the attitude rows of ``df`` (the
+    main set-up's manoeuvres; the companion study's cases have their own section)."""
+    att = df[df["problem"].isin(ATTITUDE) & df["case"].isin(MANOEUVRES)]
     if att.empty:
         return []
     lines: list[str] = []

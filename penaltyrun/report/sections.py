@@ -16,7 +16,7 @@ import pandas as pd  # noqa: E402
 
 from penaltyrun import problems  # noqa: E402
 from penaltyrun.io import decode_json  # noqa: E402
-from penaltyrun.report import attitude, holdout, lowthrust  # noqa: E402
+from penaltyrun.report import attitude, companion, holdout, lowthrust  # noqa: E402
 from penaltyrun.report.paper import BEST_MATRICES  # noqa: E402
 from penaltyrun.report.tables import markdown  # noqa: E402
 
@@ -112,5 +112,6 @@ def problem_section(problem: str, case: str, df: pd.DataFrame, out: Path, paper:
 STUDIES: dict[str, Callable[[pd.DataFrame, Path, bool], list[str]]] = {
     "attitude": attitude.study_sections,
     "low thrust": lowthrust.study_sections,
+    "attitude companion": companion.study_sections,
     "held-out": holdout.study_sections,
 }

@@ -284,6 +284,21 @@ class AttitudeProblem:
         """Hashable key of the training scenario: initial (q, ω) rounded to 1e-9."""
         return tuple(np.round(self.y0, 9).tolist())
 
+    def sample_training(self, n: int, seed: int) -> list[dict[str, Any]]:
+        """``n`` seeded training states: perturbations of this case's initial state with the
+        held-out sizes (``holdout_perturb_deg``, ``holdout_rate_rel``) and ``seed``.
+
+        Returns
+        -------
+        list of dict
+            Overrides ``{"attitude_type": "quaternion", "attitude": q, "omega0": ω}``.
+        """
+        p = self.params
+        q, w = perturbed_states(self.y0[:4], self.y0[4:7], n, p.holdout_perturb_deg,
+                                p.holdout_rate_rel, seed)
+        return [{"attitude_type": "quaternion", "attitude": tuple(qi.tolist()),
+                 "omega0": tuple(wi.tolist())} for qi, wi in zip(q, w)]
+
     def holdout_keys(self) -> set[tuple]:
         """Keys (as :meth:`scenario_key`) of the held-out scenarios."""
         return {tuple(np.round(y, 9).tolist()) for y in self.holdout_scenarios()["y0"]}

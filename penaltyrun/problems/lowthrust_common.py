@@ -234,6 +234,22 @@ class LowThrustProblem:
         return holdout_set.key(tuple(self._oe0), float(self.params.control_step_s),
                                int(self.params.rk4_substeps))
 
+    def sample_training(self, n: int, seed: int) -> list[dict[str, Any]]:
+        """``n`` seeded training departures, drawn as the held-out ones but with ``seed``.
+
+        Returns
+        -------
+        list of dict
+            Overrides of (a0_km, e0, i0_deg, Omega0_deg, omega0_deg, nu0_deg).
+        """
+        from dataclasses import replace
+
+        drawn = holdout_set.departures(replace(self.params, holdout_n_perturbed=int(n),
+                                               holdout_seed=int(seed)))
+        names = ("a0_km", "e0", "i0_deg", "Omega0_deg", "omega0_deg", "nu0_deg")
+        return [{name: (v if k < 2 else v / DEG) for k, (name, v) in
+                 enumerate(zip(names, sc.oe0))} for sc in drawn]
+
     def holdout_keys(self) -> set[tuple]:
         """Keys (as :meth:`scenario_key`) of the held-out scenarios."""
         return {holdout_set.key(s.oe0, s.control_step_s, s.rk4_substeps)

@@ -2,7 +2,9 @@
 
 A problem's parameters may carry ``train_scenarios`` (a list of parameter overrides, each
 one training scenario on top of the case and the other overrides; ``{}`` is the case's own
-scenario) and ``train_aggregate`` (``mean`` or ``max``). The tuned objective of a candidate
+scenario), ``train_sample`` / ``train_seed`` (a seeded sample of that many scenarios drawn
+by the problem's ``sample_training(n, seed)``, appended to the list) and
+``train_aggregate`` (``mean`` or ``max``). The tuned objective of a candidate
 is then the mean (or the max) of its costs over the training scenarios, each cost as the
 single-scenario problem defines it (graded penalty included, so it stays finite); the
 candidate converges only if it converges in every training scenario.
@@ -29,7 +31,7 @@ from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import BatchEvaluation
 
 AGGREGATES = ("mean", "max")
-KEYS = ("train_scenarios", "train_aggregate")
+KEYS = ("train_scenarios", "train_aggregate", "train_sample", "train_seed")
 
 
 @dataclass(frozen=True)
@@ -43,10 +45,16 @@ class TrainingParams:
         case itself).
     train_aggregate : str
         ``"mean"`` or ``"max"`` of the per-scenario costs.
+    train_sample : int
+        Further training scenarios drawn by the problem's ``sample_training`` (0: none).
+    train_seed : int
+        Seed of that sample (different from the held-out seeds).
     """
 
     train_scenarios: tuple | None = None
     train_aggregate: str = "mean"
+    train_sample: int = 0
+    train_seed: int = 1
 
 
 def _aggregate(costs: np.ndarray, how: str) -> np.ndarray:
@@ -66,10 +74,12 @@ class MultiScenarioProblem:
         The training scenarios' overrides (recorded in results).
     aggregate : str
         ``"mean"`` or ``"max"``.
+    params : dataclass, optional
+        Parameters to report (default: the base's with the training settings filled in).
     """
 
     def __init__(self, base: Any, scenarios: list[Any], overrides: list[dict[str, Any]],
-                 aggregate: str) -> None:
+                 aggregate: str, params: Any = None) -> None:
         self.base = base
         self.scenarios = scenarios
         self.overrides = overrides
@@ -78,8 +88,8 @@ class MultiScenarioProblem:
         self.case = base.case
         self.matrices = base.matrices
         self.scalars = base.scalars
-        self.params = replace(base.params, train_scenarios=tuple(overrides),
-                              train_aggregate=aggregate)
+        self.params = params if params is not None else replace(
+            base.params, train_scenarios=tuple(overrides), train_aggregate=aggregate)
 
     def __getattr__(self, name: str) -> Any:
         # Anything not overridden (plots, histories, problem-specific helpers) is the base
@@ -156,9 +166,27 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
         raise ConfigError("problem.params.train_aggregate", f"unknown aggregate {aggregate!r}",
                           allowed=AGGREGATES)
     base = mod.make_problem(case, rest)
+    n_sample = overrides.get("train_sample") or 0
+    seed = overrides.get("train_seed", 1)
+    if not (isinstance(n_sample, int) and not isinstance(n_sample, bool) and n_sample >= 0):
+        raise ConfigError("problem.params.train_sample",
+                          f"must be an integer >= 0, got {n_sample!r}")
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        raise ConfigError("problem.params.train_seed", f"must be an integer >= 0, got {seed!r}")
+    listed = scenarios
+    if listed is not None and (isinstance(listed, Mapping) or not hasattr(listed, "__len__")
+                               or not listed):
+        raise ConfigError("problem.params.train_scenarios",
+                          "need a non-empty list of parameter overrides (use {} for the "
+                          "case itself), or null for single-scenario tuning")
+    if n_sample:
+        if not hasattr(base, "sample_training"):
+            raise ConfigError("problem.params.train_sample",
+                              f"problem {base.name!r} cannot draw training scenarios")
+        scenarios = list(scenarios or []) + base.sample_training(n_sample, seed)
     if scenarios is None:
         return base
-    if isinstance(scenarios, Mapping) or not hasattr(scenarios, "__len__") or not scenarios:
+    if not scenarios:
         raise ConfigError("problem.params.train_scenarios",
                           "need a non-empty list of parameter overrides (use {} for the "
                           "case itself), or null for single-scenario tuning")
@@ -179,7 +207,9 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
                               "set; training and held-out scenarios must be disjoint")
         built.append(prob)
         recorded.append(dict(scen))
-    return MultiScenarioProblem(base, built, recorded, aggregate)
+    params = replace(base.params, train_scenarios=None if listed is None else tuple(listed),
+                     train_aggregate=aggregate, train_sample=n_sample, train_seed=seed)
+    return MultiScenarioProblem(base, built, recorded, aggregate, params)
 
 
 __all__ = ["AGGREGATES", "KEYS", "MultiScenarioProblem", "TrainingParams", "build"]

@@ -156,6 +156,19 @@ class Zermelo:
         """Hashable key of the training scenario (the start, rounded to 1e-9)."""
         return tuple(np.round(np.asarray(self.params.x0, float), 9).tolist())
 
+    def sample_training(self, n: int, seed: int) -> list[dict[str, Any]]:
+        """``n`` seeded training starts: angle uniform, radius uniform in [1, 10].
+
+        Returns
+        -------
+        list of dict
+            Overrides ``{"x0": (x, y)}``.
+        """
+        rng = np.random.default_rng(int(seed))
+        r = rng.uniform(1.0, 10.0, n)
+        a = rng.uniform(0.0, 2.0 * np.pi, n)
+        return [{"x0": (float(ri * np.cos(ai)), float(ri * np.sin(ai)))} for ri, ai in zip(r, a)]
+
     def holdout_keys(self) -> set[tuple]:
         """Keys (as :meth:`scenario_key`) of the held-out scenarios."""
         return {tuple(np.round(x, 9).tolist()) for x in self.holdout_scenarios()["x0"]}

@@ -98,3 +98,34 @@ def test_evaluate_mode_prints_the_aggregate(tmp_path):
     res = json.loads(proc.stdout.strip().splitlines()[-1])
     assert res["train_aggregate"] == "max" and len(res["train_scenarios"]) == 2
     assert res["cost"] == max(d["cost"] for d in res["train_scenarios"])
+
+
+@pytest.mark.parametrize("problem,case", [("zermelo", None),
+                                          ("attitude_lyapunov", "schaub_detumble"),
+                                          ("qlaw", "C")])
+def test_seeded_training_sample(problem, case):
+    prob = make(problem, case, {"train_sample": 3, "train_seed": 5})
+    again = make(problem, case, {"train_sample": 3, "train_seed": 5})
+    other = make(problem, case, {"train_sample": 3, "train_seed": 6})
+    assert len(prob.scenarios) == 3 and prob.overrides == again.overrides
+    assert prob.overrides != other.overrides
+    assert (prob.params.train_sample, prob.params.train_seed) == (3, 5)
+    assert prob.params.train_scenarios is None
+    held = prob.base.holdout_keys()
+    assert not any(p.scenario_key() in held for p in prob.scenarios)
+    both = make(problem, case, {"train_scenarios": [{}], "train_sample": 2})
+    assert len(both.scenarios) == 3 and both.overrides[0] == {}
+
+
+def test_seeded_sample_mean_matches_members():
+    prob = make("qlaw", "C", {"train_sample": 2, "train_seed": 3})
+    K = np.eye(5)
+    want = np.mean([make("qlaw", "C", o).evaluate({"K": K})["cost"] for o in prob.overrides])
+    assert prob.evaluate({"K": K})["cost"] == pytest.approx(want, rel=1e-12)
+
+
+@pytest.mark.parametrize("over,key", [({"train_sample": -1}, "train_sample"),
+                                      ({"train_sample": 2, "train_seed": -3}, "train_seed")])
+def test_bad_sample_settings(over, key):
+    with pytest.raises(ConfigError, match=key):
+        make("zermelo", None, over)

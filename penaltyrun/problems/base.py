@@ -9,6 +9,13 @@ A problem module (``penaltyrun/problems/<name>.py``) exposes
 * plot helpers (``plot_*``) that take the dictionaries returned by ``Problem.simulate``;
 * optionally ``VARIANT_IGNORE``: parameter names that do not change a run's result (e.g.
   the size of a held-out grid), so reports do not split cells by them.
+* optionally, on the problem object, the held-out interface used by the runner and the
+  report: ``training_scenario()`` (the scenario the matrices are tuned on),
+  ``holdout_scenarios()`` (the held-out set, disjoint from it) and
+  ``holdout(mats, scalars)`` (per-scenario lists: ``scenario`` labels, ``cost``,
+  ``converged``, ``status``, ...; ``None`` when the set is empty); and for multi-scenario
+  tuning (:mod:`penaltyrun.problems.multiscenario`) ``scenario_key()``, ``holdout_keys()``
+  and ``sample_training(n, seed)``, with ``Params`` deriving from ``TrainingParams``.
 
 The layer below (``penaltyrun.dynamics``) holds the compiled kernels; this layer wraps them
 into objects that know the problem's matrices, bounds and cost. Hydra and pandas stay out.

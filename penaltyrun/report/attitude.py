@@ -82,10 +82,10 @@ def paper_table(df: pd.DataFrame, problem: str, optimizer: str, paper: bool) -> 
     """Per-start costs (columns manoeuvre × param) plus mean, best, worst, improvement.
 
     A start that did not converge is listed empty (its graded penalty is not a cost) and
-    the statistics rows use converged starts only; the ``converged`` row counts them.
+    the statistics rows use converged starts only; the ``converged starts`` row counts them.
     """
     columns: dict[str, pd.Series] = {}
-    counts = {"start": "converged"}
+    counts: dict[str, Any] = {"start": "converged starts"}
     for case in MANOEUVRES:
         for param in ("diagonal", "full"):
             sel = df[(df["problem"] == problem) & (df["case"] == case)
@@ -94,7 +94,7 @@ def paper_table(df: pd.DataFrame, problem: str, optimizer: str, paper: bool) -> 
                         else df["param"] == "diagonal")].sort_values("start")
             ok = converged(sel)
             columns[f"{case} {param}"] = sel["best_cost"].where(ok).reset_index(drop=True)
-            counts[f"{case} {param}"] = f"{int(ok.sum())}/{len(sel)}"
+            counts[f"{case} {param}"] = int(ok.sum())
     table = pd.DataFrame(columns)
     n = len(table)
     table.insert(0, "start", [str(i + 1) for i in range(n)])

@@ -57,8 +57,9 @@ def anytime(df: pd.DataFrame, bk: pd.DataFrame, label: str, title: str,
     """Median and IQR band of best-so-far vs evaluations, per optimizer (panel) × map.
 
     The y axis is the gap to the lowest best-known cost of the problem (any map family),
-    plus δ = 1e-6·|f*| so that the best-known itself stays on the log scale; x is log
-    evaluations. None if no start has a trace (results before anytime traces).
+    plus δ = 1e-6·|f*| so that the best-known itself stays on the log scale (a dotted line
+    marks the best-known diagonal when it is higher); x is log evaluations. None if no
+    start has a trace (results before anytime traces).
     """
     df = with_problem_variant(df)
     opts = [o for o in _optimizers(df) if cell_traces(df[df["optimizer"] == o])]
@@ -85,6 +86,9 @@ def anytime(df: pd.DataFrame, bk: pd.DataFrame, label: str, title: str,
                     label=f"{param} (median of {len(traces)})")
             ax.fill_between(grid, q25 - f_ref + delta, q75 - f_ref + delta, color=c,
                             alpha=0.2, lw=0)
+        if np.isfinite(refs[0]) and refs[0] > f_ref:
+            ax.axhline(refs[0] - f_ref + delta, color="k", ls=":", lw=1,
+                       label="best-known diagonal")
         _log_x(ax)
         ax.set_yscale("log")
         ax.set_xlabel("objective evaluations")

@@ -171,7 +171,7 @@ def a12_magnitude(value: float) -> str:
     """Label of |A12 − 0.5|: negligible (< 0.06), small, medium (≥ 0.14), large (≥ 0.21)."""
     if not np.isfinite(value):
         return "—"
-    d = abs(value - 0.5)
+    d = round(abs(value - 0.5), 12)  # 0.71 − 0.5 is 0.2099…9 in binary
     return next((label for bound, label in A12_THRESHOLDS if d >= bound), "negligible")
 
 

@@ -31,8 +31,8 @@ COMPARISON_COLUMNS = [
     "a12_magnitude", "p_mwu", "p_holm", "note",
 ]
 BEST_KNOWN_COLUMNS = ["problem", "case", "problem_variant", "family", "best_known",
-                      "optimizer", "param", "certified", "certified_by", "n_converged",
-                      "matrices"]
+                      "optimizer", "param", "job_id", "certified", "certified_by",
+                      "n_converged", "matrices"]
 SHORTFALL_COLUMNS = ["problem", "case", "variant", "optimizer", "param", "n_converged",
                      "n_jobs", "best_known", "best", "median", "gap_best_pct",
                      "gap_median_pct"]

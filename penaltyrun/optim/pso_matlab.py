@@ -68,16 +68,13 @@ from penaltyrun.optim.base import (
     OptimResult,
     as_counting,
     main_budget,
+    require_int,
     uniform_box,
 )
 
 logger = logging.getLogger(__name__)
 
 INERTIA_UPDATES = ("every_iteration", "on_improvement")
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True)
@@ -132,14 +129,8 @@ class PSOMatlabSettings(CommonSettings):
             Naming the key, e.g. ``optimizer.inertia_range``.
         """
         super().validate()
-        if self.swarm_size is not None and (not _is_int(self.swarm_size)
-                                            or self.swarm_size < 2):
-            raise ConfigError("optimizer.swarm_size", f"must be an integer ≥ 2 or null, got "
-                              f"{self.swarm_size!r}")
-        if self.max_iterations is not None and (not _is_int(self.max_iterations)
-                                                or self.max_iterations < 1):
-            raise ConfigError("optimizer.max_iterations", f"must be a positive integer or "
-                              f"null, got {self.max_iterations!r}")
+        require_int("swarm_size", self.swarm_size, 2, allow_none=True)
+        require_int("max_iterations", self.max_iterations, 1, allow_none=True)
         wr = self.inertia_range
         if (not isinstance(wr, tuple | list) or len(wr) != 2
                 or not all(isinstance(w, int | float) and not isinstance(w, bool)
@@ -163,9 +154,7 @@ class PSOMatlabSettings(CommonSettings):
         if not (math.isfinite(self.function_tolerance) and self.function_tolerance >= 0):
             raise ConfigError("optimizer.function_tolerance", f"must be ≥ 0, got "
                               f"{self.function_tolerance!r}")
-        if not _is_int(self.max_stall_iterations) or self.max_stall_iterations < 1:
-            raise ConfigError("optimizer.max_stall_iterations", f"must be a positive "
-                              f"integer, got {self.max_stall_iterations!r}")
+        require_int("max_stall_iterations", self.max_stall_iterations, 1)
         if self.inertia_update not in INERTIA_UPDATES:
             raise ConfigError("optimizer.inertia_update", f"unknown rule "
                               f"{self.inertia_update!r}", allowed=INERTIA_UPDATES)

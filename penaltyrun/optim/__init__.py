@@ -1,9 +1,10 @@
 """Optimizers over a box with a batched objective and an evaluation budget.
 
-``pso`` (pyswarms), ``de`` (scipy differential evolution), ``cmaes`` (IPOP-CMA-ES from
-``cma``), ``grid`` (exhaustive grid + local search, dimension ≤ 4) and ``baseline`` (one
-given point). :func:`minimize` runs one of them, then the shared bounded polish
-(``optimizer.polish``) inside the same ``max_evals``.
+``pso`` (pyswarms), ``pso_matlab`` (MATLAB's ``particleswarm`` re-implemented in numpy),
+``de`` (scipy differential evolution), ``cmaes`` (IPOP-CMA-ES from ``cma``), ``grid``
+(exhaustive grid + local search, dimension ≤ 4) and ``baseline`` (one given point).
+:func:`minimize` runs one of them, then the shared bounded polish (``optimizer.polish``)
+inside the same ``max_evals``.
 """
 
 from __future__ import annotations
@@ -29,15 +30,18 @@ from penaltyrun.optim.de import DESettings, run_de
 from penaltyrun.optim.grid import GridSettings, run_grid
 from penaltyrun.optim.polish import local_search
 from penaltyrun.optim.pso import PSOSettings, run_pso
+from penaltyrun.optim.pso_matlab import PSOMatlabSettings, run_pso_matlab
 
 OPTIMIZERS = {"pso": (PSOSettings, run_pso), "de": (DESettings, run_de),
               "cmaes": (CMAESSettings, run_cmaes), "grid": (GridSettings, run_grid),
-              "baseline": (BaselineSettings, run_baseline)}
+              "baseline": (BaselineSettings, run_baseline),
+              "pso_matlab": (PSOMatlabSettings, run_pso_matlab)}
 
 _POSITIVE_INT = ("n_particles", "iters", "popsize", "ftol_iter")
 
 
-Settings = PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
+Settings = (PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
+            | PSOMatlabSettings)
 
 
 def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
@@ -117,5 +121,5 @@ def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarra
 
 
 __all__ = ["OPTIMIZERS", "POLISH_METHODS", "BaselineSettings", "CMAESSettings",
-           "CommonSettings", "DESettings", "GridSettings", "OptimResult", "PSOSettings",
-           "Settings", "check_dimension", "make_settings", "minimize"]
+           "CommonSettings", "DESettings", "GridSettings", "OptimResult", "PSOMatlabSettings",
+           "PSOSettings", "Settings", "check_dimension", "make_settings", "minimize"]

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from penaltyrun.dynamics import lowthrust as lt
 from penaltyrun.errors import ConfigError
@@ -152,3 +154,20 @@ def test_no_progress_config_errors(key: str, value: float) -> None:
         with pytest.raises(ConfigError) as exc:
             module.make_problem("A", {key: value})
         assert exc.value.key == f"problem.params.{key}"
+
+
+@settings(max_examples=200)
+@given(a=st.floats(6600.0, 2e5), e=st.floats(0.0, 0.97), inc=st.floats(0.0, np.pi),
+       raan=st.floats(-np.pi, np.pi), argp=st.floats(-np.pi, np.pi),
+       eig=st.lists(st.floats(-3.0, 2.0), min_size=5, max_size=5),
+       seed=st.integers(0, 2**31), case=st.sampled_from(CASES), sides=st.sampled_from([1, 2]))
+def test_gradient_property_matches_complex_step(a, e, inc, raan, argp, eig, seed, case, sides):
+    prob = qlaw.make_problem(case, {"selector_sides": sides})
+    q, _ = np.linalg.qr(np.random.default_rng(seed).normal(size=(5, 5)))
+    K = q @ np.diag(10.0 ** np.array(eig)) @ q.T
+    oe = np.array([a, e, inc, raan, argp])
+    g, g_ref = np.empty(5), np.empty(5)
+    val = lt.qlaw_gradient(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g)
+    ref = lt.qlaw_gradient_cs(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g_ref)
+    assert val == pytest.approx(ref, rel=1e-12)
+    _assert_close(g, g_ref, a)

@@ -311,15 +311,25 @@ def _hydra_main(cfg: DictConfig) -> None:
     _guard(dispatch)
 
 
+def print_version(argv: list[str]) -> bool:
+    """``--version``: print penaltyrun's version (Hydra would print its own); True if so."""
+    if "--version" not in argv:
+        return False
+    print(f"penaltyrun {__version__}")
+    return True
+
+
 def main() -> None:
     """Entry point of ``penaltyrun``: check the command line, then run the Hydra app."""
+    if print_version(sys.argv[1:]):
+        return
     _guard(lambda: preflight(sys.argv[1:]))
     sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
     _hydra_main()
 
 
 def report_main(argv: list[str] | None = None) -> None:
-    """Entry point of ``penaltyrun-report INPUT [-o OUTPUT] [--no-paper]``."""
+    """Entry point of ``penaltyrun-report INPUT [-o OUTPUT] [--no-paper] [--export DIR]``."""
     parser = argparse.ArgumentParser(
         prog="penaltyrun-report",
         description="Tables and figures from penaltyrun results (Parquet only).")
@@ -327,6 +337,10 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("-o", "--output", help="output folder (default <input>/report)")
     parser.add_argument("--no-paper", action="store_true",
                         help="leave out the paper's numbers")
+    parser.add_argument("--export", metavar="DIR",
+                        help="also write each cell's best matrices to DIR as JSON and MATLAB "
+                             ".mat files (with index.csv)")
+    parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     args = parser.parse_args(argv)
     from penaltyrun import report
 
@@ -340,8 +354,18 @@ def report_main(argv: list[str] | None = None) -> None:
             (src.parent if src.is_file() else src) / "report"
         report.build_report(src, out, paper=not args.no_paper)
         print(f"report written to {out}")
+        if args.export:
+            _export(src, Path(args.export))
 
     _guard(build)
+
+
+def _export(src: Path, out: Path) -> None:
+    """``penaltyrun-report --export DIR``: best matrices of each cell as JSON and .mat."""
+    from penaltyrun.report.export import export_best
+
+    files = export_best(src, out)
+    print(f"best matrices of {(len(files) - 1) // 2} cells exported to {out}")
 
 
 if __name__ == "__main__":

@@ -118,15 +118,25 @@ def run_optimize(cfg: DictConfig) -> Path:
         problem_module=problem_module(cfg))
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 cfg.param.name, cfg.optimizer.name, run_dir)
-    runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
-                   scheduler=rc.scheduler, resume=bool(rc.resume),
-                   retry_failed=bool(rc.retry_failed))
+    with _progress(cfg, jobs, run_dir) as on_record:
+        runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
+                       scheduler=rc.scheduler, resume=bool(rc.resume),
+                       retry_failed=bool(rc.retry_failed), on_record=on_record)
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
         logger.info("report written to %s", out)
     return path
+
+
+def _progress(cfg: DictConfig, jobs: list[Any], run_dir: Path) -> Any:
+    """tqdm bar over the jobs on a terminal (``runner.progress``), else plain log lines."""
+    from penaltyrun import progress
+
+    rc = cfg.runner
+    done = progress.finished_before(jobs, run_dir, bool(rc.resume), bool(rc.retry_failed))
+    return progress.job_bar(len(jobs), done, progress.wanted(rc.get("progress", "auto")))
 
 
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:

@@ -94,7 +94,9 @@ def parse_source(argv: list[str]) -> tuple[ConfigSource, list[str]]:
     primary = CONF_DIR
     name = found.get("--config-name", "config").removesuffix(".yaml")
     if "--config-path" in found:
-        primary = Path(found["--config-path"]).expanduser().resolve()
+        given = found["--config-path"]
+        local = _searchpath_dir(given) if given.startswith("pkg://") else Path(given)
+        primary = (local or Path(given)).expanduser().resolve()
         if not primary.is_dir():
             raise ConfigError("--config-path", f"{primary} is not a directory")
     if not (primary / f"{name}.yaml").is_file():

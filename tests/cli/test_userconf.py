@@ -152,3 +152,14 @@ def test_problem_object_lacking_protocol_is_one_line(tmp_path):
                               f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path,
                               env_path=str(tmp_path / "mods")))
     assert "lacks evaluate_batch, simulate" in line, line
+
+
+def test_version_is_penaltyrun_s(tmp_path):
+    from penaltyrun import __version__
+
+    proc = cli("--version", cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stdout.strip() == f"penaltyrun {__version__}"
+    report = subprocess.run([sys.executable, "-c", "from penaltyrun.cli import report_main; "
+                             "report_main()", "--version"], capture_output=True, text=True,
+                            timeout=120)
+    assert report.stdout.strip() == f"penaltyrun {__version__}"

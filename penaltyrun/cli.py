@@ -21,7 +21,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__
+from penaltyrun import __version__, userconf
 from penaltyrun.errors import ConfigError, RunInterruptedError
 
 logger = logging.getLogger("penaltyrun")
@@ -54,12 +54,19 @@ def problem_params(cfg: DictConfig) -> dict[str, Any]:
     return {k: v for k, v in params.items() if v is not None}
 
 
+def problem_module(cfg: DictConfig) -> str | None:
+    """Module of a problem outside penaltyrun (``problem.module``), or None."""
+    value = cfg.problem.get("module")
+    return str(value) if value else None
+
+
 def _setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
     from penaltyrun import runner
 
     return runner.build(cfg.problem.name, cfg.case, problem_params(cfg), cfg.param.name,
                         _plain(cfg.param), cfg.optimizer.name,
-                        {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"})
+                        {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"},
+                        problem_module(cfg))
 
 
 def _warm_start_share(cfg: DictConfig) -> float:
@@ -107,12 +114,14 @@ def run_optimize(cfg: DictConfig) -> Path:
         cfg.problem.name, prob.case, cfg.param.name, cfg.optimizer.name, rc.n_starts,
         int(rc.seed), problem_params(cfg), _plain(cfg.param),
         {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"}, meta,
-        holdout=bool(rc.holdout), warm_start_share=warm_share)
+        holdout=bool(rc.holdout), warm_start_share=warm_share,
+        problem_module=problem_module(cfg))
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 cfg.param.name, cfg.optimizer.name, run_dir)
-    runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
-                   scheduler=rc.scheduler, resume=bool(rc.resume),
-                   retry_failed=bool(rc.retry_failed))
+    with _progress(cfg, jobs, run_dir) as on_record:
+        runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
+                       scheduler=rc.scheduler, resume=bool(rc.resume),
+                       retry_failed=bool(rc.retry_failed), on_record=on_record)
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
@@ -121,11 +130,20 @@ def run_optimize(cfg: DictConfig) -> Path:
     return path
 
 
+def _progress(cfg: DictConfig, jobs: list[Any], run_dir: Path) -> Any:
+    """tqdm bar over the jobs on a terminal (``runner.progress``), else plain log lines."""
+    from penaltyrun import progress
+
+    rc = cfg.runner
+    done = progress.finished_before(jobs, run_dir, bool(rc.resume), bool(rc.retry_failed))
+    return progress.job_bar(len(jobs), done, progress.wanted(rc.get("progress", "auto")))
+
+
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     """Evaluate the matrices given in ``matrices.*`` and print one JSON line."""
     from penaltyrun import problems
 
-    prob = problems.make(cfg.problem.name, cfg.case, problem_params(cfg))
+    prob = problems.make(cfg.problem.name, cfg.case, problem_params(cfg), problem_module(cfg))
     given = {k: v for k, v in (_plain(cfg.matrices) or {}).items() if v is not None}
     wanted = [spec.name for spec in prob.matrices]
     extra = sorted(set(given) - set(wanted))
@@ -166,13 +184,28 @@ def run_report(cfg: DictConfig) -> Path:
     return out
 
 
-CONF_DIR = Path(__file__).resolve().parent / "conf"
+CONF_DIR = userconf.CONF_DIR
 GROUPS = ("problem", "param", "optimizer", "experiment")
 
 
-def group_options(group: str) -> list[str]:
-    """Config names available in a config group (the YAML files of ``conf/<group>``)."""
-    return sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+def group_options(group: str, source: userconf.ConfigSource | None = None,
+                  hydra_overrides: list[str] | None = None) -> list[str]:
+    """Config names available in a config group: penaltyrun's ``conf/<group>`` plus the
+    user's (``--config-dir``, ``--config-path``, ``hydra.searchpath``)."""
+    source = source or userconf.ConfigSource(CONF_DIR)
+    with userconf.hydra_context(source):
+        return userconf.group_options(group, source, list(hydra_overrides or []))
+
+
+def _searchpath(parsed: list[Any]) -> tuple[list[str], list[str]]:
+    """``hydra.searchpath`` overrides of the command line, and their entries."""
+    lines = [o.input_line for o in parsed if o.key_or_group == "hydra.searchpath"]
+    entries = []
+    for o in parsed:
+        if o.key_or_group == "hydra.searchpath" and not o.is_delete():
+            value = o.value()
+            entries += [str(v) for v in (value if isinstance(value, list) else [value])]
+    return lines, entries
 
 
 def _first_line(exc: BaseException) -> str:
@@ -183,20 +216,20 @@ def _first_line(exc: BaseException) -> str:
 def preflight(argv: list[str]) -> None:
     """Check the command line before Hydra runs, so every mistake is one clear line.
 
-    Parses the overrides (syntax), checks config-group choices against the files in
-    ``conf/``, then composes the config once (first value of each sweep) to catch
-    unknown keys and type errors.
+    Parses the overrides (syntax), checks config-group choices against the files Hydra
+    will search (penaltyrun's ``conf/`` and the user's directories), checks the YAML of
+    the chosen user files, then composes the config once (first value of each sweep) to
+    catch unknown keys and type errors.
 
     Raises
     ------
     ConfigError
         Naming the key and, where there is a list, the allowed values.
     """
-    from hydra import compose, initialize_config_dir
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
 
+    source, argv = userconf.parse_source(argv)
     args = [a for a in argv if "=" in a and not a.startswith("-")]
     parser = OverridesParser.create()
     parsed = []
@@ -206,34 +239,59 @@ def preflight(argv: list[str]) -> None:
         except HydraException as exc:
             key = arg.split("=", 1)[0].lstrip("+~")
             raise ConfigError(key, f"malformed override {arg!r}: {_first_line(exc)}") from None
+    hydra_overrides, searchpath = _searchpath(parsed)
+    with userconf.hydra_context(source):
+        _check_choices(parsed, source, hydra_overrides, searchpath)
+        _compose_dry(parsed, source, hydra_overrides)
+
+
+def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
+                   hydra_overrides: list[str], searchpath: list[str]) -> None:
+    """Config-group choices against the files Hydra will find; chosen files' YAML."""
+    choices = []
+    for o in parsed:
+        if o.key_or_group not in GROUPS or o.is_delete():
+            continue
+        values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
+            [o.get_value_element_as_str()]
+        allowed = userconf.group_options(o.key_or_group, source, hydra_overrides)
+        for value in values:
+            if value not in allowed:
+                raise ConfigError(o.key_or_group, f"unknown choice {value!r}", allowed=allowed)
+            choices.append((o.key_or_group, value))
+    userconf.check_files(source, searchpath, choices)
+
+
+def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
+                 hydra_overrides: list[str]) -> None:
+    """Compose once (first value of each sweep) to catch unknown keys and type errors."""
+    from hydra import compose
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
     dry = []
     for o in parsed:
         if o.key_or_group.startswith("hydra"):
             continue
         values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
             [o.get_value_element_as_str()]
-        if o.key_or_group in GROUPS and not o.is_delete():
-            allowed = group_options(o.key_or_group)
-            for value in values:
-                if value not in allowed:
-                    raise ConfigError(o.key_or_group, f"unknown choice {value!r}",
-                                      allowed=allowed)
         dry.append(o.input_line if not o.is_sweep_override()
                    else f"{o.get_key_element()}={values[0]}")
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        try:
-            compose(config_name="config", overrides=dry)
-        except (HydraException, OmegaConfBaseException) as exc:
-            hits = [o for o in parsed if o.key_or_group in str(exc)]
-            bad = max(hits, key=lambda o: len(o.key_or_group)) if hits else None
-            key = bad.key_or_group if bad else "override"
-            if "Could not override" not in str(exc) or bad is None:
-                raise ConfigError(key, _first_line(exc)) from None
-            groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
-            parent = OmegaConf.select(compose(config_name="config", overrides=groups),
-                                      key.rpartition(".")[0] or "")
-            allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
-            raise ConfigError(key, "unknown config key", allowed=allowed) from None
+    dry += hydra_overrides
+    name = source.config_name
+    try:
+        compose(config_name=name, overrides=dry)
+    except (HydraException, OmegaConfBaseException) as exc:
+        hits = [o for o in parsed if o.key_or_group in str(exc)]
+        bad = max(hits, key=lambda o: len(o.key_or_group)) if hits else None
+        key = bad.key_or_group if bad else "override"
+        if "Could not override" not in str(exc) or bad is None:
+            raise ConfigError(key, _first_line(exc)) from None
+        groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
+        parent = OmegaConf.select(compose(config_name=name, overrides=groups + hydra_overrides),
+                                  key.rpartition(".")[0] or "")
+        allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
+        raise ConfigError(key, "unknown config key", allowed=allowed) from None
 
 
 def _guard(func: Callable[[], Any]) -> Any:
@@ -263,14 +321,25 @@ def _hydra_main(cfg: DictConfig) -> None:
     _guard(dispatch)
 
 
+def print_version(argv: list[str]) -> bool:
+    """``--version``: print penaltyrun's version (Hydra would print its own); True if so."""
+    if "--version" not in argv:
+        return False
+    print(f"penaltyrun {__version__}")
+    return True
+
+
 def main() -> None:
     """Entry point of ``penaltyrun``: check the command line, then run the Hydra app."""
+    if print_version(sys.argv[1:]):
+        return
     _guard(lambda: preflight(sys.argv[1:]))
+    sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
     _hydra_main()
 
 
 def report_main(argv: list[str] | None = None) -> None:
-    """Entry point of ``penaltyrun-report INPUT [-o OUTPUT] [--no-paper]``."""
+    """Entry point of ``penaltyrun-report INPUT [-o OUTPUT] [--no-paper] [--export DIR]``."""
     parser = argparse.ArgumentParser(
         prog="penaltyrun-report",
         description="Tables and figures from penaltyrun results (Parquet only).")
@@ -278,6 +347,10 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("-o", "--output", help="output folder (default <input>/report)")
     parser.add_argument("--no-paper", action="store_true",
                         help="leave out the paper's numbers")
+    parser.add_argument("--export", metavar="DIR",
+                        help="also write each cell's best matrices to DIR as JSON and MATLAB "
+                             ".mat files (with index.csv)")
+    parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     args = parser.parse_args(argv)
     from penaltyrun import report
 
@@ -291,8 +364,18 @@ def report_main(argv: list[str] | None = None) -> None:
             (src.parent if src.is_file() else src) / "report"
         report.build_report(src, out, paper=not args.no_paper)
         print(f"report written to {out}")
+        if args.export:
+            _export(src, Path(args.export))
 
     _guard(build)
+
+
+def _export(src: Path, out: Path) -> None:
+    """``penaltyrun-report --export DIR``: best matrices of each cell as JSON and .mat."""
+    from penaltyrun.report.export import export_best
+
+    files = export_best(src, out)
+    print(f"best matrices of {(len(files) - 1) // 2} cells exported to {out}")
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import logging
 from collections.abc import Iterable
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +19,9 @@ import pyarrow.parquet as pq
 
 logger = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 3
+#: 3: anytime traces and warm start; 4: ``started_at`` / ``finished_at`` are timestamp
+#: columns (UTC) — earlier versions stored ISO text, read back as timestamps.
+SCHEMA_VERSION = 4
 RESULTS_FILE = "results.parquet"
 
 #: Column name → (arrow type, description). JSON columns hold text.
@@ -65,13 +68,29 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "config": (pa.string(), "resolved config (YAML)"),
     "package_version": (pa.string(), "penaltyrun version"),
     "git_commit": (pa.string(), "git commit of the code (or 'unknown')"),
-    "started_at": (pa.string(), "UTC ISO time"),
-    "finished_at": (pa.string(), "UTC ISO time"),
+    "started_at": (pa.timestamp("us", tz="UTC"), "when the job started (UTC)"),
+    "finished_at": (pa.timestamp("us", tz="UTC"), "when the job finished (UTC)"),
     "schema_version": (pa.int64(), "version of this schema"),
 }
 SCHEMA = pa.schema([pa.field(name, typ) for name, (typ, _) in COLUMNS.items()])
 JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "warm_start",
                 "optimizer_settings", "problem_params", "param_options")
+TIMESTAMP_COLUMNS = ("started_at", "finished_at")
+
+
+def to_timestamp(value: Any) -> datetime | None:
+    """A record's time (ISO text as job records hold it, or a datetime) as an aware UTC
+    datetime; naive times are taken as UTC, unreadable ones become None."""
+    if isinstance(value, str):
+        try:
+            value = datetime.fromisoformat(value.strip().replace("Z", "+00:00"))
+        except ValueError:
+            logger.warning("unreadable time %r stored as null", value)
+            return None
+    if not isinstance(value, datetime):
+        return None
+    return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else \
+        value.astimezone(timezone.utc)
 
 
 def normalize(record: dict[str, Any], run_id: str = "") -> dict[str, Any]:
@@ -81,6 +100,8 @@ def normalize(record: dict[str, Any], run_id: str = "") -> dict[str, Any]:
         value = record.get(name)
         if name in JSON_COLUMNS and value is not None and not isinstance(value, str):
             value = json.dumps(value, default=str)
+        elif name in TIMESTAMP_COLUMNS:
+            value = to_timestamp(value)
         row[name] = value
     row["run_id"] = record.get("run_id") or run_id
     row["schema_version"] = SCHEMA_VERSION
@@ -142,6 +163,9 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
         for name in COLUMNS:  # files of older schema versions lack newer columns
             if name not in frame:
                 frame[name] = None
+        for name in TIMESTAMP_COLUMNS:  # schema <= 3 stored ISO text
+            if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
+                frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
         frames.append(frame[list(COLUMNS)])
     return pd.concat(frames, ignore_index=True)
 

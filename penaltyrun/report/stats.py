@@ -27,6 +27,25 @@ MIN_N_TEST = 10
 A12_THRESHOLDS = ((0.21, "large"), (0.14, "medium"), (0.06, "small"))
 
 
+def register_user_problems(df: pd.DataFrame) -> None:
+    """Register the module of every problem run from outside penaltyrun (the
+    ``problem.module`` of the stored config), so the report can rebuild its instances."""
+    import yaml
+
+    from penaltyrun import problems
+
+    if "config" not in df:
+        return
+    for name, text in df[["problem", "config"]].drop_duplicates("problem").itertuples(
+            index=False):
+        try:
+            module_path = ((yaml.safe_load(text or "") or {}).get("problem") or {}).get("module")
+        except (yaml.YAMLError, AttributeError):
+            continue
+        if module_path:
+            problems.register(name, module_path)
+
+
 def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     """Add ``variant`` (and ``problem_variant``) columns so that cells run with other settings
     are never pooled.
@@ -40,6 +59,7 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
 
     from penaltyrun import problems
 
+    register_user_problems(df)
     labels: dict[tuple[str, str, str], str] = {}
     for key in df[["problem", "case", "problem_params"]].drop_duplicates().itertuples(
             index=False):

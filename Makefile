@@ -84,8 +84,10 @@ referee-zermelo: install  ## referee study, Zermelo: 4 maps × pso/de/cmaes × 3
 		hydra.sweep.dir=$(REPRO)/referee_zermelo/grid
 	$(PYTHON) -m penaltyrun.report_cli $(REPRO)/referee_zermelo -o $(REPRO)/referee_zermelo/report
 
-referee-attitude: install  ## referee study, attitude: 2 laws × 2 manoeuvres × 4 maps × pso/de/cmaes × 30 starts at 3000 evaluations (≈ 1 h)
+referee-attitude: install  ## referee study, attitude: 2 laws × 2 manoeuvres × 4 maps × pso/de/cmaes × 30 starts at 3000 evaluations, + diagonal check (≈ 1.5 h)
 	$(SWEEP) +experiment=referee_attitude hydra.sweep.dir=$(REPRO)/referee_attitude
+	$(SWEEP) +experiment=referee_attitude_diagonal \
+		hydra.sweep.dir=$(REPRO)/referee_attitude/diagonal_check
 	$(PYTHON) -m penaltyrun.report_cli $(REPRO)/referee_attitude -o $(REPRO)/referee_attitude/report
 
 report:  ## report of everything under $(REPRO)

@@ -3,7 +3,8 @@
 
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
 line ``penaltyrun: error: <key>: <message> (allowed: ...)`` on stderr and exit code 2.
-Ctrl-C ends a run with one line saying how to resume it and exit code 130.
+Ctrl-C (SIGINT), SIGTERM and SIGHUP end a run with one line saying how to resume it and
+exit code 128 + signal number (130, 143, 129). Exit codes: :data:`EXIT_CODES`.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import shutil
+import signal
 import subprocess
 import sys
 from collections.abc import Callable
@@ -21,14 +24,38 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__
-from penaltyrun.errors import ConfigError, RunInterruptedError
+from penaltyrun import __version__, checks
+from penaltyrun.errors import (
+    ConfigError,
+    ResultsUnreadableError,
+    RunAbortedError,
+    RunInterruptedError,
+    SignalInterrupt,
+    signal_name,
+)
 
 logger = logging.getLogger("penaltyrun")
 
-MODES = ("optimize", "evaluate", "report")
+MODES = checks.MODES
+EXIT_OK = 0
 EXIT_USAGE = 2
+EXIT_JOBS_FAILED = 3
+EXIT_ABORTED = 4
 EXIT_INTERRUPTED = 130
+#: Exit code → meaning (also in README "Errors and exit codes").
+EXIT_CODES = {
+    EXIT_OK: "success (every job recorded ok or diverged)",
+    1: "internal error (a bug: please report the traceback)",
+    EXIT_USAGE: "bad command line or config, or no readable results (one line on stderr)",
+    EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed`",
+    EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
+                  "runner.worker_timeout s); finished jobs are kept",
+    128 + signal.SIGINT: "stopped by Ctrl-C (SIGINT); finished jobs are kept",
+    128 + signal.SIGTERM: "stopped by SIGTERM; finished jobs are kept",
+    128 + signal.SIGHUP: "stopped by SIGHUP; finished jobs are kept",
+}
+#: Runs of this process (several in a multirun) that ended with failed jobs.
+FAILED_RUNS: list[str] = []
 
 
 def git_commit() -> str:
@@ -92,8 +119,8 @@ def run_optimize(cfg: DictConfig) -> Path:
     """Plan and run the jobs of one cell, then write results.parquet (and the report)."""
     from penaltyrun import io, report, runner
 
-    prob, _, _ = _setup(cfg)  # validate everything before any job starts
-    runner.check_settings(cfg.runner.workers, cfg.runner.backend)
+    prob, _, _ = _setup(cfg)  # validated by the preflight already; builds the problem
+    runner.check_runner_options(_plain(cfg.runner), connect=False)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     resolved = OmegaConf.to_container(cfg, resolve=True)
     hashed = {k: resolved[k] for k in ("problem", "case", "param", "optimizer")}
@@ -112,13 +139,36 @@ def run_optimize(cfg: DictConfig) -> Path:
                 cfg.param.name, cfg.optimizer.name, run_dir)
     runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
                    scheduler=rc.scheduler, resume=bool(rc.resume),
-                   retry_failed=bool(rc.retry_failed))
+                   retry_failed=bool(rc.retry_failed), max_retries=rc.get("max_retries", 1),
+                   worker_timeout=float(rc.get("worker_timeout", 60)))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
         logger.info("report written to %s", out)
+    summarize(path, run_dir)
     return path
+
+
+def summarize(path: Path, run_dir: Path) -> dict[str, int]:
+    """Print the run's summary line (ok / diverged / failed counts, where the errors are);
+    a run with failed jobs is remembered in :data:`FAILED_RUNS` (exit code 3)."""
+    from penaltyrun import io
+
+    df = io.read_results(path)
+    counts = {status: int((df["status"] == status).sum()) for status in ("ok", "diverged",
+                                                                          "failed")}
+    line = (f"penaltyrun: {len(df)} jobs: {counts['ok']} ok, {counts['diverged']} diverged, "
+            f"{counts['failed']} failed")
+    if counts["failed"]:
+        first = df[df["status"] == "failed"].iloc[0]
+        cause = str(first["error"] or "").strip().splitlines()[:1] or ["no error text"]
+        line += (f"; errors in {run_dir}/jobs/<job_id>.json and {path} (column error), "
+                 f"e.g. {first['job_id']}: {cause[0]}; rerun failed jobs with "
+                 f"runner.resume=true runner.retry_failed=true")
+        FAILED_RUNS.append(str(run_dir))
+    print(line, file=sys.stderr, flush=True)
+    return counts
 
 
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
@@ -168,6 +218,8 @@ def run_report(cfg: DictConfig) -> Path:
 
 CONF_DIR = Path(__file__).resolve().parent / "conf"
 GROUPS = ("problem", "param", "optimizer", "experiment")
+#: Hydra settings the preflight needs to check the run directory.
+RUN_DIR_KEYS = ("hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir")
 
 
 def group_options(group: str) -> list[str]:
@@ -197,7 +249,7 @@ def preflight(argv: list[str]) -> None:
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    args = [a for a in argv if "=" in a and not a.startswith("-")]
+    args = [a for a in argv if ("=" in a or a.startswith("~")) and not a.startswith("-")]
     parser = OverridesParser.create()
     parsed = []
     for arg in args:
@@ -209,6 +261,8 @@ def preflight(argv: list[str]) -> None:
     dry = []
     for o in parsed:
         if o.key_or_group.startswith("hydra"):
+            if o.key_or_group in RUN_DIR_KEYS and not o.is_sweep_override():
+                dry.append(o.input_line)
             continue
         values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
             [o.get_value_element_as_str()]
@@ -222,7 +276,7 @@ def preflight(argv: list[str]) -> None:
                    else f"{o.get_key_element()}={values[0]}")
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         try:
-            compose(config_name="config", overrides=dry)
+            cfg = compose(config_name="config", overrides=dry, return_hydra_config=True)
         except (HydraException, OmegaConfBaseException) as exc:
             hits = [o for o in parsed if o.key_or_group in str(exc)]
             bad = max(hits, key=lambda o: len(o.key_or_group)) if hits else None
@@ -234,6 +288,52 @@ def preflight(argv: list[str]) -> None:
                                       key.rpartition(".")[0] or "")
             allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
             raise ConfigError(key, "unknown config key", allowed=allowed) from None
+        groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
+        base = compose(config_name="config", overrides=groups)
+        check_composed(cfg, base, multirun="-m" in argv or "--multirun" in argv)
+        for variant in sweep_variants(parsed, dry):
+            _check_variant(compose, variant)
+
+
+def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) -> None:
+    """Check a composed config (with its ``hydra`` node) against the shipped one ``base``:
+    unknown ``+keys``, every option's type and range, the run directory, the scheduler."""
+    checks.check_known_keys(_plain_nohydra(cfg), _plain_nohydra(base))
+    checks.check_config(cfg, base=base)
+    if multirun:
+        checks.check_run_dir(cfg.hydra.sweep.dir, "hydra.sweep.dir")
+    else:
+        checks.check_run_dir(cfg.hydra.run.dir, "hydra.run.dir")
+
+
+def _plain_nohydra(cfg: DictConfig) -> dict[str, Any]:
+    return {k: _plain(cfg[k]) if isinstance(cfg[k], DictConfig) else cfg[k]
+            for k in cfg if k != "hydra"}
+
+
+def sweep_variants(parsed: list[Any], dry: list[str]) -> list[list[str]]:
+    """One override list per further value of each sweep (others at their first value),
+    so that every value of a sweep is checked, not only the first."""
+    variants = []
+    for o in parsed:
+        if not o.is_sweep_override() or o.key_or_group.startswith("hydra"):
+            continue
+        key = o.get_key_element()
+        for value in list(o.sweep_string_iterator())[1:]:
+            variants.append([d if d.split("=", 1)[0] != key else f"{key}={value}"
+                             for d in dry])
+    return variants
+
+
+def _check_variant(compose: Callable[..., DictConfig], overrides: list[str]) -> None:
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        cfg = compose(config_name="config", overrides=overrides)
+    except (HydraException, OmegaConfBaseException) as exc:
+        raise ConfigError("override", _first_line(exc)) from None
+    checks.check_config(cfg, connect=False)
 
 
 def _guard(func: Callable[[], Any]) -> Any:
@@ -241,15 +341,41 @@ def _guard(func: Callable[[], Any]) -> Any:
     into one line and exit code 130 (finished jobs are on disk already)."""
     try:
         return func()
-    except (ConfigError, FileNotFoundError) as exc:
+    except (ConfigError, FileNotFoundError, ResultsUnreadableError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
+    except RunAbortedError as exc:
+        print(f"penaltyrun: error: {exc}", file=sys.stderr)
+        sys.exit(EXIT_ABORTED)
     except RunInterruptedError as exc:
         print(f"penaltyrun: {exc}", file=sys.stderr)
-        sys.exit(EXIT_INTERRUPTED)
-    except KeyboardInterrupt:
-        print("penaltyrun: interrupted", file=sys.stderr)
-        sys.exit(EXIT_INTERRUPTED)
+        sys.exit(128 + exc.signum)
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", int(signal.SIGINT))
+        how = "interrupted" if signum == signal.SIGINT else f"stopped by {signal_name(signum)}"
+        print(f"penaltyrun: {how}", file=sys.stderr)
+        sys.exit(128 + signum)
+
+
+def install_signal_handlers() -> None:
+    """Handle SIGTERM and SIGHUP like Ctrl-C: raise :class:`SignalInterrupt` in the main
+    thread, so workers are stopped, finished jobs kept and one line printed."""
+    def handler(signum: int, frame: Any) -> None:
+        raise SignalInterrupt(signum)
+
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, handler)
+
+
+def _discard_run_dir() -> None:
+    """Remove the run directory Hydra created for a run that failed before doing anything
+    (it holds only Hydra's ``.hydra/`` and the log), so a mistake leaves nothing behind."""
+    try:
+        out = Path(HydraConfig.get().runtime.output_dir)
+    except (ValueError, AttributeError):
+        return
+    if out.is_dir() and all(p.name == ".hydra" or p.suffix == ".log" for p in out.iterdir()):
+        shutil.rmtree(out, ignore_errors=True)
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")
@@ -257,16 +383,26 @@ def _hydra_main(cfg: DictConfig) -> None:
     def dispatch() -> Any:
         if cfg.mode not in MODES:
             raise ConfigError("mode", f"unknown mode {cfg.mode!r}", allowed=MODES)
-        return {"optimize": run_optimize, "evaluate": run_evaluate,
-                "report": run_report}[cfg.mode](cfg)
+        try:
+            return {"optimize": run_optimize, "evaluate": run_evaluate,
+                    "report": run_report}[cfg.mode](cfg)
+        except ConfigError:
+            _discard_run_dir()
+            raise
 
     _guard(dispatch)
 
 
 def main() -> None:
-    """Entry point of ``penaltyrun``: check the command line, then run the Hydra app."""
+    """Entry point of ``penaltyrun``: check the command line, then run the Hydra app.
+
+    Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
+    """
+    install_signal_handlers()
     _guard(lambda: preflight(sys.argv[1:]))
-    _hydra_main()
+    _guard(_hydra_main)
+    if FAILED_RUNS:
+        sys.exit(EXIT_JOBS_FAILED)
 
 
 def report_main(argv: list[str] | None = None) -> None:
@@ -282,6 +418,7 @@ def report_main(argv: list[str] | None = None) -> None:
     from penaltyrun import report
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    install_signal_handlers()
     src = Path(args.input)
 
     def build() -> None:

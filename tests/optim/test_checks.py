@@ -52,10 +52,12 @@ def test_values_that_do_not_fit_are_one_error(key, value, fragment):
     ("pso", {"vh_strategy": "bogus"}, "allowed: unmodified, adjust, invert, zero"),
     ("pso", {"bh_strategy": "wrap"}, "allowed: nearest"),
     ("pso", {"n_particles": 2.0}, "optimizer.n_particles: must be an integer"),
-    ("de", {"mutation": [1.5, 0.5]}, "low <= high"),
+    ("de", {"mutation": [1.5, 0.5]}, "optimizer.mutation"),
     ("de", {"mutation": [0.5, 3]}, "optimizer.mutation"),
     ("de", {"recombination": 1.5}, "optimizer.recombination"),
-    ("de", {"polish": "yes"}, "optimizer.polish: must be true or false"),
+    ("de", {"polish": "yes"}, "optimizer.polish"),
+    ("pso", {"max_evals": "many"}, "optimizer.max_evals: must be an integer or null"),
+    ("pso", {"polish_share": "x"}, "optimizer.polish_share: must be a number"),
     ("baseline", {"scale": 0}, "optimizer.scale"),
 ])
 def test_make_settings_checks_types_and_ranges(name, options, fragment):

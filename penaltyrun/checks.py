@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -202,3 +202,46 @@ def _checked(key: str, func: Any, *args: Any) -> Any:
     except (TypeError, ValueError, KeyError, IndexError) as exc:
         text = " ".join(str(exc).split()) or type(exc).__name__
         raise ConfigError(key, f"invalid value: {text}") from None
+
+
+def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) -> None:
+    """Check a composed config (with its ``hydra`` node) against the shipped one ``base``:
+    unknown ``+keys``, every option's type and range, the run directory, the scheduler."""
+    check_known_keys(plain_nohydra(cfg), plain_nohydra(base))
+    check_config(cfg, base=base)
+    if multirun:
+        check_run_dir(cfg.hydra.sweep.dir, "hydra.sweep.dir")
+    else:
+        check_run_dir(cfg.hydra.run.dir, "hydra.run.dir")
+
+
+def plain_nohydra(cfg: DictConfig) -> dict[str, Any]:
+    """The config as plain Python values, without its ``hydra`` node."""
+    return {k: plain(cfg[k]) if isinstance(cfg[k], DictConfig) else cfg[k]
+            for k in cfg if k != "hydra"}
+
+
+def sweep_variants(parsed: list[Any], dry: list[str]) -> list[list[str]]:
+    """One override list per further value of each sweep (others at their first value),
+    so that every value of a sweep is checked, not only the first."""
+    variants = []
+    for o in parsed:
+        if not o.is_sweep_override() or o.key_or_group.startswith("hydra"):
+            continue
+        key = o.get_key_element()
+        for value in list(o.sweep_string_iterator())[1:]:
+            variants.append([d if d.split("=", 1)[0] != key else f"{key}={value}"
+                             for d in dry])
+    return variants
+
+
+def check_variant(compose: Callable[..., DictConfig], overrides: list[str]) -> None:
+    """Compose one sweep variant with ``compose`` (Hydra's) and check its options."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        cfg = compose(config_name="config", overrides=overrides)
+    except (HydraException, OmegaConfBaseException) as exc:
+        raise ConfigError("override", " ".join(str(exc).split()[:40])) from None
+    check_config(cfg, connect=False)

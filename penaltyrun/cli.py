@@ -290,50 +290,9 @@ def preflight(argv: list[str]) -> None:
             raise ConfigError(key, "unknown config key", allowed=allowed) from None
         groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
         base = compose(config_name="config", overrides=groups)
-        check_composed(cfg, base, multirun="-m" in argv or "--multirun" in argv)
-        for variant in sweep_variants(parsed, dry):
-            _check_variant(compose, variant)
-
-
-def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) -> None:
-    """Check a composed config (with its ``hydra`` node) against the shipped one ``base``:
-    unknown ``+keys``, every option's type and range, the run directory, the scheduler."""
-    checks.check_known_keys(_plain_nohydra(cfg), _plain_nohydra(base))
-    checks.check_config(cfg, base=base)
-    if multirun:
-        checks.check_run_dir(cfg.hydra.sweep.dir, "hydra.sweep.dir")
-    else:
-        checks.check_run_dir(cfg.hydra.run.dir, "hydra.run.dir")
-
-
-def _plain_nohydra(cfg: DictConfig) -> dict[str, Any]:
-    return {k: _plain(cfg[k]) if isinstance(cfg[k], DictConfig) else cfg[k]
-            for k in cfg if k != "hydra"}
-
-
-def sweep_variants(parsed: list[Any], dry: list[str]) -> list[list[str]]:
-    """One override list per further value of each sweep (others at their first value),
-    so that every value of a sweep is checked, not only the first."""
-    variants = []
-    for o in parsed:
-        if not o.is_sweep_override() or o.key_or_group.startswith("hydra"):
-            continue
-        key = o.get_key_element()
-        for value in list(o.sweep_string_iterator())[1:]:
-            variants.append([d if d.split("=", 1)[0] != key else f"{key}={value}"
-                             for d in dry])
-    return variants
-
-
-def _check_variant(compose: Callable[..., DictConfig], overrides: list[str]) -> None:
-    from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
-
-    try:
-        cfg = compose(config_name="config", overrides=overrides)
-    except (HydraException, OmegaConfBaseException) as exc:
-        raise ConfigError("override", _first_line(exc)) from None
-    checks.check_config(cfg, connect=False)
+        checks.check_composed(cfg, base, multirun="-m" in argv or "--multirun" in argv)
+        for variant in checks.sweep_variants(parsed, dry):
+            checks.check_variant(compose, variant)
 
 
 def _guard(func: Callable[[], Any]) -> Any:

@@ -296,8 +296,9 @@ def preflight(argv: list[str]) -> None:
 
 
 def _guard(func: Callable[[], Any]) -> Any:
-    """Run ``func``; turn user errors into one line on stderr and exit code 2, and Ctrl-C
-    into one line and exit code 130 (finished jobs are on disk already)."""
+    """Run ``func``; turn user errors into one line on stderr and exit code 2, a run that
+    cannot go on into one line and exit code 4, and Ctrl-C / SIGTERM / SIGHUP into one line
+    and exit code 128 + signal number (finished jobs are on disk already)."""
     try:
         return func()
     except (ConfigError, FileNotFoundError, ResultsUnreadableError) as exc:

@@ -3,7 +3,8 @@
 
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
 line ``penaltyrun: error: <key>: <message> (allowed: ...)`` on stderr and exit code 2.
-Ctrl-C ends a run with one line saying how to resume it and exit code 130.
+Ctrl-C (SIGINT), SIGTERM and SIGHUP end a run with one line saying how to resume it and
+exit code 128 + signal number (130, 143, 129). Exit codes: :data:`EXIT_CODES`.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import shutil
+import signal
 import subprocess
 import sys
 from collections.abc import Callable
@@ -21,14 +24,38 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__, userconf
-from penaltyrun.errors import ConfigError, RunInterruptedError
+from penaltyrun import __version__, checks, userconf
+from penaltyrun.errors import (
+    ConfigError,
+    ResultsUnreadableError,
+    RunAbortedError,
+    RunInterruptedError,
+    SignalInterrupt,
+    signal_name,
+)
 
 logger = logging.getLogger("penaltyrun")
 
-MODES = ("optimize", "evaluate", "report")
+MODES = checks.MODES
+EXIT_OK = 0
 EXIT_USAGE = 2
+EXIT_JOBS_FAILED = 3
+EXIT_ABORTED = 4
 EXIT_INTERRUPTED = 130
+#: Exit code → meaning (also in README "Errors and exit codes").
+EXIT_CODES = {
+    EXIT_OK: "success (every job recorded ok or diverged)",
+    1: "internal error (a bug: please report the traceback)",
+    EXIT_USAGE: "bad command line or config, or no readable results (one line on stderr)",
+    EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed`",
+    EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
+                  "runner.worker_timeout s); finished jobs are kept",
+    128 + signal.SIGINT: "stopped by Ctrl-C (SIGINT); finished jobs are kept",
+    128 + signal.SIGTERM: "stopped by SIGTERM; finished jobs are kept",
+    128 + signal.SIGHUP: "stopped by SIGHUP; finished jobs are kept",
+}
+#: Runs of this process (several in a multirun) that ended with failed jobs.
+FAILED_RUNS: list[str] = []
 
 
 def git_commit() -> str:
@@ -99,8 +126,8 @@ def run_optimize(cfg: DictConfig) -> Path:
     """Plan and run the jobs of one cell, then write results.parquet (and the report)."""
     from penaltyrun import io, report, runner
 
-    prob, _, _ = _setup(cfg)  # validate everything before any job starts
-    runner.check_settings(cfg.runner.workers, cfg.runner.backend)
+    prob, _, _ = _setup(cfg)  # validated by the preflight already; builds the problem
+    runner.check_runner_options(_plain(cfg.runner), connect=False)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     resolved = OmegaConf.to_container(cfg, resolve=True)
     hashed = {k: resolved[k] for k in ("problem", "case", "param", "optimizer")}
@@ -121,12 +148,15 @@ def run_optimize(cfg: DictConfig) -> Path:
     with _progress(cfg, jobs, run_dir) as on_record:
         runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
                        scheduler=rc.scheduler, resume=bool(rc.resume),
-                       retry_failed=bool(rc.retry_failed), on_record=on_record)
+                       retry_failed=bool(rc.retry_failed), on_record=on_record,
+                       max_retries=rc.get("max_retries", 1),
+                       worker_timeout=float(rc.get("worker_timeout", 60)))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
         logger.info("report written to %s", out)
+    summarize(path, run_dir)
     return path
 
 
@@ -137,6 +167,27 @@ def _progress(cfg: DictConfig, jobs: list[Any], run_dir: Path) -> Any:
     rc = cfg.runner
     done = progress.finished_before(jobs, run_dir, bool(rc.resume), bool(rc.retry_failed))
     return progress.job_bar(len(jobs), done, progress.wanted(rc.get("progress", "auto")))
+
+
+def summarize(path: Path, run_dir: Path) -> dict[str, int]:
+    """Print the run's summary line (ok / diverged / failed counts, where the errors are);
+    a run with failed jobs is remembered in :data:`FAILED_RUNS` (exit code 3)."""
+    from penaltyrun import io
+
+    df = io.read_results(path)
+    counts = {status: int((df["status"] == status).sum()) for status in ("ok", "diverged",
+                                                                          "failed")}
+    line = (f"penaltyrun: {len(df)} jobs: {counts['ok']} ok, {counts['diverged']} diverged, "
+            f"{counts['failed']} failed")
+    if counts["failed"]:
+        first = df[df["status"] == "failed"].iloc[0]
+        cause = str(first["error"] or "").strip().splitlines()[:1] or ["no error text"]
+        line += (f"; errors in {run_dir}/jobs/<job_id>.json and {path} (column error), "
+                 f"e.g. {first['job_id']}: {cause[0]}; rerun failed jobs with "
+                 f"runner.resume=true runner.retry_failed=true")
+        FAILED_RUNS.append(str(run_dir))
+    print(line, file=sys.stderr, flush=True)
+    return counts
 
 
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
@@ -186,6 +237,8 @@ def run_report(cfg: DictConfig) -> Path:
 
 CONF_DIR = userconf.CONF_DIR
 GROUPS = ("problem", "param", "optimizer", "experiment")
+#: Hydra settings the preflight needs to check the run directory.
+RUN_DIR_KEYS = ("hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir")
 
 
 def group_options(group: str, source: userconf.ConfigSource | None = None,
@@ -230,7 +283,7 @@ def preflight(argv: list[str]) -> None:
     from hydra.errors import HydraException
 
     source, argv = userconf.parse_source(argv)
-    args = [a for a in argv if "=" in a and not a.startswith("-")]
+    args = [a for a in argv if ("=" in a or a.startswith("~")) and not a.startswith("-")]
     parser = OverridesParser.create()
     parsed = []
     for arg in args:
@@ -242,7 +295,8 @@ def preflight(argv: list[str]) -> None:
     hydra_overrides, searchpath = _searchpath(parsed)
     with userconf.hydra_context(source):
         _check_choices(parsed, source, hydra_overrides, searchpath)
-        _compose_dry(parsed, source, hydra_overrides)
+        _compose_dry(parsed, source, hydra_overrides,
+                     multirun="-m" in argv or "--multirun" in argv)
 
 
 def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
@@ -263,7 +317,7 @@ def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
 
 
 def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
-                 hydra_overrides: list[str]) -> None:
+                 hydra_overrides: list[str], multirun: bool = False) -> None:
     """Compose once (first value of each sweep) to catch unknown keys and type errors."""
     from hydra import compose
     from hydra.errors import HydraException
@@ -272,6 +326,8 @@ def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
     dry = []
     for o in parsed:
         if o.key_or_group.startswith("hydra"):
+            if o.key_or_group in RUN_DIR_KEYS and not o.is_sweep_override():
+                dry.append(o.input_line)
             continue
         values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
             [o.get_value_element_as_str()]
@@ -280,7 +336,7 @@ def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
     dry += hydra_overrides
     name = source.config_name
     try:
-        compose(config_name=name, overrides=dry)
+        cfg = compose(config_name=name, overrides=dry, return_hydra_config=True)
     except (HydraException, OmegaConfBaseException) as exc:
         hits = [o for o in parsed if o.key_or_group in str(exc)]
         bad = max(hits, key=lambda o: len(o.key_or_group)) if hits else None
@@ -292,22 +348,54 @@ def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
                                   key.rpartition(".")[0] or "")
         allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
         raise ConfigError(key, "unknown config key", allowed=allowed) from None
+    groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
+    base = compose(config_name=name, overrides=groups + hydra_overrides)
+    checks.check_composed(cfg, base, multirun=multirun)
+    for variant in checks.sweep_variants(parsed, dry):
+        checks.check_variant(compose, variant, config_name=name)
 
 
 def _guard(func: Callable[[], Any]) -> Any:
-    """Run ``func``; turn user errors into one line on stderr and exit code 2, and Ctrl-C
-    into one line and exit code 130 (finished jobs are on disk already)."""
+    """Run ``func``; turn user errors into one line on stderr and exit code 2, a run that
+    cannot go on into one line and exit code 4, and Ctrl-C / SIGTERM / SIGHUP into one line
+    and exit code 128 + signal number (finished jobs are on disk already)."""
     try:
         return func()
-    except (ConfigError, FileNotFoundError) as exc:
+    except (ConfigError, FileNotFoundError, ResultsUnreadableError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
+    except RunAbortedError as exc:
+        print(f"penaltyrun: error: {exc}", file=sys.stderr)
+        sys.exit(EXIT_ABORTED)
     except RunInterruptedError as exc:
         print(f"penaltyrun: {exc}", file=sys.stderr)
-        sys.exit(EXIT_INTERRUPTED)
-    except KeyboardInterrupt:
-        print("penaltyrun: interrupted", file=sys.stderr)
-        sys.exit(EXIT_INTERRUPTED)
+        sys.exit(128 + exc.signum)
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", int(signal.SIGINT))
+        how = "interrupted" if signum == signal.SIGINT else f"stopped by {signal_name(signum)}"
+        print(f"penaltyrun: {how}", file=sys.stderr)
+        sys.exit(128 + signum)
+
+
+def install_signal_handlers() -> None:
+    """Handle SIGTERM and SIGHUP like Ctrl-C: raise :class:`SignalInterrupt` in the main
+    thread, so workers are stopped, finished jobs kept and one line printed."""
+    def handler(signum: int, frame: Any) -> None:
+        raise SignalInterrupt(signum)
+
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, handler)
+
+
+def _discard_run_dir() -> None:
+    """Remove the run directory Hydra created for a run that failed before doing anything
+    (it holds only Hydra's ``.hydra/`` and the log), so a mistake leaves nothing behind."""
+    try:
+        out = Path(HydraConfig.get().runtime.output_dir)
+    except (ValueError, AttributeError):
+        return
+    if out.is_dir() and all(p.name == ".hydra" or p.suffix == ".log" for p in out.iterdir()):
+        shutil.rmtree(out, ignore_errors=True)
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")
@@ -315,8 +403,12 @@ def _hydra_main(cfg: DictConfig) -> None:
     def dispatch() -> Any:
         if cfg.mode not in MODES:
             raise ConfigError("mode", f"unknown mode {cfg.mode!r}", allowed=MODES)
-        return {"optimize": run_optimize, "evaluate": run_evaluate,
-                "report": run_report}[cfg.mode](cfg)
+        try:
+            return {"optimize": run_optimize, "evaluate": run_evaluate,
+                    "report": run_report}[cfg.mode](cfg)
+        except ConfigError:
+            _discard_run_dir()
+            raise
 
     _guard(dispatch)
 
@@ -330,12 +422,18 @@ def print_version(argv: list[str]) -> bool:
 
 
 def main() -> None:
-    """Entry point of ``penaltyrun``: check the command line, then run the Hydra app."""
+    """Entry point of ``penaltyrun``: check the command line, then run the Hydra app.
+
+    Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
+    """
     if print_version(sys.argv[1:]):
         return
+    install_signal_handlers()
     _guard(lambda: preflight(sys.argv[1:]))
     sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
-    _hydra_main()
+    _guard(_hydra_main)
+    if FAILED_RUNS:
+        sys.exit(EXIT_JOBS_FAILED)
 
 
 def report_main(argv: list[str] | None = None) -> None:
@@ -355,6 +453,7 @@ def report_main(argv: list[str] | None = None) -> None:
     from penaltyrun import report
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    install_signal_handlers()
     src = Path(args.input)
 
     def build() -> None:

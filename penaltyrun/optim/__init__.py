@@ -25,6 +25,7 @@ from penaltyrun.optim.base import (
     main_budget,
 )
 from penaltyrun.optim.baseline import BaselineSettings, run_baseline
+from penaltyrun.optim.checks import coerce_field, settings_hints
 from penaltyrun.optim.cmaes import CMAESSettings, run_cmaes
 from penaltyrun.optim.de import DESettings, run_de
 from penaltyrun.optim.grid import GridSettings, run_grid
@@ -47,10 +48,14 @@ Settings = (PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSe
 def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
     """Validated settings for optimizer ``name`` from a config mapping.
 
+    Every option is checked against the type annotation of its settings field (see
+    :mod:`penaltyrun.optim.checks`), then by the settings' own ``validate()`` (ranges,
+    strategy names) if the class defines one.
+
     Raises
     ------
     ConfigError
-        Unknown optimizer, unknown option, or a value out of range (naming the key).
+        Unknown optimizer, unknown option, a value of the wrong type or out of range.
     """
     if name not in OPTIMIZERS:
         raise ConfigError("optimizer.name", f"unknown optimizer {name!r}", allowed=OPTIMIZERS)
@@ -60,23 +65,25 @@ def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
     if unknown:
         raise ConfigError(f"optimizer.{unknown[0]}", f"not an option of {name!r}",
                           allowed=sorted(allowed))
+    options = dict(options)
+    if isinstance(options.get("polish"), bool):  # older configs: DE's `polish: true`
+        options["polish"] = "L-BFGS-B" if options["polish"] else "none"
+    hints = settings_hints(cls)
+    values = {k: coerce_field(f"optimizer.{k}", v, hints.get(k, Any))
+              for k, v in options.items()}
     for key in _POSITIVE_INT:
-        value = options.get(key)
-        if key in options and value is None and key == "popsize" and name == "cmaes":
+        value = values.get(key)
+        if key in values and value is None and key == "popsize" and name == "cmaes":
             continue
-        if key in options and (isinstance(value, bool) or not isinstance(value, int)
-                               or value < 1):
+        if key in values and (not isinstance(value, int) or value < 1):
             raise ConfigError(f"optimizer.{key}", f"must be a positive integer, got "
                               f"{options[key]!r}")
-    values = {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
-    if isinstance(values.get("polish"), bool):  # older configs: DE's `polish: true`
-        values["polish"] = "L-BFGS-B" if values["polish"] else "none"
     try:
         settings = cls(**values)
     except TypeError as exc:
         raise ConfigError("optimizer", str(exc)) from None
     validate = getattr(settings, "validate", None)
-    if validate is not None:
+    if callable(validate):
         validate()
     return settings
 

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import logging
+import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -121,6 +124,10 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
 def build_report(src: Path, out: Path, paper: bool = True) -> Path:
     """Write tables (CSV + Markdown), figures (PNG) and ``report.md`` into ``out``.
 
+    Every file is first written into a temporary folder inside ``out`` and renamed into
+    place when the report is complete, so no reader sees a half-written file. Unreadable
+    Parquet files under ``src`` are skipped with a warning naming them.
+
     Parameters
     ----------
     src : Path
@@ -129,10 +136,28 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
         Output folder (created).
     paper : bool
         Include the paper's numbers beside ours.
+
+    Raises
+    ------
+    FileNotFoundError, ResultsUnreadableError
+        No results file, or none readable, under ``src``.
     """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     df = add_variant(read_results(src))
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
+    try:
+        _write_report(src, df, tmp, paper)
+        for item in sorted(tmp.iterdir()):
+            os.replace(item, out / item.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    logger.info("report: %s", out / "report.md")
+    return out
+
+
+def _write_report(src: Path, df: pd.DataFrame, out: Path, paper: bool) -> None:
+    """Write every file of the report into ``out`` (see :func:`build_report`)."""
     summary = cell_summary(df)
     comp = pairwise(df)
     bk = best_known(df)
@@ -188,5 +213,3 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
             logger.warning("%s study sections failed: %s", family, exc)
             lines += [f"({family} study sections failed: {exc!r})", ""]
     (out / "report.md").write_text("\n".join(lines) + "\n")
-    logger.info("report: %s", out / "report.md")
-    return out

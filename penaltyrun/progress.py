@@ -7,7 +7,6 @@ the runner's per-job log lines (``[i/n] job: status (... ETA ...)``) are the pro
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -40,14 +39,17 @@ def wanted(setting: Any, stream: TextIO | None = None) -> bool:
 
 def finished_before(jobs: Sequence[Any], run_dir: Path, resume: bool,
                     retry_failed: bool) -> int:
-    """Jobs a resumed run will skip (their record exists and is not a failure to retry)."""
+    """Jobs a resumed run will skip: their record is readable and not a failure to retry
+    (an unreadable record is moved aside and its job run again by the runner)."""
+    from penaltyrun.runner.records import job_path, read_record
+
     if not resume:
         return 0
     done = 0
     for job in jobs:
-        path = Path(run_dir) / "jobs" / f"{job.job_id}.json"
-        if path.exists() and not (retry_failed and
-                                  json.loads(path.read_text()).get("status") == "failed"):
+        path = job_path(run_dir, job)
+        record = read_record(path) if path.exists() else None
+        if record is not None and not (retry_failed and record["status"] == "failed"):
             done += 1
     return done
 

@@ -1,19 +1,41 @@
 # penaltyrun — common tasks. `make help` lists them.
+#
+# Every target runs in a virtual environment of its own, $(VENV) (default .venv), made on
+# first use with $(BOOTSTRAP_PYTHON) -m venv. So `make run` and `make test` work where the
+# system Python refuses `pip install` (externally managed, PEP 668: current Debian, Ubuntu).
+# `make VENV=/path/to/env ...` uses another environment; `make VENV= PYTHON=python3 ...`
+# uses a Python you manage yourself (no virtual environment).
+VENV ?= .venv
+BOOTSTRAP_PYTHON ?= python3
+ifeq ($(strip $(VENV)),)
 PYTHON ?= python3
+VENV_PYTHON :=
+else
+PYTHON ?= $(VENV)/bin/python
+VENV_PYTHON := $(VENV)/bin/python
+endif
 PIP ?= $(PYTHON) -m pip
 PYTEST_ARGS ?=
 WORKERS ?= 2
 
-.PHONY: help install install-dev run test test-slow lint bench reproduce-tables \
+.PHONY: help venv install install-dev run test test-slow lint bench reproduce-tables \
 	reproduce-zermelo reproduce-attitude reproduce-lowthrust referee-zermelo referee-attitude report clean
 
 help:  ## list targets
 	@grep -E '^[a-zA-Z_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  %-18s %s\n", $$1, $$2}'
 
-install:  ## install penaltyrun (editable) with its runtime dependencies
+venv: $(VENV_PYTHON)  ## create the virtual environment $(VENV) (done by every target)
+
+$(VENV_PYTHON):
+	@$(BOOTSTRAP_PYTHON) -m venv $(VENV) || { echo "make: cannot create the virtual" \
+		"environment $(VENV) with '$(BOOTSTRAP_PYTHON) -m venv' (Debian/Ubuntu:" \
+		"apt-get install python3-venv)" >&2; rm -rf $(VENV); exit 1; }
+	$(PYTHON) -m pip install -q --upgrade pip
+
+install: $(VENV_PYTHON)  ## install penaltyrun (editable) with its runtime dependencies
 	$(PIP) install -q -e .
 
-install-dev:  ## install penaltyrun with test and lint tools
+install-dev: $(VENV_PYTHON)  ## install penaltyrun with test and lint tools
 	$(PIP) install -q -e ".[dev]"
 
 run: install  ## small default experiment end to end: optimize → Parquet → report
@@ -29,11 +51,11 @@ test-slow: install-dev  ## run only the long tests
 	$(PYTHON) -m pytest -q -m slow $(PYTEST_ARGS)
 
 lint: install-dev  ## ruff
-	$(PYTHON) -m ruff check penaltyrun tests bench
+	$(PYTHON) -m ruff check penaltyrun tests bench examples
 
 bench: install  ## benchmarks (ratios against references measured in the same run)
 	$(PYTHON) bench/bench_zermelo.py
-	@for f in bench/bench_attitude.py bench/bench_lowthrust.py; do \
+	@for f in bench/bench_attitude.py bench/bench_lowthrust.py bench/bench_first_eval.py; do \
 		if [ -f $$f ]; then $(PYTHON) $$f || exit 1; fi; done
 
 REPRO ?= outputs/reproduce
@@ -62,8 +84,10 @@ referee-zermelo: install  ## referee study, Zermelo: 4 maps × pso/de/cmaes × 3
 		hydra.sweep.dir=$(REPRO)/referee_zermelo/grid
 	$(PYTHON) -m penaltyrun.report_cli $(REPRO)/referee_zermelo -o $(REPRO)/referee_zermelo/report
 
-referee-attitude: install  ## referee study, attitude: 2 laws × 2 manoeuvres × 4 maps × pso/de/cmaes × 30 starts at 3000 evaluations (≈ 1 h)
+referee-attitude: install  ## referee study, attitude: 2 laws × 2 manoeuvres × 4 maps × pso/de/cmaes × 30 starts at 3000 evaluations, + diagonal check (≈ 1.5 h)
 	$(SWEEP) +experiment=referee_attitude hydra.sweep.dir=$(REPRO)/referee_attitude
+	$(SWEEP) +experiment=referee_attitude_diagonal \
+		hydra.sweep.dir=$(REPRO)/referee_attitude/diagonal_check
 	$(PYTHON) -m penaltyrun.report_cli $(REPRO)/referee_attitude -o $(REPRO)/referee_attitude/report
 
 report:  ## report of everything under $(REPRO)
@@ -73,5 +97,5 @@ report:  ## report of everything under $(REPRO)
 reproduce-tables: reproduce-zermelo reproduce-attitude reproduce-lowthrust  ## all paper studies, then the report (RESUME=true continues an interrupted run)
 	$(MAKE) report REPRO=$(REPRO)
 
-clean:  ## remove outputs and caches
+clean:  ## remove outputs and caches (not the virtual environment: `rm -rf .venv`)
 	rm -rf outputs .pytest_cache .ruff_cache .hypothesis

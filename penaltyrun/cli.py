@@ -3,7 +3,8 @@
 
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
 line ``penaltyrun: error: <key>: <message> (allowed: ...)`` on stderr and exit code 2.
-Ctrl-C ends a run with one line saying how to resume it and exit code 130.
+Ctrl-C (SIGINT), SIGTERM and SIGHUP end a run with one line saying how to resume it and
+exit code 128 + signal number (130, 143, 129). Exit codes: :data:`EXIT_CODES`.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import shutil
+import signal
 import subprocess
 import sys
 from collections.abc import Callable
@@ -21,14 +24,38 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__
-from penaltyrun.errors import ConfigError, RunInterruptedError
+from penaltyrun import __version__, checks, userconf
+from penaltyrun.errors import (
+    ConfigError,
+    ResultsUnreadableError,
+    RunAbortedError,
+    RunInterruptedError,
+    SignalInterrupt,
+    signal_name,
+)
 
 logger = logging.getLogger("penaltyrun")
 
-MODES = ("optimize", "evaluate", "report")
+MODES = checks.MODES
+EXIT_OK = 0
 EXIT_USAGE = 2
+EXIT_JOBS_FAILED = 3
+EXIT_ABORTED = 4
 EXIT_INTERRUPTED = 130
+#: Exit code → meaning (also in README "Errors and exit codes").
+EXIT_CODES = {
+    EXIT_OK: "success (every job recorded ok or diverged)",
+    1: "internal error (a bug: please report the traceback)",
+    EXIT_USAGE: "bad command line or config, or no readable results (one line on stderr)",
+    EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed`",
+    EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
+                  "runner.worker_timeout s); finished jobs are kept",
+    128 + signal.SIGINT: "stopped by Ctrl-C (SIGINT); finished jobs are kept",
+    128 + signal.SIGTERM: "stopped by SIGTERM; finished jobs are kept",
+    128 + signal.SIGHUP: "stopped by SIGHUP; finished jobs are kept",
+}
+#: Runs of this process (several in a multirun) that ended with failed jobs.
+FAILED_RUNS: list[str] = []
 
 
 def git_commit() -> str:
@@ -54,12 +81,19 @@ def problem_params(cfg: DictConfig) -> dict[str, Any]:
     return {k: v for k, v in params.items() if v is not None}
 
 
+def problem_module(cfg: DictConfig) -> str | None:
+    """Module of a problem outside penaltyrun (``problem.module``), or None."""
+    value = cfg.problem.get("module")
+    return str(value) if value else None
+
+
 def _setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
     from penaltyrun import runner
 
     return runner.build(cfg.problem.name, cfg.case, problem_params(cfg), cfg.param.name,
                         _plain(cfg.param), cfg.optimizer.name,
-                        {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"})
+                        {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"},
+                        problem_module(cfg))
 
 
 def _warm_start_share(cfg: DictConfig) -> float:
@@ -92,8 +126,8 @@ def run_optimize(cfg: DictConfig) -> Path:
     """Plan and run the jobs of one cell, then write results.parquet (and the report)."""
     from penaltyrun import io, report, runner
 
-    prob, _, _ = _setup(cfg)  # validate everything before any job starts
-    runner.check_settings(cfg.runner.workers, cfg.runner.backend)
+    prob, _, _ = _setup(cfg)  # validated by the preflight already; builds the problem
+    runner.check_runner_options(_plain(cfg.runner), connect=False)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     resolved = OmegaConf.to_container(cfg, resolve=True)
     hashed = {k: resolved[k] for k in ("problem", "case", "param", "optimizer")}
@@ -107,25 +141,60 @@ def run_optimize(cfg: DictConfig) -> Path:
         cfg.problem.name, prob.case, cfg.param.name, cfg.optimizer.name, rc.n_starts,
         int(rc.seed), problem_params(cfg), _plain(cfg.param),
         {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"}, meta,
-        holdout=bool(rc.holdout), warm_start_share=warm_share)
+        holdout=bool(rc.holdout), warm_start_share=warm_share,
+        problem_module=problem_module(cfg))
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 cfg.param.name, cfg.optimizer.name, run_dir)
-    runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
-                   scheduler=rc.scheduler, resume=bool(rc.resume),
-                   retry_failed=bool(rc.retry_failed))
+    with _progress(cfg, jobs, run_dir) as on_record:
+        runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
+                       scheduler=rc.scheduler, resume=bool(rc.resume),
+                       retry_failed=bool(rc.retry_failed), on_record=on_record,
+                       max_retries=rc.get("max_retries", 1),
+                       worker_timeout=float(rc.get("worker_timeout", 60)))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
         logger.info("report written to %s", out)
+    summarize(path, run_dir)
     return path
+
+
+def _progress(cfg: DictConfig, jobs: list[Any], run_dir: Path) -> Any:
+    """tqdm bar over the jobs on a terminal (``runner.progress``), else plain log lines."""
+    from penaltyrun import progress
+
+    rc = cfg.runner
+    done = progress.finished_before(jobs, run_dir, bool(rc.resume), bool(rc.retry_failed))
+    return progress.job_bar(len(jobs), done, progress.wanted(rc.get("progress", "auto")))
+
+
+def summarize(path: Path, run_dir: Path) -> dict[str, int]:
+    """Print the run's summary line (ok / diverged / failed counts, where the errors are);
+    a run with failed jobs is remembered in :data:`FAILED_RUNS` (exit code 3)."""
+    from penaltyrun import io
+
+    df = io.read_results(path)
+    counts = {status: int((df["status"] == status).sum()) for status in ("ok", "diverged",
+                                                                          "failed")}
+    line = (f"penaltyrun: {len(df)} jobs: {counts['ok']} ok, {counts['diverged']} diverged, "
+            f"{counts['failed']} failed")
+    if counts["failed"]:
+        first = df[df["status"] == "failed"].iloc[0]
+        cause = str(first["error"] or "").strip().splitlines()[:1] or ["no error text"]
+        line += (f"; errors in {run_dir}/jobs/<job_id>.json and {path} (column error), "
+                 f"e.g. {first['job_id']}: {cause[0]}; rerun failed jobs with "
+                 f"runner.resume=true runner.retry_failed=true")
+        FAILED_RUNS.append(str(run_dir))
+    print(line, file=sys.stderr, flush=True)
+    return counts
 
 
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     """Evaluate the matrices given in ``matrices.*`` and print one JSON line."""
     from penaltyrun import problems
 
-    prob = problems.make(cfg.problem.name, cfg.case, problem_params(cfg))
+    prob = problems.make(cfg.problem.name, cfg.case, problem_params(cfg), problem_module(cfg))
     given = {k: v for k, v in (_plain(cfg.matrices) or {}).items() if v is not None}
     wanted = [spec.name for spec in prob.matrices]
     extra = sorted(set(given) - set(wanted))
@@ -166,13 +235,30 @@ def run_report(cfg: DictConfig) -> Path:
     return out
 
 
-CONF_DIR = Path(__file__).resolve().parent / "conf"
+CONF_DIR = userconf.CONF_DIR
 GROUPS = ("problem", "param", "optimizer", "experiment")
+#: Hydra settings the preflight needs to check the run directory.
+RUN_DIR_KEYS = ("hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir")
 
 
-def group_options(group: str) -> list[str]:
-    """Config names available in a config group (the YAML files of ``conf/<group>``)."""
-    return sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+def group_options(group: str, source: userconf.ConfigSource | None = None,
+                  hydra_overrides: list[str] | None = None) -> list[str]:
+    """Config names available in a config group: penaltyrun's ``conf/<group>`` plus the
+    user's (``--config-dir``, ``--config-path``, ``hydra.searchpath``)."""
+    source = source or userconf.ConfigSource(CONF_DIR)
+    with userconf.hydra_context(source):
+        return userconf.group_options(group, source, list(hydra_overrides or []))
+
+
+def _searchpath(parsed: list[Any]) -> tuple[list[str], list[str]]:
+    """``hydra.searchpath`` overrides of the command line, and their entries."""
+    lines = [o.input_line for o in parsed if o.key_or_group == "hydra.searchpath"]
+    entries = []
+    for o in parsed:
+        if o.key_or_group == "hydra.searchpath" and not o.is_delete():
+            value = o.value()
+            entries += [str(v) for v in (value if isinstance(value, list) else [value])]
+    return lines, entries
 
 
 def _first_line(exc: BaseException) -> str:
@@ -183,21 +269,21 @@ def _first_line(exc: BaseException) -> str:
 def preflight(argv: list[str]) -> None:
     """Check the command line before Hydra runs, so every mistake is one clear line.
 
-    Parses the overrides (syntax), checks config-group choices against the files in
-    ``conf/``, then composes the config once (first value of each sweep) to catch
-    unknown keys and type errors.
+    Parses the overrides (syntax), checks config-group choices against the files Hydra
+    will search (penaltyrun's ``conf/`` and the user's directories), checks the YAML of
+    the chosen user files, then composes the config once (first value of each sweep) to
+    catch unknown keys and type errors.
 
     Raises
     ------
     ConfigError
         Naming the key and, where there is a list, the allowed values.
     """
-    from hydra import compose, initialize_config_dir
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
 
-    args = [a for a in argv if "=" in a and not a.startswith("-")]
+    source, argv = userconf.parse_source(argv)
+    args = [a for a in argv if ("=" in a or a.startswith("~")) and not a.startswith("-")]
     parser = OverridesParser.create()
     parsed = []
     for arg in args:
@@ -206,50 +292,110 @@ def preflight(argv: list[str]) -> None:
         except HydraException as exc:
             key = arg.split("=", 1)[0].lstrip("+~")
             raise ConfigError(key, f"malformed override {arg!r}: {_first_line(exc)}") from None
-    dry = []
+    hydra_overrides, searchpath = _searchpath(parsed)
+    with userconf.hydra_context(source):
+        _check_choices(parsed, source, hydra_overrides, searchpath)
+        _compose_dry(parsed, source, hydra_overrides,
+                     multirun="-m" in argv or "--multirun" in argv)
+
+
+def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
+                   hydra_overrides: list[str], searchpath: list[str]) -> None:
+    """Config-group choices against the files Hydra will find; chosen files' YAML."""
+    choices = []
     for o in parsed:
-        if o.key_or_group.startswith("hydra"):
+        if o.key_or_group not in GROUPS or o.is_delete():
             continue
         values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
             [o.get_value_element_as_str()]
-        if o.key_or_group in GROUPS and not o.is_delete():
-            allowed = group_options(o.key_or_group)
-            for value in values:
-                if value not in allowed:
-                    raise ConfigError(o.key_or_group, f"unknown choice {value!r}",
-                                      allowed=allowed)
+        allowed = userconf.group_options(o.key_or_group, source, hydra_overrides)
+        for value in values:
+            if value not in allowed:
+                raise ConfigError(o.key_or_group, f"unknown choice {value!r}", allowed=allowed)
+            choices.append((o.key_or_group, value))
+    userconf.check_files(source, searchpath, choices)
+
+
+def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
+                 hydra_overrides: list[str], multirun: bool = False) -> None:
+    """Compose once (first value of each sweep) to catch unknown keys and type errors."""
+    from hydra import compose
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    dry = []
+    for o in parsed:
+        if o.key_or_group.startswith("hydra"):
+            if o.key_or_group in RUN_DIR_KEYS and not o.is_sweep_override():
+                dry.append(o.input_line)
+            continue
+        values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
+            [o.get_value_element_as_str()]
         dry.append(o.input_line if not o.is_sweep_override()
                    else f"{o.get_key_element()}={values[0]}")
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        try:
-            compose(config_name="config", overrides=dry)
-        except (HydraException, OmegaConfBaseException) as exc:
-            hits = [o for o in parsed if o.key_or_group in str(exc)]
-            bad = max(hits, key=lambda o: len(o.key_or_group)) if hits else None
-            key = bad.key_or_group if bad else "override"
-            if "Could not override" not in str(exc) or bad is None:
-                raise ConfigError(key, _first_line(exc)) from None
-            groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
-            parent = OmegaConf.select(compose(config_name="config", overrides=groups),
-                                      key.rpartition(".")[0] or "")
-            allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
-            raise ConfigError(key, "unknown config key", allowed=allowed) from None
+    dry += hydra_overrides
+    name = source.config_name
+    try:
+        cfg = compose(config_name=name, overrides=dry, return_hydra_config=True)
+    except (HydraException, OmegaConfBaseException) as exc:
+        hits = [o for o in parsed if o.key_or_group in str(exc)]
+        bad = max(hits, key=lambda o: len(o.key_or_group)) if hits else None
+        key = bad.key_or_group if bad else "override"
+        if "Could not override" not in str(exc) or bad is None:
+            raise ConfigError(key, _first_line(exc)) from None
+        groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
+        parent = OmegaConf.select(compose(config_name=name, overrides=groups + hydra_overrides),
+                                  key.rpartition(".")[0] or "")
+        allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
+        raise ConfigError(key, "unknown config key", allowed=allowed) from None
+    groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
+    base = compose(config_name=name, overrides=groups + hydra_overrides)
+    checks.check_composed(cfg, base, multirun=multirun)
+    for variant in checks.sweep_variants(parsed, dry):
+        checks.check_variant(compose, variant, config_name=name)
 
 
 def _guard(func: Callable[[], Any]) -> Any:
-    """Run ``func``; turn user errors into one line on stderr and exit code 2, and Ctrl-C
-    into one line and exit code 130 (finished jobs are on disk already)."""
+    """Run ``func``; turn user errors into one line on stderr and exit code 2, a run that
+    cannot go on into one line and exit code 4, and Ctrl-C / SIGTERM / SIGHUP into one line
+    and exit code 128 + signal number (finished jobs are on disk already)."""
     try:
         return func()
-    except (ConfigError, FileNotFoundError) as exc:
+    except (ConfigError, FileNotFoundError, ResultsUnreadableError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
+    except RunAbortedError as exc:
+        print(f"penaltyrun: error: {exc}", file=sys.stderr)
+        sys.exit(EXIT_ABORTED)
     except RunInterruptedError as exc:
         print(f"penaltyrun: {exc}", file=sys.stderr)
-        sys.exit(EXIT_INTERRUPTED)
-    except KeyboardInterrupt:
-        print("penaltyrun: interrupted", file=sys.stderr)
-        sys.exit(EXIT_INTERRUPTED)
+        sys.exit(128 + exc.signum)
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", int(signal.SIGINT))
+        how = "interrupted" if signum == signal.SIGINT else f"stopped by {signal_name(signum)}"
+        print(f"penaltyrun: {how}", file=sys.stderr)
+        sys.exit(128 + signum)
+
+
+def install_signal_handlers() -> None:
+    """Handle SIGTERM and SIGHUP like Ctrl-C: raise :class:`SignalInterrupt` in the main
+    thread, so workers are stopped, finished jobs kept and one line printed."""
+    def handler(signum: int, frame: Any) -> None:
+        raise SignalInterrupt(signum)
+
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, handler)
+
+
+def _discard_run_dir() -> None:
+    """Remove the run directory Hydra created for a run that failed before doing anything
+    (it holds only Hydra's ``.hydra/`` and the log), so a mistake leaves nothing behind."""
+    try:
+        out = Path(HydraConfig.get().runtime.output_dir)
+    except (ValueError, AttributeError):
+        return
+    if out.is_dir() and all(p.name == ".hydra" or p.suffix == ".log" for p in out.iterdir()):
+        shutil.rmtree(out, ignore_errors=True)
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")
@@ -257,20 +403,41 @@ def _hydra_main(cfg: DictConfig) -> None:
     def dispatch() -> Any:
         if cfg.mode not in MODES:
             raise ConfigError("mode", f"unknown mode {cfg.mode!r}", allowed=MODES)
-        return {"optimize": run_optimize, "evaluate": run_evaluate,
-                "report": run_report}[cfg.mode](cfg)
+        try:
+            return {"optimize": run_optimize, "evaluate": run_evaluate,
+                    "report": run_report}[cfg.mode](cfg)
+        except ConfigError:
+            _discard_run_dir()
+            raise
 
     _guard(dispatch)
 
 
+def print_version(argv: list[str]) -> bool:
+    """``--version``: print penaltyrun's version (Hydra would print its own); True if so."""
+    if "--version" not in argv:
+        return False
+    print(f"penaltyrun {__version__}")
+    return True
+
+
 def main() -> None:
-    """Entry point of ``penaltyrun``: check the command line, then run the Hydra app."""
+    """Entry point of ``penaltyrun``: check the command line, then run the Hydra app.
+
+    Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
+    """
+    if print_version(sys.argv[1:]):
+        return
+    install_signal_handlers()
     _guard(lambda: preflight(sys.argv[1:]))
-    _hydra_main()
+    sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
+    _guard(_hydra_main)
+    if FAILED_RUNS:
+        sys.exit(EXIT_JOBS_FAILED)
 
 
 def report_main(argv: list[str] | None = None) -> None:
-    """Entry point of ``penaltyrun-report INPUT [-o OUTPUT] [--no-paper]``."""
+    """Entry point of ``penaltyrun-report INPUT [-o OUTPUT] [--no-paper] [--export DIR]``."""
     parser = argparse.ArgumentParser(
         prog="penaltyrun-report",
         description="Tables and figures from penaltyrun results (Parquet only).")
@@ -278,10 +445,15 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("-o", "--output", help="output folder (default <input>/report)")
     parser.add_argument("--no-paper", action="store_true",
                         help="leave out the paper's numbers")
+    parser.add_argument("--export", metavar="DIR",
+                        help="also write each cell's best matrices to DIR as JSON and MATLAB "
+                             ".mat files (with index.csv)")
+    parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     args = parser.parse_args(argv)
     from penaltyrun import report
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    install_signal_handlers()
     src = Path(args.input)
 
     def build() -> None:
@@ -291,8 +463,18 @@ def report_main(argv: list[str] | None = None) -> None:
             (src.parent if src.is_file() else src) / "report"
         report.build_report(src, out, paper=not args.no_paper)
         print(f"report written to {out}")
+        if args.export:
+            _export(src, Path(args.export))
 
     _guard(build)
+
+
+def _export(src: Path, out: Path) -> None:
+    """``penaltyrun-report --export DIR``: best matrices of each cell as JSON and .mat."""
+    from penaltyrun.report.export import export_best
+
+    files = export_best(src, out)
+    print(f"best matrices of {(len(files) - 1) // 2} cells exported to {out}")
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from penaltyrun.dynamics.integrate import dopri5
+from penaltyrun.dynamics.integrate import make_dopri5
 
 #: Number of states (quaternion 4, rates 3, cost 1).
 N_STATE = 8
@@ -165,6 +165,10 @@ def event(t, y, p):
     return weighted_distance(y, p) - p[_TOL]
 
 
+_integrate = make_dopri5(rhs, event)
+"""Dormand–Prince 5(4) bound to this closed loop (callers are cacheable)."""
+
+
 @njit(cache=True)
 def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=1.0):
     """Fill the kernel parameter vector ``p`` (shape (N_PRM,)).
@@ -197,7 +201,7 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=
     p[_W + 2] = w_w
 
 
-@njit(cache=False)  # numba cannot cache callers that pass functions to dopri5
+@njit(cache=True)
 def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
                    n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
     """Closed-loop runs for a batch of gains and/or initial states.
@@ -255,7 +259,7 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
         for i in range(7):
             y[i] = y0[s, i]
         y[7] = 0.0
-        t, yf, st, _ = dopri5(rhs, event, y, p, t_max, rtol, atol, max_step,
+        t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step,
                               n_event_samples, max_steps)
         t_end[r] = t
         cost[r] = yf[7]
@@ -264,7 +268,7 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
     return t_end, cost, dist, status
 
 
-@njit(cache=False)  # numba cannot cache callers that pass functions to dopri5
+@njit(cache=True)
 def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
                 n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
     """One closed-loop run returning the full state at its end.
@@ -286,6 +290,6 @@ def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_
     y = np.zeros(N_STATE)
     for i in range(7):
         y[i] = y0[i]
-    t, yf, st, _ = dopri5(rhs, event, y, p, t_max, rtol, atol, max_step, n_event_samples,
+    t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, n_event_samples,
                           max_steps)
     return t, yf, st

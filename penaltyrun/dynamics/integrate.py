@@ -2,7 +2,8 @@
 
 Dormand–Prince 5(4) (Dormand & Prince 1980; Shampine 1986 quartic dense output) with
 standard error control, a maximum step, and a terminal event located on the dense output.
-The right-hand side and the event are numba-compiled functions passed as arguments:
+The right-hand side and the event are numba-compiled functions bound once by
+:func:`make_dopri5` (a closure, so that its compiled callers can be cached):
 
 ``rhs(t, y, p, dydt)`` writes dy/dt into ``dydt`` (all float64 1-D arrays, ``p`` holds the
 problem's parameters); ``event(t, y, p) -> float`` is positive away from the target and
@@ -15,6 +16,8 @@ interpolant.
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 from numba import njit
@@ -81,9 +84,141 @@ def _dense(y_old, h, Q, x, out):
         out[i] = y_old[i] + h * (Q[i, 0] * x + Q[i, 1] * x2 + Q[i, 2] * x3 + Q[i, 3] * x4)
 
 
-@njit(cache=False)  # specialized per rhs/event; numba cannot cache function-typed args
+def make_dopri5(rhs, event):
+    """Build the integrator specialized to one right-hand side and event (cacheable).
+
+    The returned numba function closes over ``rhs`` and ``event`` instead of taking them as
+    arguments: numba cannot cache a function that passes compiled functions as arguments, but
+    it caches callers of this closure (``cache=True``), so a fresh process loads them from the
+    cache instead of recompiling. Build it once at module level and call it from ``@njit``
+    code.
+
+    Parameters
+    ----------
+    rhs, event : numba-compiled functions
+        See the module docstring.
+
+    Returns
+    -------
+    numba dispatcher
+        ``integrate(y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps)``, see
+        :func:`dopri5` for the arguments and results.
+    """
+
+    @njit(cache=True)
+    def integrate(y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps):
+        _A, _B, _C, _E, _P = _tableau()
+        n = y0.shape[0]
+        y = y0.copy()
+        y_new = np.empty(n)
+        y_tmp = np.empty(n)
+        y_probe = np.empty(n)
+        K = np.empty((7, n))
+        Q = np.empty((n, 4))
+        t = 0.0
+        f0 = np.empty(n)
+        rhs(t, y, p, f0)
+        K[0, :] = f0
+        if event(t, y, p) <= 0.0:
+            return t, y, EVENT, 0
+        # Initial step (Hairer, Nørsett & Wanner, II.4).
+        d0 = 0.0
+        d1 = 0.0
+        for i in range(n):
+            sc = atol + abs(y[i]) * rtol
+            d0 += (y[i] / sc) ** 2
+            d1 += (f0[i] / sc) ** 2
+        d0 = np.sqrt(d0 / n)
+        d1 = np.sqrt(d1 / n)
+        h = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+        h = min(h, max_step, t_max)
+        steps = 0
+        while steps < max_steps:
+            steps += 1
+            if t + h > t_max:
+                h = t_max - t
+            for s in range(1, 6):
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(s):
+                        acc += _A[s, j] * K[j, i]
+                    y_tmp[i] = y[i] + h * acc
+                rhs(t + _C[s] * h, y_tmp, p, f0)
+                K[s, :] = f0
+            for i in range(n):
+                acc = 0.0
+                for j in range(6):
+                    acc += _B[j] * K[j, i]
+                y_new[i] = y[i] + h * acc
+            rhs(t + h, y_new, p, f0)
+            K[6, :] = f0
+            err = 0.0
+            finite = True
+            for i in range(n):
+                e = 0.0
+                for j in range(7):
+                    e += _E[j] * K[j, i]
+                sc = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+                err += (h * e / sc) ** 2
+                if not np.isfinite(y_new[i]):
+                    finite = False
+            err = np.sqrt(err / n)
+            if not finite:
+                if h < 1e-12 * max(1.0, t):
+                    return t, y, NONFINITE, steps
+                h *= 0.2
+                continue
+            if err > 1.0:
+                h *= max(0.2, 0.9 * err ** -0.2)
+                if h < 1e-14 * max(1.0, t):
+                    return t, y, STEP_FAILURE, steps
+                continue
+            # Accepted step: look for the event on the dense output.
+            for i in range(n):
+                for c in range(4):
+                    acc = 0.0
+                    for j in range(7):
+                        acc += K[j, i] * _P[j, c]
+                    Q[i, c] = acc
+            x_lo = 0.0
+            for k in range(1, n_event_samples + 1):
+                x_hi = k / n_event_samples
+                _dense(y, h, Q, x_hi, y_probe)
+                if event(t + x_hi * h, y_probe, p) <= 0.0:
+                    for _ in range(60):
+                        x_mid = 0.5 * (x_lo + x_hi)
+                        _dense(y, h, Q, x_mid, y_probe)
+                        if event(t + x_mid * h, y_probe, p) <= 0.0:
+                            x_hi = x_mid
+                        else:
+                            x_lo = x_mid
+                        if (x_hi - x_lo) * h <= 1e-13 * max(1.0, t):
+                            break
+                    _dense(y, h, Q, x_hi, y_probe)
+                    return t + x_hi * h, y_probe, EVENT, steps
+                x_lo = x_hi
+            t = t + h
+            y[:] = y_new
+            K[0, :] = K[6, :]
+            if t >= t_max:
+                return t, y, HORIZON, steps
+            factor = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** -0.2)
+            h = min(h * factor, max_step)
+        return t, y, STEP_FAILURE, steps
+
+    return integrate
+
+
+@functools.cache
+def _specialized(rhs, event):
+    return make_dopri5(rhs, event)
+
+
 def dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps):
     """Integrate from t = 0 until the event fires or ``t_max`` is reached.
+
+    Python-level convenience (not callable from ``@njit`` code): compiled callers build
+    their integrator once with :func:`make_dopri5`.
 
     Parameters
     ----------
@@ -116,101 +251,5 @@ def dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, n_event_samples, max_
     n_steps : int
         Number of steps attempted.
     """
-    _A, _B, _C, _E, _P = _tableau()
-    n = y0.shape[0]
-    y = y0.copy()
-    y_new = np.empty(n)
-    y_tmp = np.empty(n)
-    y_probe = np.empty(n)
-    K = np.empty((7, n))
-    Q = np.empty((n, 4))
-    t = 0.0
-    f0 = np.empty(n)
-    rhs(t, y, p, f0)
-    K[0, :] = f0
-    if event(t, y, p) <= 0.0:
-        return t, y, EVENT, 0
-    # Initial step (Hairer, Nørsett & Wanner, II.4).
-    d0 = 0.0
-    d1 = 0.0
-    for i in range(n):
-        sc = atol + abs(y[i]) * rtol
-        d0 += (y[i] / sc) ** 2
-        d1 += (f0[i] / sc) ** 2
-    d0 = np.sqrt(d0 / n)
-    d1 = np.sqrt(d1 / n)
-    h = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
-    h = min(h, max_step, t_max)
-    steps = 0
-    while steps < max_steps:
-        steps += 1
-        if t + h > t_max:
-            h = t_max - t
-        for s in range(1, 6):
-            for i in range(n):
-                acc = 0.0
-                for j in range(s):
-                    acc += _A[s, j] * K[j, i]
-                y_tmp[i] = y[i] + h * acc
-            rhs(t + _C[s] * h, y_tmp, p, f0)
-            K[s, :] = f0
-        for i in range(n):
-            acc = 0.0
-            for j in range(6):
-                acc += _B[j] * K[j, i]
-            y_new[i] = y[i] + h * acc
-        rhs(t + h, y_new, p, f0)
-        K[6, :] = f0
-        err = 0.0
-        finite = True
-        for i in range(n):
-            e = 0.0
-            for j in range(7):
-                e += _E[j] * K[j, i]
-            sc = atol + max(abs(y[i]), abs(y_new[i])) * rtol
-            err += (h * e / sc) ** 2
-            if not np.isfinite(y_new[i]):
-                finite = False
-        err = np.sqrt(err / n)
-        if not finite:
-            if h < 1e-12 * max(1.0, t):
-                return t, y, NONFINITE, steps
-            h *= 0.2
-            continue
-        if err > 1.0:
-            h *= max(0.2, 0.9 * err ** -0.2)
-            if h < 1e-14 * max(1.0, t):
-                return t, y, STEP_FAILURE, steps
-            continue
-        # Accepted step: look for the event on the dense output.
-        for i in range(n):
-            for c in range(4):
-                acc = 0.0
-                for j in range(7):
-                    acc += K[j, i] * _P[j, c]
-                Q[i, c] = acc
-        x_lo = 0.0
-        for k in range(1, n_event_samples + 1):
-            x_hi = k / n_event_samples
-            _dense(y, h, Q, x_hi, y_probe)
-            if event(t + x_hi * h, y_probe, p) <= 0.0:
-                for _ in range(60):
-                    x_mid = 0.5 * (x_lo + x_hi)
-                    _dense(y, h, Q, x_mid, y_probe)
-                    if event(t + x_mid * h, y_probe, p) <= 0.0:
-                        x_hi = x_mid
-                    else:
-                        x_lo = x_mid
-                    if (x_hi - x_lo) * h <= 1e-13 * max(1.0, t):
-                        break
-                _dense(y, h, Q, x_hi, y_probe)
-                return t + x_hi * h, y_probe, EVENT, steps
-            x_lo = x_hi
-        t = t + h
-        y[:] = y_new
-        K[0, :] = K[6, :]
-        if t >= t_max:
-            return t, y, HORIZON, steps
-        factor = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** -0.2)
-        h = min(h * factor, max_step)
-    return t, y, STEP_FAILURE, steps
+    return _specialized(rhs, event)(y0, p, t_max, rtol, atol, max_step, n_event_samples,
+                                    max_steps)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from penaltyrun.dynamics.integrate import dopri5
+from penaltyrun.dynamics.integrate import make_dopri5
 
 
 @njit(cache=True)
@@ -45,7 +45,11 @@ def event(t, y, p):
     return np.sqrt(y[0] * y[0] + y[1] * y[1]) - p[4]
 
 
-@njit(cache=False)  # numba cannot cache callers that pass functions to dopri5
+_integrate = make_dopri5(rhs, event)
+"""Dormand–Prince 5(4) bound to this closed loop (callers are cacheable)."""
+
+
+@njit(cache=True)
 def simulate_batch(K, x0, t_max, event_radius, rtol, atol, max_step, max_steps):
     """Closed-loop runs for a batch of gains.
 
@@ -86,7 +90,7 @@ def simulate_batch(K, x0, t_max, event_radius, rtol, atol, max_step, max_steps):
         p[2] = K[b, 1, 0]
         p[3] = K[b, 1, 1]
         p[4] = event_radius
-        t, y, st, _ = dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, 1, max_steps)
+        t, y, st, _ = _integrate(y0, p, t_max, rtol, atol, max_step, 1, max_steps)
         t_end[b] = t
         cost[b] = y[2]
         dist[b] = np.sqrt(y[0] * y[0] + y[1] * y[1])

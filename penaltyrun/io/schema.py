@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 from collections.abc import Iterable
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -16,9 +18,13 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from penaltyrun.errors import ResultsUnreadableError
+
 logger = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 3
+#: 3: anytime traces and warm start; 4: ``started_at`` / ``finished_at`` are timestamp
+#: columns (UTC) — earlier versions stored ISO text, read back as timestamps.
+SCHEMA_VERSION = 4
 RESULTS_FILE = "results.parquet"
 
 #: Column name → (arrow type, description). JSON columns hold text.
@@ -65,13 +71,29 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "config": (pa.string(), "resolved config (YAML)"),
     "package_version": (pa.string(), "penaltyrun version"),
     "git_commit": (pa.string(), "git commit of the code (or 'unknown')"),
-    "started_at": (pa.string(), "UTC ISO time"),
-    "finished_at": (pa.string(), "UTC ISO time"),
+    "started_at": (pa.timestamp("us", tz="UTC"), "when the job started (UTC)"),
+    "finished_at": (pa.timestamp("us", tz="UTC"), "when the job finished (UTC)"),
     "schema_version": (pa.int64(), "version of this schema"),
 }
 SCHEMA = pa.schema([pa.field(name, typ) for name, (typ, _) in COLUMNS.items()])
 JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "warm_start",
                 "optimizer_settings", "problem_params", "param_options")
+TIMESTAMP_COLUMNS = ("started_at", "finished_at")
+
+
+def to_timestamp(value: Any) -> datetime | None:
+    """A record's time (ISO text as job records hold it, or a datetime) as an aware UTC
+    datetime; naive times are taken as UTC, unreadable ones become None."""
+    if isinstance(value, str):
+        try:
+            value = datetime.fromisoformat(value.strip().replace("Z", "+00:00"))
+        except ValueError:
+            logger.warning("unreadable time %r stored as null", value)
+            return None
+    if not isinstance(value, datetime):
+        return None
+    return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else \
+        value.astimezone(timezone.utc)
 
 
 def normalize(record: dict[str, Any], run_id: str = "") -> dict[str, Any]:
@@ -81,6 +103,8 @@ def normalize(record: dict[str, Any], run_id: str = "") -> dict[str, Any]:
         value = record.get(name)
         if name in JSON_COLUMNS and value is not None and not isinstance(value, str):
             value = json.dumps(value, default=str)
+        elif name in TIMESTAMP_COLUMNS:
+            value = to_timestamp(value)
         row[name] = value
     row["run_id"] = record.get("run_id") or run_id
     row["schema_version"] = SCHEMA_VERSION
@@ -113,10 +137,29 @@ def collect(run_dir: Path, job_ids: Iterable[str] | None = None) -> Path:
             logger.info("left out %d job records of other settings in %s",
                         len(files) - len(kept), run_dir / "jobs")
         files = kept
-    records = [json.loads(f.read_text()) for f in files]
+    records = []
+    for f in files:
+        try:
+            records.append(json.loads(f.read_text()))
+        except (OSError, ValueError) as exc:
+            logger.warning("skipped unreadable job record %s (%s); rerun with "
+                           "runner.resume=true to run its job again", f, exc)
     path = run_dir / RESULTS_FILE
-    pq.write_table(to_table(records, run_id=run_dir.name), path)
+    write_table_atomic(to_table(records, run_id=run_dir.name), path)
     logger.info("wrote %d job records to %s", len(records), path)
+    return path
+
+
+def write_table_atomic(table: pa.Table, path: Path) -> Path:
+    """Write ``table`` as Parquet to a temporary name beside ``path``, then rename it, so
+    a reader never sees a half-written file."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
     return path
 
 
@@ -131,18 +174,40 @@ def find_results(path: Path) -> list[Path]:
 def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
     """All results under ``path`` (file, folder, or several) as one DataFrame.
 
-    JSON columns stay text; use :func:`decode_json` to parse them.
+    JSON columns stay text; use :func:`decode_json` to parse them. A file that cannot be
+    read as Parquet (truncated, garbage) is skipped with a warning naming it.
+
+    Raises
+    ------
+    FileNotFoundError
+        If there is no results file under ``path``.
+    ResultsUnreadableError
+        If there are results files but none of them can be read.
     """
     paths = find_results(path) if isinstance(path, (str, Path)) else [Path(p) for p in path]
     if not paths:
         raise FileNotFoundError(f"no {RESULTS_FILE} found under {path}")
     frames = []
+    unreadable = []
     for p in paths:
-        frame = pq.read_table(p).to_pandas()
+        try:
+            frame = pq.read_table(p).to_pandas()
+        except (OSError, pa.ArrowException) as exc:  # ArrowInvalid: truncated or not Parquet
+            logger.warning("skipped unreadable results file %s: %s", p,
+                           str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+            unreadable.append(p)
+            continue
         for name in COLUMNS:  # files of older schema versions lack newer columns
             if name not in frame:
                 frame[name] = None
+        for name in TIMESTAMP_COLUMNS:  # schema <= 3 stored ISO text
+            if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
+                frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
         frames.append(frame[list(COLUMNS)])
+    if not frames:
+        raise ResultsUnreadableError(
+            f"no readable results under {path}: {len(unreadable)} unreadable file(s) "
+            f"({', '.join(str(p) for p in unreadable[:3])}{' ...' if len(unreadable) > 3 else ''})")
     return pd.concat(frames, ignore_index=True)
 
 

@@ -1,9 +1,10 @@
 """Optimizers over a box with a batched objective and an evaluation budget.
 
-``pso`` (pyswarms), ``de`` (scipy differential evolution), ``cmaes`` (IPOP-CMA-ES from
-``cma``), ``grid`` (exhaustive grid + local search, dimension ≤ 4) and ``baseline`` (one
-given point). :func:`minimize` runs one of them, then the shared bounded polish
-(``optimizer.polish``) inside the same ``max_evals``.
+``pso`` (pyswarms), ``pso_matlab`` (MATLAB's ``particleswarm`` re-implemented in numpy),
+``de`` (scipy differential evolution), ``cmaes`` (IPOP-CMA-ES from ``cma``), ``grid``
+(exhaustive grid + local search, dimension ≤ 4) and ``baseline`` (one given point).
+:func:`minimize` runs one of them, then the shared bounded polish (``optimizer.polish``)
+inside the same ``max_evals``.
 """
 
 from __future__ import annotations
@@ -24,29 +25,37 @@ from penaltyrun.optim.base import (
     main_budget,
 )
 from penaltyrun.optim.baseline import BaselineSettings, run_baseline
+from penaltyrun.optim.checks import coerce_field, settings_hints
 from penaltyrun.optim.cmaes import CMAESSettings, run_cmaes
 from penaltyrun.optim.de import DESettings, run_de
 from penaltyrun.optim.grid import GridSettings, run_grid
 from penaltyrun.optim.polish import local_search
 from penaltyrun.optim.pso import PSOSettings, run_pso
+from penaltyrun.optim.pso_matlab import PSOMatlabSettings, run_pso_matlab
 
 OPTIMIZERS = {"pso": (PSOSettings, run_pso), "de": (DESettings, run_de),
               "cmaes": (CMAESSettings, run_cmaes), "grid": (GridSettings, run_grid),
-              "baseline": (BaselineSettings, run_baseline)}
+              "baseline": (BaselineSettings, run_baseline),
+              "pso_matlab": (PSOMatlabSettings, run_pso_matlab)}
 
 _POSITIVE_INT = ("n_particles", "iters", "popsize", "ftol_iter")
 
 
-Settings = PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
+Settings = (PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
+            | PSOMatlabSettings)
 
 
 def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
     """Validated settings for optimizer ``name`` from a config mapping.
 
+    Every option is checked against the type annotation of its settings field (see
+    :mod:`penaltyrun.optim.checks`), then by the settings' own ``validate()`` (ranges,
+    strategy names) if the class defines one.
+
     Raises
     ------
     ConfigError
-        Unknown optimizer, unknown option, or a value out of range (naming the key).
+        Unknown optimizer, unknown option, a value of the wrong type or out of range.
     """
     if name not in OPTIMIZERS:
         raise ConfigError("optimizer.name", f"unknown optimizer {name!r}", allowed=OPTIMIZERS)
@@ -56,23 +65,25 @@ def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
     if unknown:
         raise ConfigError(f"optimizer.{unknown[0]}", f"not an option of {name!r}",
                           allowed=sorted(allowed))
+    options = dict(options)
+    if isinstance(options.get("polish"), bool):  # older configs: DE's `polish: true`
+        options["polish"] = "L-BFGS-B" if options["polish"] else "none"
+    hints = settings_hints(cls)
+    values = {k: coerce_field(f"optimizer.{k}", v, hints.get(k, Any))
+              for k, v in options.items()}
     for key in _POSITIVE_INT:
-        value = options.get(key)
-        if key in options and value is None and key == "popsize" and name == "cmaes":
+        value = values.get(key)
+        if key in values and value is None and key == "popsize" and name == "cmaes":
             continue
-        if key in options and (isinstance(value, bool) or not isinstance(value, int)
-                               or value < 1):
+        if key in values and (not isinstance(value, int) or value < 1):
             raise ConfigError(f"optimizer.{key}", f"must be a positive integer, got "
                               f"{options[key]!r}")
-    values = {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
-    if isinstance(values.get("polish"), bool):  # older configs: DE's `polish: true`
-        values["polish"] = "L-BFGS-B" if values["polish"] else "none"
     try:
         settings = cls(**values)
     except TypeError as exc:
         raise ConfigError("optimizer", str(exc)) from None
     validate = getattr(settings, "validate", None)
-    if validate is not None:
+    if callable(validate):
         validate()
     return settings
 
@@ -117,5 +128,5 @@ def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarra
 
 
 __all__ = ["OPTIMIZERS", "POLISH_METHODS", "BaselineSettings", "CMAESSettings",
-           "CommonSettings", "DESettings", "GridSettings", "OptimResult", "PSOSettings",
-           "Settings", "check_dimension", "make_settings", "minimize"]
+           "CommonSettings", "DESettings", "GridSettings", "OptimResult", "PSOMatlabSettings",
+           "PSOSettings", "Settings", "check_dimension", "make_settings", "minimize"]

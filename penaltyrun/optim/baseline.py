@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from penaltyrun.optim.base import BatchObjective, CountingObjective, OptimResult
+from penaltyrun.optim.checks import check_range
 
 
 @dataclass(frozen=True)
@@ -25,6 +26,10 @@ class BaselineSettings:
     """
 
     scale: float = 1.0
+
+    def validate(self) -> None:
+        """Check that ``scale`` is a positive finite number (raises ConfigError)."""
+        check_range("optimizer.scale", self.scale, 0.0, lo_open=True)
 
 
 def run_baseline(objective: BatchObjective, x0: np.ndarray) -> OptimResult:

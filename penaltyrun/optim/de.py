@@ -23,6 +23,7 @@ from penaltyrun.optim.base import (
     as_counting,
     main_budget,
 )
+from penaltyrun.optim.checks import check_range
 
 logger = logging.getLogger(__name__)
 
@@ -54,6 +55,9 @@ class DESettings(CommonSettings):
     def validate(self) -> None:
         """Check ranges (and the shared fields)."""
         super().validate()
+        for key in ("popsize", "iters"):
+            check_range(f"optimizer.{key}", getattr(self, key), 1)
+        check_range("optimizer.tol", self.tol, 0.0)
         lo, hi = self.mutation
         if not 0.0 <= lo <= hi <= 2.0:
             raise ConfigError("optimizer.mutation", f"must be [lo, hi] with 0 ≤ lo ≤ hi ≤ 2, "

@@ -40,8 +40,7 @@ def _import_pyswarms_quietly():  # noqa: ANN202
 
 pyswarms, _reporter = _import_pyswarms_quietly()
 
-from penaltyrun.errors import ConfigError  # noqa: E402  (after the quiet pyswarms import)
-from penaltyrun.optim.base import (  # noqa: E402
+from penaltyrun.optim.base import (  # noqa: E402  (after the quiet pyswarms import)
     BatchObjective,
     BudgetExhaustedError,
     CommonSettings,
@@ -49,6 +48,7 @@ from penaltyrun.optim.base import (  # noqa: E402
     as_counting,
     main_budget,
 )
+from penaltyrun.optim.checks import check_choice, check_range  # noqa: E402
 
 logger = logging.getLogger(__name__)
 
@@ -103,14 +103,20 @@ class PSOSettings(CommonSettings):
     vh_strategy: str = "unmodified"
 
     def validate(self) -> None:
-        """Check the strategy names (and the shared fields)."""
+        """Check ranges and strategy names (and the shared fields).
+
+        Raises
+        ------
+        ConfigError
+            Naming the option (``optimizer.<field>``) and what it must be.
+        """
         super().validate()
-        if self.bh_strategy not in BH_STRATEGIES:
-            raise ConfigError("optimizer.bh_strategy", f"unknown boundary strategy "
-                              f"{self.bh_strategy!r}", allowed=BH_STRATEGIES)
-        if self.vh_strategy not in VH_STRATEGIES:
-            raise ConfigError("optimizer.vh_strategy", f"unknown velocity strategy "
-                              f"{self.vh_strategy!r}", allowed=VH_STRATEGIES)
+        for key in ("n_particles", "iters", "ftol_iter"):
+            check_range(f"optimizer.{key}", getattr(self, key), 1)
+        for key in ("c1", "c2", "w", "ftol"):
+            check_range(f"optimizer.{key}", getattr(self, key), 0.0)
+        check_choice("optimizer.bh_strategy", self.bh_strategy, BH_STRATEGIES)
+        check_choice("optimizer.vh_strategy", self.vh_strategy, VH_STRATEGIES)
 
 
 def run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: PSOSettings,

@@ -1,12 +1,26 @@
-"""Problem registry: name → module path (imported lazily so that numba compiles only what
-is used).
+"""Problem registry: name → module (imported lazily so that numba compiles only what is
+used).
 
-Each module follows :mod:`penaltyrun.problems.base`.
+Three routes, first match wins:
+
+1. a module path given with the name (a problem config's ``module:`` key), for problems
+   that live outside penaltyrun (e.g. ``mylab.problems.cartpole`` on ``PYTHONPATH``);
+2. penaltyrun's own problems (:data:`REGISTRY`);
+3. installed packages that register a module under the entry-point group
+   ``penaltyrun.problems`` (:data:`ENTRY_POINT_GROUP`), e.g. in their ``pyproject.toml``::
+
+       [project.entry-points."penaltyrun.problems"]
+       cartpole = "mylab.problems.cartpole"
+
+Each module follows :mod:`penaltyrun.problems.base`; one that does not is rejected with one
+line saying what it lacks (:func:`check_module`, :func:`check_problem`).
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
+import importlib.util
 from collections.abc import Mapping
 from types import ModuleType
 from typing import Any
@@ -22,42 +36,131 @@ REGISTRY: dict[str, str] = {
     "lyapunov_transfer": "penaltyrun.problems.lyapunov_transfer",
     "qlaw": "penaltyrun.problems.qlaw",
 }
+ENTRY_POINT_GROUP = "penaltyrun.problems"
+#: What a problem module must define (see :mod:`penaltyrun.problems.base`).
+MODULE_MEMBERS = ("CASES", "DEFAULT_CASE", "make_problem")
+#: What the object returned by ``make_problem`` must have (:class:`~.base.Problem`).
+PROBLEM_MEMBERS = ("name", "case", "matrices", "scalars", "evaluate_batch", "evaluate",
+                   "simulate")
+
+#: Problems named with their module at run time (:func:`register`).
+_USER: dict[str, str] = {}
+
+
+def _entry_points() -> dict[str, importlib.metadata.EntryPoint]:
+    return {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def register(name: str, module_path: str) -> None:
+    """Use ``module_path`` for problem ``name`` in this process (e.g. a report of results
+    from a problem config with ``module:``)."""
+    _USER[str(name)] = str(module_path)
 
 
 def available() -> tuple[str, ...]:
-    """Names of the problems whose module is present in this installation."""
-    return tuple(name for name, mod in REGISTRY.items() if importlib.util.find_spec(mod))
+    """Names of the problems this installation knows (own, registered, entry points)."""
+    own = [name for name, mod in REGISTRY.items() if importlib.util.find_spec(mod)]
+    extra = sorted((set(_USER) | set(_entry_points())) - set(own))
+    return tuple(own + extra)
 
 
-def module(name: str) -> ModuleType:
-    """Import and return the module of problem ``name``.
+def check_module(mod: Any, label: str) -> Any:
+    """Reject a module that does not follow the problem protocol.
 
     Raises
     ------
     ConfigError
-        If ``name`` is not a known problem.
+        ``problem.module: <label> lacks CASES, make_problem (...)``.
     """
-    if name not in available():
-        raise ConfigError("problem", f"unknown problem {name!r}", allowed=available())
-    return importlib.import_module(REGISTRY[name])
+    missing = [m for m in MODULE_MEMBERS if not hasattr(mod, m)]
+    if "make_problem" not in missing and not callable(mod.make_problem):
+        missing.append("make_problem (not callable)")
+    if not missing:
+        cases = mod.CASES
+        if isinstance(cases, str) or not all(isinstance(c, str) for c in cases) or not cases:
+            missing.append("CASES as a non-empty tuple of case names")
+        elif mod.DEFAULT_CASE not in cases:
+            missing.append(f"DEFAULT_CASE among CASES (got {mod.DEFAULT_CASE!r})")
+    if missing:
+        raise ConfigError("problem.module", f"{label} lacks {', '.join(missing)} "
+                          "(a problem module follows penaltyrun/problems/base.py)")
+    return mod
 
 
-def make(name: str, case: str | None, params: Mapping[str, Any] | None = None) -> Problem:
+def check_problem(prob: Any, label: str) -> Problem:
+    """Reject an object from ``make_problem`` that is not a :class:`~.base.Problem`."""
+    missing = [m for m in PROBLEM_MEMBERS if not hasattr(prob, m)]
+    missing += [m for m in ("evaluate_batch", "evaluate", "simulate")
+                if m not in missing and not callable(getattr(prob, m))]
+    if missing:
+        raise ConfigError("problem.module", f"{label}.make_problem returned a "
+                          f"{type(prob).__name__} that lacks {', '.join(missing)} "
+                          "(see penaltyrun/problems/base.py: Problem)")
+    return prob
+
+
+def _import(path: str, key: str) -> ModuleType:
+    try:
+        return importlib.import_module(path)
+    except ModuleNotFoundError as exc:
+        raise ConfigError(key, f"cannot import {path!r}: {exc} (is its folder on "
+                          "PYTHONPATH?)") from None
+    except ImportError as exc:
+        raise ConfigError(key, f"cannot import {path!r}: {exc}") from None
+
+
+def module(name: str, module_path: str | None = None) -> ModuleType:
+    """Import and return the module of problem ``name``.
+
+    Parameters
+    ----------
+    name : str
+        Problem name.
+    module_path : str, optional
+        Dotted module path (a problem config's ``module:``); takes precedence.
+
+    Raises
+    ------
+    ConfigError
+        If ``name`` is not a known problem, or its module cannot be imported or does not
+        follow the protocol.
+    """
+    if module_path:
+        return check_module(_import(str(module_path), "problem.module"), str(module_path))
+    if name in _USER:
+        return check_module(_import(_USER[name], "problem.module"), _USER[name])
+    if name in REGISTRY and importlib.util.find_spec(REGISTRY[name]):
+        return importlib.import_module(REGISTRY[name])
+    eps = _entry_points()
+    if name in eps:
+        try:
+            mod = eps[name].load()
+        except ImportError as exc:
+            raise ConfigError("problem", f"entry point {name} = {eps[name].value!r} "
+                              f"cannot be imported: {exc}") from None
+        return check_module(mod, f"{eps[name].value} (entry point {name!r})")
+    raise ConfigError("problem", f"unknown problem {name!r}", allowed=available())
+
+
+def make(name: str, case: str | None, params: Mapping[str, Any] | None = None,
+         module_path: str | None = None) -> Problem:
     """Build problem ``name`` for ``case`` (``None`` → the module's default case).
 
     Parameters
     ----------
     name : str
-        Registered problem name.
+        Problem name.
     case : str or None
         Case name; must be one of the module's ``CASES``.
     params : mapping, optional
         Parameter overrides (already merged with the case entry by the caller);
         ``train_scenarios`` / ``train_aggregate`` make a multi-scenario problem (see
         :mod:`penaltyrun.problems.multiscenario`).
+    module_path : str, optional
+        Module implementing the problem (outside penaltyrun); see :func:`module`.
     """
-    mod = module(name)
+    mod = module(name, module_path)
     case = mod.DEFAULT_CASE if case in (None, "", "default") else str(case)
     if case not in mod.CASES:
         raise ConfigError("case", f"unknown case {case!r} for problem {name!r}", allowed=mod.CASES)
-    return multiscenario.build(mod, case, dict(params or {}))
+    return check_problem(multiscenario.build(mod, case, dict(params or {})), mod.__name__)

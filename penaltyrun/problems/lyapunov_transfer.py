@@ -28,18 +28,24 @@ from penaltyrun.problems.lowthrust_common import (
     plot_thrust,
     plot_trajectory,
 )
+from penaltyrun.problems.lowthrust_progress import NoProgressParams
 
 logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class Params(LowThrustParams):
-    """Generic-law parameters; identical to :class:`LowThrustParams` (minimum time only)."""
+class Params(LowThrustParams, NoProgressParams):
+    """Generic-law parameters: :class:`LowThrustParams` and the no-progress rule
+    (:class:`~penaltyrun.problems.lowthrust_progress.NoProgressParams`); minimum time only."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self.check_no_progress()
 
 
 def kernel_params(p: Params) -> Any:
     """Kernel settings vector (shape (lt.N_PRM,)) for the generic law."""
-    return base_prm(p, lt.LAW_GENERIC)
+    return p.apply_no_progress(base_prm(p, lt.LAW_GENERIC))
 
 
 def make_problem(case: str, overrides: Mapping[str, Any]) -> LowThrustProblem:

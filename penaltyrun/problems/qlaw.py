@@ -32,6 +32,7 @@ from penaltyrun.problems.lowthrust_common import (
     plot_thrust,
     plot_trajectory,
 )
+from penaltyrun.problems.lowthrust_progress import NoProgressParams
 
 logger = logging.getLogger(__name__)
 
@@ -40,8 +41,9 @@ COAST_MODES = ("eta_a", "eta_r")
 
 
 @dataclass(frozen=True)
-class Params(LowThrustParams):
-    """Q-law parameters: the shared ones (:class:`LowThrustParams`) plus
+class Params(LowThrustParams, NoProgressParams):
+    """Q-law parameters: the shared ones (:class:`LowThrustParams`), the no-progress rule
+    (:class:`~penaltyrun.problems.lowthrust_progress.NoProgressParams`) plus
 
     Attributes
     ----------
@@ -80,6 +82,7 @@ class Params(LowThrustParams):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        self.check_no_progress()
         if self.objective not in OBJECTIVES:
             raise ConfigError("problem.params.objective", f"got {self.objective!r}", OBJECTIVES)
         if self.coast_mode not in COAST_MODES:
@@ -96,7 +99,7 @@ class Params(LowThrustParams):
 
 def kernel_params(p: Params) -> Any:
     """Kernel settings vector (shape (lt.N_PRM,)) for the Q-law."""
-    prm = base_prm(p, lt.LAW_QLAW)
+    prm = p.apply_no_progress(base_prm(p, lt.LAW_QLAW))
     prm[lt.I_RPMIN] = p.rp_min_km
     prm[lt.I_KP] = p.k_p
     prm[lt.I_WP] = p.W_p

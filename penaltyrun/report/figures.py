@@ -1,4 +1,5 @@
-"""Generic report figures: PSO convergence curves and cost distributions per cell."""
+"""Report figures, one panel per optimizer (optimizers are never pooled): anytime curves,
+fixed-target ECDFs and cost distributions of one problem × case × variant."""
 
 from __future__ import annotations
 
@@ -8,62 +9,170 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from penaltyrun.report.anytime import (  # noqa: E402
+    EPSILONS,
+    anytime_band,
+    cell_traces,
+    ecdf,
+    hitting_evals,
+)
+from penaltyrun.report.bestknown import family, reference, with_problem_variant  # noqa: E402
+from penaltyrun.report.compare import map_order  # noqa: E402
+from penaltyrun.report.stats import converged  # noqa: E402
 
-def convergence(df: pd.DataFrame, title: str, path: Path) -> Path:
-    """Best cost vs iteration, one thin line per start and the median bold, per param."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for i, (param, g) in enumerate(df.groupby("param", sort=True)):
-        color = f"C{i}"
-        curves = [np.asarray(h, float) for h in g["history"] if h is not None and len(h)]
-        for h in curves:
-            ax.plot(np.arange(1, h.size + 1), h, color=color, alpha=0.3, lw=0.8)
-        if curves:
-            n = max(h.size for h in curves)
-            padded = np.array([np.pad(h, (0, n - h.size), mode="edge") for h in curves])
-            ax.plot(np.arange(1, n + 1), np.median(padded, axis=0), color=color, lw=2.2,
-                    label=f"{param} (median of {len(curves)})")
-    ax.set_xlabel("iteration")
-    ax.set_ylabel("best cost")
-    ax.set_yscale("log")
-    ax.set_title(title)
-    ax.legend(fontsize=8)
-    ax.grid(True, which="both", alpha=0.3)
+
+def _optimizers(df: pd.DataFrame) -> list[str]:
+    return sorted(o for o in df["optimizer"].unique() if o != "baseline")
+
+
+def _colors(df: pd.DataFrame) -> dict[str, str]:
+    return {m: f"C{i}" for i, m in enumerate(map_order(df["param"].unique()))}
+
+
+def _save(fig: plt.Figure, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
 
 
-def cost_distribution(df: pd.DataFrame, title: str, path: Path,
+def _log_x(ax: plt.Axes) -> None:
+    """Log evaluation axis with plain major labels and no minor labels."""
+    ax.set_xscale("log")
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+
+
+def _grid(traces: list) -> np.ndarray:
+    first = min(float(e[0]) for e, _, _ in traces)
+    last = max(max(float(e[-1]), s) for e, _, s in traces)
+    return np.unique(np.geomspace(max(first, 1.0), max(last, first, 1.0), 200).round())
+
+
+def anytime(df: pd.DataFrame, bk: pd.DataFrame, label: str, title: str,
+            path: Path) -> Path | None:
+    """Median and IQR band of best-so-far vs evaluations, per optimizer (panel) × map.
+
+    The y axis is the gap to the lowest best-known cost of the problem (any map family),
+    plus δ = 1e-6·|f*| so that the best-known itself stays on the log scale (a dotted line
+    marks the best-known diagonal when it is higher); x is log evaluations. None if no
+    start has a trace (results before anytime traces).
+    """
+    df = with_problem_variant(df)
+    opts = [o for o in _optimizers(df) if cell_traces(df[df["optimizer"] == o])]
+    if not opts:
+        return None
+    first = df.iloc[0]
+    refs = [reference(bk, first["problem"], first["case"], first["problem_variant"], f)
+            for f in ("diagonal", "full")]
+    f_ref = np.nanmin(refs) if np.isfinite(refs).any() else 0.0
+    delta = 1e-6 * abs(f_ref) or 1e-12
+    colors = _colors(df)
+    fig, axes = plt.subplots(1, len(opts), figsize=(5 * len(opts), 4.2), squeeze=False,
+                             sharey=True)
+    for ax, opt in zip(axes[0], opts):
+        g = df[df["optimizer"] == opt]
+        for param in map_order(g["param"].unique()):
+            traces = cell_traces(g[g["param"] == param])
+            if not traces:
+                continue
+            grid = _grid(traces)
+            med, q25, q75 = anytime_band(traces, grid)
+            c = colors[param]
+            ax.plot(grid, med - f_ref + delta, color=c, lw=2,
+                    label=f"{param} (median of {len(traces)})")
+            ax.fill_between(grid, q25 - f_ref + delta, q75 - f_ref + delta, color=c,
+                            alpha=0.2, lw=0)
+        if np.isfinite(refs[0]) and refs[0] > f_ref:
+            ax.axhline(refs[0] - f_ref + delta, color="k", ls=":", lw=1,
+                       label="best-known diagonal")
+        _log_x(ax)
+        ax.set_yscale("log")
+        ax.set_xlabel("objective evaluations")
+        ax.set_title(opt)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[0, 0].set_ylabel(f"best-so-far − best-known (f* = {f_ref:.6g}) + δ\n{label}",
+                          fontsize=8)
+    fig.suptitle(f"{title}: anytime (median, IQR band)")
+    return _save(fig, path)
+
+
+def ecdf_figure(df: pd.DataFrame, bk: pd.DataFrame, title: str, path: Path) -> Path | None:
+    """Share of starts whose trace reached f* (1 + ε) by n evaluations, per optimizer × map.
+
+    f* is the best-known cost of the map's family. Rows: ε; columns: optimizers.
+    """
+    df = with_problem_variant(df)
+    opts = [o for o in _optimizers(df) if cell_traces(df[df["optimizer"] == o])]
+    if not opts:
+        return None
+    colors = _colors(df)
+    fig, axes = plt.subplots(len(EPSILONS), len(opts), figsize=(5 * len(opts), 3.4 *
+                             len(EPSILONS)), squeeze=False, sharey=True)
+    for j, opt in enumerate(opts):
+        g = df[df["optimizer"] == opt]
+        for param in map_order(g["param"].unique()):
+            cell = g[g["param"] == param]
+            traces = cell_traces(cell)
+            ref = reference(bk, cell["problem"].iloc[0], cell["case"].iloc[0],
+                            cell["problem_variant"].iloc[0], family(param))
+            if not traces or not np.isfinite(ref):
+                continue
+            grid = _grid(traces)
+            for i, eps in enumerate(EPSILONS):
+                hits = [hitting_evals(e, b, ref + eps * abs(ref)) for e, b, _ in traces]
+                axes[i, j].step(grid, ecdf(np.array(hits), grid), where="post",
+                                color=colors[param], label=f"{param} (n = {len(traces)})")
+        for i, eps in enumerate(EPSILONS):
+            ax = axes[i, j]
+            _log_x(ax)
+            ax.set_ylim(-0.02, 1.02)
+            ax.set_title(f"{opt}, target f*·(1 + {eps:g})", fontsize=9)
+            ax.set_xlabel("objective evaluations")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+        axes[0, j].set_ylabel("share of starts at target")
+    fig.suptitle(f"{title}: fixed-target ECDF (f* = best-known of the map's family)")
+    return _save(fig, path)
+
+
+def cost_distribution(df: pd.DataFrame, label: str, title: str, path: Path,
                       paper: dict[str, float] | None = None) -> Path:
-    """Box plot plus every start's best cost per parameterization (paper means marked)."""
-    ok = df[df["status"] != "failed"]
-    params = sorted(ok["param"].unique())
-    fig, ax = plt.subplots(figsize=(1.6 * max(len(params), 2) + 2, 4.5))
-    data = [ok.loc[ok["param"] == p, "best_cost"].astype(float).to_numpy() for p in params]
-    if params:
-        ax.boxplot(data, showfliers=False)
-        ax.set_xticks(range(1, len(params) + 1), params)
+    """Box plot and points of converged costs per optimizer (panel) × map.
+
+    Diverged and failed starts are not plotted (a penalty is not a cost): the tick label
+    gives converged / all starts. Paper means are dashed lines where known.
+    """
+    opts = sorted(df["optimizer"].unique())
+    ok = df[converged(df)]
+    fig, axes = plt.subplots(1, len(opts), figsize=(max(3.2, 0.9 * df["param"].nunique() + 1.2)
+                                                    * len(opts), 4.5), squeeze=False,
+                             sharey=True)
     rng = np.random.default_rng(0)
-    for i, (p, values) in enumerate(zip(params, data), start=1):
-        converged = ok.loc[ok["param"] == p, "best_converged"].fillna(False).to_numpy(bool)
-        x = i + rng.uniform(-0.12, 0.12, values.size)
-        ax.scatter(x[converged], values[converged], s=18, color="C0", zorder=3,
-                   label="converged" if i == 1 else None)
-        ax.scatter(x[~converged], values[~converged], s=22, marker="x", color="C3", zorder=3,
-                   label="not converged" if i == 1 else None)
-        ref = (paper or {}).get("full" if p in ("full", "geagsp") else p)
-        if ref is not None and np.isfinite(ref):
-            ax.hlines(ref, i - 0.3, i + 0.3, colors="k", linestyles="--",
-                      label="paper mean" if p == "diagonal" else None)
-    ax.set_ylabel("best cost per start")
-    ax.set_title(title)
-    ax.legend(fontsize=8)
-    ax.grid(True, axis="y", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    for ax, opt in zip(axes[0], opts):
+        g, gok = df[df["optimizer"] == opt], ok[ok["optimizer"] == opt]
+        params = map_order(g["param"].unique())
+        data = [gok.loc[gok["param"] == p, "best_cost"].astype(float).to_numpy()
+                for p in params]
+        if any(d.size for d in data):
+            ax.boxplot([d if d.size else [np.nan] for d in data], showfliers=False)
+        ticks = [f"{p}\n{d.size}/{int((g['param'] == p).sum())}" for p, d in zip(params, data)]
+        ax.set_xticks(range(1, len(params) + 1), ticks, fontsize=8)
+        for i, (p, values) in enumerate(zip(params, data), start=1):
+            ax.scatter(i + rng.uniform(-0.12, 0.12, values.size), values, s=14, color="C0",
+                       zorder=3)
+            ref = (paper or {}).get("full" if p in ("full", "geagsp") else p)
+            if ref is not None and np.isfinite(ref):
+                ax.hlines(ref, i - 0.3, i + 0.3, colors="k", linestyles="--",
+                          label="paper mean" if p == "diagonal" else None)
+        ax.set_title(f"{opt} (converged/all under each map)", fontsize=9)
+        ax.grid(True, axis="y", alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+    axes[0, 0].set_ylabel(f"best cost per converged start\n{label}", fontsize=8)
+    fig.suptitle(title)
+    return _save(fig, path)

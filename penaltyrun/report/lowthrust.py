@@ -18,7 +18,7 @@ from penaltyrun.report.paper import CLAIMS  # noqa: E402
 from penaltyrun.report.tables import markdown  # noqa: E402
 
 LOWTHRUST = ("lyapunov_transfer", "qlaw")
-SEARCH = ("pso", "de")
+SEARCH = ("pso", "de", "cmaes", "grid")
 #: The paper's reported mean savings (full vs diagonal) where it gives a number.
 PAPER_SAVINGS = {("lyapunov_transfer", "B"): "≈ 3.2 d", ("lyapunov_transfer", "E"): "≈ 2.2 d",
                  ("qlaw", "Estar"): "≈ 10.5 d ToF or ≈ 90 kg final mass"}
@@ -117,33 +117,54 @@ def case_definitions(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _pairs(search: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame, pd.DataFrame]]:
+    """(optimizer, full map, diagonal rows, full rows) of one case: never pools optimizers
+    or maps; a case with only a baseline (or one map) gives one row with the empty side."""
+    pairs = []
+    for optimizer, g in search.groupby("optimizer", sort=True):
+        diag = g[g["param"] == "diagonal"]
+        fulls = sorted(p for p in g["param"].unique() if p != "diagonal")
+        for full in fulls or ["—"]:
+            pairs.append((optimizer, full, diag, g[g["param"] == full]))
+    return pairs or [("—", "—", search, search)]
+
+
 def comparison_table(df: pd.DataFrame, problem: str, paper: bool) -> pd.DataFrame:
-    """Tables 4/5: diagonal vs full per case (converged starts only), savings, K = I."""
+    """Tables 4/5: diagonal vs full per case, optimizer and full map (converged starts only),
+    savings, K = I."""
     m = _metrics(df[df["problem"] == problem])
     rows = []
     if "variant" not in m:
         m = m.assign(variant="")
     for (case, variant, objective), g in m.groupby(["case", "variant", "objective"], sort=True):
-        search = g[g["optimizer"].isin(SEARCH)]
-        d = _cell_stats(search[search["param"] == "diagonal"])
-        f = _cell_stats(search[search["param"] != "diagonal"])
         base = g[g["optimizer"] == "baseline"]
-        row = {"case": case, "variant": variant, "objective": objective,
-               "K=I": (f"{base['tof_days'].iloc[0]:.3f} d" if len(base)
-                       and base["best_converged"].iloc[0] else
-                       (str(base["end_status"].iloc[0]) if len(base) else "—")),
-               "diag conv.": f"{d['converged']}/{d['starts']}",
-               "full conv.": f"{f['converged']}/{f['starts']}",
-               "diag mean ToF d": d["mean ToF d"], "full mean ToF d": f["mean ToF d"],
-               "ToF saving d": d["mean ToF d"] - f["mean ToF d"],
-               "diag best ToF d": d["best ToF d"], "full best ToF d": f["best ToF d"],
-               "diag mean m_f kg": d["mean m_f kg"], "full mean m_f kg": f["mean m_f kg"],
-               "m_f gain kg": f["mean m_f kg"] - d["mean m_f kg"]}
-        if paper:
-            row["paper"] = PAPER_SAVINGS.get((problem, case), "full better" if problem in
-                                             CLAIMS else "—")
-        rows.append(row)
+        for optimizer, full_map, diag, full in _pairs(g[g["optimizer"].isin(SEARCH)]):
+            rows.append(_comparison_row(problem, case, variant, objective, optimizer, full_map,
+                                        diag, full, base, paper))
     return pd.DataFrame(rows)
+
+
+def _comparison_row(problem: str, case: str, variant: str, objective: str, optimizer: str,
+                    full_map: str, diag: pd.DataFrame, full: pd.DataFrame,
+                    base: pd.DataFrame, paper: bool) -> dict[str, Any]:
+    d = _cell_stats(diag)
+    f = _cell_stats(full)
+    row = {"case": case, "variant": variant, "objective": objective,
+           "optimizer": optimizer, "full map": full_map,
+           "K=I": (f"{base['tof_days'].iloc[0]:.3f} d" if len(base)
+                   and base["best_converged"].iloc[0] else
+                   (str(base["end_status"].iloc[0]) if len(base) else "—")),
+           "diag conv.": f"{d['converged']}/{d['starts']}",
+           "full conv.": f"{f['converged']}/{f['starts']}",
+           "diag mean ToF d": d["mean ToF d"], "full mean ToF d": f["mean ToF d"],
+           "ToF saving d": d["mean ToF d"] - f["mean ToF d"],
+           "diag best ToF d": d["best ToF d"], "full best ToF d": f["best ToF d"],
+           "diag mean m_f kg": d["mean m_f kg"], "full mean m_f kg": f["mean m_f kg"],
+           "m_f gain kg": f["mean m_f kg"] - d["mean m_f kg"]}
+    if paper:
+        row["paper"] = PAPER_SAVINGS.get((problem, case), "full better" if problem in
+                                         CLAIMS else "—")
+    return row
 
 
 def case_e_note(df: pd.DataFrame) -> list[str]:

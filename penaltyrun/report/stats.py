@@ -1,8 +1,16 @@
-"""Per-cell statistics and diagonal-vs-full comparisons from a results DataFrame."""
+"""Cells (variants) and per-cell statistics of a results DataFrame.
+
+Conventions (``spec/statistics.md``): cost statistics use converged starts only (status
+``ok`` and ``best_converged``), the success rate stands beside them; confidence intervals
+are BCa bootstrap intervals from :func:`scipy.stats.bootstrap`; the effect size is
+Vargha–Delaney A12 from the Mann–Whitney U statistic; multiple comparisons are corrected
+with Holm's step-down procedure.
+"""
 
 from __future__ import annotations
 
 import json
+import warnings
 from typing import Any
 
 import numpy as np
@@ -10,18 +18,48 @@ import pandas as pd
 from scipy import stats
 
 from penaltyrun.io import decode_json
-from penaltyrun.report.paper import FULL_KINDS, paper_mean
+from penaltyrun.report.paper import paper_mean
 
 CELL = ["problem", "case", "variant", "optimizer", "param"]
+#: Per-group size below which a rank test is reported as underpowered.
+MIN_N_TEST = 10
+#: |A12 − 0.5| thresholds of the magnitude labels (Vargha & Delaney 2000).
+A12_THRESHOLDS = ((0.21, "large"), (0.14, "medium"), (0.06, "small"))
+
+
+def register_user_problems(df: pd.DataFrame) -> None:
+    """Register the module of every problem run from outside penaltyrun (the
+    ``problem.module`` of the stored config), so the report can rebuild its instances."""
+    import yaml
+
+    from penaltyrun import problems
+
+    if "config" not in df:
+        return
+    for name, text in df[["problem", "config"]].drop_duplicates("problem").itertuples(
+            index=False):
+        try:
+            module_path = ((yaml.safe_load(text or "") or {}).get("problem") or {}).get("module")
+        except (yaml.YAMLError, AttributeError):
+            continue
+        if module_path:
+            problems.register(name, module_path)
 
 
 def add_variant(df: pd.DataFrame) -> pd.DataFrame:
-    """Add a ``variant`` column: the problem parameters that differ from the case's defaults
-    (e.g. ``objective=min_fuel``), so that cells run with other settings are not pooled."""
+    """Add ``variant`` (and ``problem_variant``) columns so that cells run with other settings
+    are never pooled.
+
+    ``problem_variant`` lists the problem parameters that differ from the case's defaults
+    (e.g. ``objective=min_fuel``): jobs with equal ``problem_variant`` solve the same
+    problem, so best-known optima are taken over them. ``variant`` adds a warm start
+    (``warm_start=0.3``) and, within one optimizer, other optimizer settings (budgets).
+    """
     from dataclasses import asdict
 
     from penaltyrun import problems
 
+    register_user_problems(df)
     labels: dict[tuple[str, str, str], str] = {}
     for key in df[["problem", "case", "problem_params"]].drop_duplicates().itertuples(
             index=False):
@@ -36,8 +74,20 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
         except Exception as exc:  # an unknown problem in old results still gets reported
             labels[key] = f"unresolved ({type(exc).__name__})"
     out = df.copy()
-    out["variant"] = [labels[k] for k in zip(df["problem"], df["case"], df["problem_params"])]
+    out["problem_variant"] = [labels[k] for k in zip(df["problem"], df["case"],
+                                                     df["problem_params"])]
+    warm = out["warm_start"] if "warm_start" in out else pd.Series(None, index=out.index)
+    out["variant"] = [",".join(part for part in (v, _warm_label(w)) if part)
+                      for v, w in zip(out["problem_variant"], warm)]
     return _add_budget_variant(out)
+
+
+def _warm_label(warm_json: Any) -> str:
+    """``warm_start=<share>`` for a warm-started full job, else ``""``."""
+    warm = decode_json(warm_json) if isinstance(warm_json, str) else warm_json
+    if not isinstance(warm, dict) or not warm:  # None, NaN of older files, JSON null
+        return ""
+    return f"warm_start={warm.get('share', '?')}"
 
 
 def _canonical(settings_json: Any) -> str:
@@ -74,95 +124,138 @@ def _add_budget_variant(df: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def bootstrap_ci(values: np.ndarray, level: float = 0.95, n_boot: int = 2000,
-                 seed: int = 0) -> tuple[float, float]:
-    """Percentile bootstrap confidence interval of the mean (NaN for < 2 values)."""
-    values = np.asarray(values, float)
-    if values.size < 2:
-        return float("nan"), float("nan")
-    rng = np.random.default_rng(seed)
-    means = rng.choice(values, size=(n_boot, values.size), replace=True).mean(axis=1)
-    lo, hi = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
-    return float(lo), float(hi)
+def converged(df: pd.DataFrame) -> pd.Series:
+    """Boolean mask of converged starts: status ``ok`` and a converged best candidate.
+
+    A ``diverged`` start (its best cost is a graded penalty) and a ``failed`` start (no
+    cost) are failures: they count in the success rate, never in a cost statistic.
+    """
+    best = df["best_converged"] if "best_converged" in df else pd.Series(True, index=df.index)
+    return (df["status"] == "ok") & best.fillna(False).astype(bool)
 
 
-def cell_summary(df: pd.DataFrame) -> pd.DataFrame:
-    """One row per (problem, case, optimizer, param): cost statistics and success rate.
+def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
+           n_resamples: int = 9999, seed: int = 0) -> tuple[float, float, str]:
+    """BCa bootstrap confidence interval (:func:`scipy.stats.bootstrap`, ``method='BCa'``).
 
-    Costs of failed jobs (no cost) are excluded from the statistics but counted in
-    ``n_jobs``; ``success_rate`` is the share of jobs whose best candidate converged.
+    Parameters
+    ----------
+    values : ndarray, shape (n,)
+        One sample (converged costs of one cell).
+    statistic : {"median", "mean"}
+        Statistic whose interval is wanted.
+    level : float
+        Confidence level.
+    n_resamples : int
+        Bootstrap resamples.
+    seed : int
+        Seed of the resampling generator (same seed, same interval).
+
+    Returns
+    -------
+    lo, hi : float
+        Interval bounds, NaN when no interval is defined.
+    note : str
+        Why the interval is NaN (``n < 3``, ``constant sample``, or scipy's reason), else ``""``.
+    """
+    x = np.asarray(values, float)
+    if x.size < 3:
+        return float("nan"), float("nan"), f"n = {x.size} < 3: no CI"
+    if np.ptp(x) == 0.0:
+        return float("nan"), float("nan"), "constant sample: no CI"
+    func = {"median": np.median, "mean": np.mean}[statistic]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = stats.bootstrap((x,), func, n_resamples=n_resamples, confidence_level=level,
+                              method="BCa", vectorized=True, rng=np.random.default_rng(seed))
+    lo, hi = float(res.confidence_interval.low), float(res.confidence_interval.high)
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        reason = str(caught[0].message).split(".")[0] if caught else "degenerate bootstrap"
+        return float("nan"), float("nan"), f"BCa undefined ({reason})"
+    return lo, hi, ""
+
+
+def a12(x: np.ndarray, y: np.ndarray) -> float:
+    """Vargha–Delaney A12 = P(X > Y) + ½ P(X = Y) from the Mann–Whitney U statistic of x.
+
+    For costs, ``a12(cost_a, cost_b)`` is the probability that a start of b beats (is
+    lower than) a start of a. NaN if a sample is empty.
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if x.size == 0 or y.size == 0:
+        return float("nan")
+    return float(stats.mannwhitneyu(x, y, alternative="two-sided").statistic / (x.size * y.size))
+
+
+def a12_magnitude(value: float) -> str:
+    """Label of |A12 − 0.5|: negligible (< 0.06), small, medium (≥ 0.14), large (≥ 0.21)."""
+    if not np.isfinite(value):
+        return "—"
+    d = round(abs(value - 0.5), 12)  # 0.71 − 0.5 is 0.2099…9 in binary
+    return next((label for bound, label in A12_THRESHOLDS if d >= bound), "negligible")
+
+
+def holm(p_values: np.ndarray) -> np.ndarray:
+    """Holm (1979) step-down adjusted p-values; NaN entries stay NaN and are not counted.
+
+    scipy.stats has no Holm correction (``false_discovery_control`` is Benjamini–Hochberg),
+    so the formula is written out: with the m finite p-values sorted ascending,
+    p̃_(i) = max_{j ≤ i} min(1, (m − j + 1) · p_(j)).
+    """
+    p = np.asarray(p_values, float)
+    out = np.full(p.shape, np.nan)
+    idx = np.flatnonzero(np.isfinite(p))
+    m = idx.size
+    if m == 0:
+        return out
+    order = idx[np.argsort(p[idx], kind="stable")]
+    scaled = np.minimum(1.0, (m - np.arange(m)) * p[order])
+    out[order] = np.maximum.accumulate(scaled)
+    return out
+
+
+def cell_summary(df: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
+    """One row per cell (problem, case, variant, optimizer, param).
+
+    ``n_jobs`` counts every start, ``n_converged`` the converged ones, ``success_rate`` is
+    their share. best / median / mean / worst / std and the BCa 95 % intervals of the
+    median and the mean use converged starts only; ``ci_note`` says why an interval is
+    missing. Evaluations and wall time are means over all non-failed starts.
     """
     if "variant" not in df:
         df = df.assign(variant="")
+    ok_mask = converged(df)
     rows = []
     for key, g in df.groupby(CELL, sort=True):
-        cost = g.loc[g["status"] != "failed", "best_cost"].astype(float).to_numpy()
-        lo, hi = bootstrap_ci(cost)
+        cost = g.loc[ok_mask[g.index], "best_cost"].astype(float).to_numpy()
+        mlo, mhi, note = bca_ci(cost, "median", seed=seed)
+        alo, ahi, _ = bca_ci(cost, "mean", seed=seed)
+        ran = g[g["status"] != "failed"]
         rows.append({
             **dict(zip(CELL, key)),
-            "n_jobs": len(g),
+            "n_jobs": len(g), "n_converged": int(cost.size),
+            "n_diverged": int((g["status"] == "diverged").sum()),
             "n_failed": int((g["status"] == "failed").sum()),
-            "success_rate": float((g["status"] == "ok").mean()),
+            "success_rate": cost.size / len(g),
             "best": float(np.min(cost)) if cost.size else np.nan,
             "median": float(np.median(cost)) if cost.size else np.nan,
+            "median_ci95_lo": mlo, "median_ci95_hi": mhi,
             "mean": float(np.mean(cost)) if cost.size else np.nan,
+            "mean_ci95_lo": alo, "mean_ci95_hi": ahi,
             "worst": float(np.max(cost)) if cost.size else np.nan,
             "std": float(np.std(cost, ddof=1)) if cost.size > 1 else np.nan,
-            "mean_ci95_lo": lo,
-            "mean_ci95_hi": hi,
-            "mean_evals": float(g["n_evals"].mean()),
-            "mean_wall_s": float(g["wall_time_s"].mean()),
+            "ci_note": note,
+            "max_evals": _max_evals(g),
+            "mean_evals": float(ran["n_evals"].mean()) if len(ran) else np.nan,
+            "mean_wall_s": float(ran["wall_time_s"].mean()) if len(ran) else np.nan,
             "paper_mean": paper_mean(key[0], key[1], key[CELL.index("param")]),
         })
     return pd.DataFrame(rows)
 
 
-def comparison(df: pd.DataFrame) -> pd.DataFrame:
-    """Diagonal vs each full map per (problem, case, optimizer).
-
-    Improvement is (diagonal − full) / diagonal in % (positive: full is better), for the
-    means and for the bests. ``p_value`` is the one-sided Mann–Whitney U test that full
-    costs are stochastically smaller than diagonal costs.
-    """
-    if "variant" not in df:
-        df = df.assign(variant="")
-    summary = cell_summary(df)
-    rows = []
-    for key, g in summary.groupby(["problem", "case", "variant", "optimizer"], sort=True):
-        diag = g[g["param"] == "diagonal"]
-        if diag.empty:
-            continue
-        d = diag.iloc[0]
-        dcost = _costs(df, *key, "diagonal")
-        for _, f in g[g["param"].isin(FULL_KINDS)].iterrows():
-            fcost = _costs(df, *key, f["param"])
-            p = np.nan
-            if dcost.size and fcost.size:
-                p = float(stats.mannwhitneyu(fcost, dcost, alternative="less").pvalue)
-            rows.append({
-                "problem": key[0], "case": key[1], "variant": key[2], "optimizer": key[3],
-                "full_map": f["param"],
-                "n_diagonal": int(d["n_jobs"]), "n_full": int(f["n_jobs"]),
-                "diag_best": d["best"], "full_best": f["best"],
-                "diag_mean": d["mean"], "full_mean": f["mean"],
-                "diag_median": d["median"], "full_median": f["median"],
-                "diag_worst": d["worst"], "full_worst": f["worst"],
-                "diag_std": d["std"], "full_std": f["std"],
-                "diag_success": d["success_rate"], "full_success": f["success_rate"],
-                "improvement_mean_pct": 100.0 * (d["mean"] - f["mean"]) / d["mean"],
-                "improvement_best_pct": 100.0 * (d["best"] - f["best"]) / d["best"],
-                "p_value_mwu": p,
-                "paper_diag_mean": d["paper_mean"], "paper_full_mean": f["paper_mean"],
-                "paper_improvement_mean_pct": 100.0 * (d["paper_mean"] - f["paper_mean"])
-                / d["paper_mean"],
-                "full_worse_on_best": bool(f["best"] > d["best"] * (1 + 1e-9)),
-            })
-    return pd.DataFrame(rows)
-
-
-def _costs(df: pd.DataFrame, problem: str, case: str, variant: str, optimizer: str,
-           param: str) -> np.ndarray:
-    sel = ((df["problem"] == problem) & (df["case"] == case) & (df["variant"] == variant)
-           & (df["optimizer"] == optimizer) & (df["param"] == param)
-           & (df["status"] != "failed"))
-    return df.loc[sel, "best_cost"].astype(float).to_numpy()
+def _max_evals(g: pd.DataFrame) -> float:
+    """The cell's evaluation budget (NaN without one or in results before budgets)."""
+    if "max_evals" not in g:
+        return float("nan")
+    values = pd.to_numeric(g["max_evals"], errors="coerce").dropna().unique()
+    return float(values[0]) if values.size == 1 else float("nan")

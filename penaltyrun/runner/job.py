@@ -153,7 +153,7 @@ def run_job(job: Job) -> dict[str, Any]:
     try:
         prob, layout, settings = build(job.problem, job.case, job.problem_params, job.param,
                                        job.param_options, job.optimizer,
-                                       job.optimizer_options)
+                                       job.optimizer_options, job.problem_module or None)
         lb, ub = layout.bounds()
         x0 = None
         if job.optimizer == "baseline":

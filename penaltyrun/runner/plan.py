@@ -41,6 +41,8 @@ class Job:
     warm_start_share : float
         0: off. Otherwise (full maps only) the share of ``max_evals`` spent first on the
         diagonal map, whose best matrix then seeds the full search.
+    problem_module : str
+        Module of a problem outside penaltyrun (a problem config's ``module:``), or "".
     """
 
     problem: str
@@ -55,6 +57,7 @@ class Job:
     meta: dict[str, Any] = field(default_factory=dict)
     holdout: bool = True
     warm_start_share: float = 0.0
+    problem_module: str = ""
 
     @property
     def settings_hash(self) -> str:
@@ -96,7 +99,8 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
               param_options: dict[str, Any] | None = None,
               optimizer_options: dict[str, Any] | None = None,
               meta: dict[str, Any] | None = None, holdout: bool = True,
-              warm_start_share: float = 0.0) -> list[Job]:
+              warm_start_share: float = 0.0,
+              problem_module: str | None = None) -> list[Job]:
     """One job per start of a single (problem, case, param, optimizer) cell.
 
     ``warm_start_share`` applies to full maps only (a diagonal job has nothing to warm).
@@ -114,5 +118,6 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
         jobs.append(Job(problem, case, param, optimizer, start, job_seed(root_seed, key),
                         dict(problem_params or {}), dict(param_options or {}),
                         dict(optimizer_options or {}), dict(meta or {}), bool(holdout),
-                        0.0 if param == "diagonal" else float(warm_start_share)))
+                        0.0 if param == "diagonal" else float(warm_start_share),
+                        str(problem_module or "")))
     return jobs

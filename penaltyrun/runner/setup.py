@@ -29,8 +29,12 @@ def build_layout(problem: Problem, param: str, options: Mapping[str, Any]) -> De
 
 def build(problem: str, case: str | None, problem_params: Mapping[str, Any], param: str,
           param_options: Mapping[str, Any], optimizer: str,
-          optimizer_options: Mapping[str, Any]) -> tuple[Problem, DecisionLayout, Any]:
+          optimizer_options: Mapping[str, Any], problem_module: str | None = None
+          ) -> tuple[Problem, DecisionLayout, Any]:
     """Validate and build (problem instance, decision layout, optimizer settings).
+
+    ``problem_module`` names the module of a problem outside penaltyrun (a problem
+    config's ``module:``; see :func:`penaltyrun.problems.module`).
 
     Raises
     ------
@@ -41,7 +45,7 @@ def build(problem: str, case: str | None, problem_params: Mapping[str, Any], par
     if param not in penalty.KINDS:
         raise ConfigError("param", f"unknown parameterization {param!r}",
                           allowed=penalty.KINDS)
-    prob = problems.make(problem, case, problem_params)
+    prob = problems.make(problem, case, problem_params, problem_module)
     layout = build_layout(prob, param, param_options)
     optim.check_dimension(settings, layout.dim)
     return prob, layout, settings

@@ -118,12 +118,13 @@ def test_multirun_sweep_and_report_command(tmp_path):
                            str(out)], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     comparison = pd.read_csv(out / "comparison.csv")
-    assert list(comparison["full_map"]) == ["full"]
-    assert {"improvement_mean_pct", "p_value_mwu"} <= set(comparison.columns)
+    assert list(zip(comparison["map_a"], comparison["map_b"])) == [("diagonal", "full")]
+    assert {"median_change_pct", "a12_b_beats_a", "p_mwu", "p_holm"} <= set(comparison.columns)
     text = (out / "report.md").read_text()
-    assert "Diagonal vs full" in text and "paper K" in text
-    for name in ("convergence_zermelo_default.png", "costs_zermelo_default.png",
-                 "zermelo_default_phase_plane.png", "summary.md", "comparison.md"):
+    assert "Map vs map at equal budget" in text and "paper K" in text
+    for name in ("anytime_zermelo_default.png", "costs_zermelo_default.png",
+                 "zermelo_default_phase_plane.png", "summary.md", "comparison.md",
+                 "best_known.md"):
         assert (out / name).exists(), name
     # mode=report is the same report through the Hydra app
     cli("mode=report", f"report.input={sweep}", f"report.output={tmp_path / 'rep2'}",

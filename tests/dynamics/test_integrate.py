@@ -30,9 +30,24 @@ def near_zero_event(t, y, p):
     return abs(y[0]) - p[0]
 
 
-@njit
 def run(rhs, event, y0, p, t_max, rtol, max_step, samples):
     return integrate.dopri5(rhs, event, y0, p, t_max, rtol, rtol, max_step, samples, 100000)
+
+
+def test_specialized_integrator_is_reused_and_callable_from_compiled_code():
+    integ = integrate.make_dopri5(decay_rhs, decay_event)
+
+    @njit
+    def caller(y0, p):
+        return integ(y0, p, 1000.0, 1e-11, 1e-11, np.inf, 1, 100000)
+
+    y0, p = np.array([3.0, 0.0]), np.array([0.7, 1e-3])
+    t, y, status, _ = caller(y0, p)
+    t2, y2, status2, _ = run(decay_rhs, decay_event, y0, p, 1000.0, 1e-11, np.inf, 1)
+    assert status == status2 == integrate.EVENT
+    assert t == t2 and np.array_equal(y, y2)
+    assert integrate._specialized(decay_rhs, decay_event) is integrate._specialized(
+        decay_rhs, decay_event)
 
 
 def test_exponential_decay_event_time_and_integral():

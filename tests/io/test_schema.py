@@ -7,6 +7,8 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -175,3 +177,41 @@ def test_decode_json():
     assert decode_json(None) is None
     assert decode_json("") is None
     assert decode_json('{"a": [1, 2]}') == {"a": [1, 2]}
+
+
+# --------------------------------------------------------------------------- timestamps
+
+
+def test_times_are_timestamp_columns(tmp_path):
+    run = tmp_path / "run"
+    write_run(run, [record(0, started_at="2026-03-01T10:00:00.250000+00:00",
+                           finished_at="2026-03-01T12:00:01+02:00"),
+                    record(1, started_at="not a time", finished_at=None)])
+    schema = pq.read_schema(run / RESULTS_FILE)
+    for name in ("started_at", "finished_at"):
+        assert schema.field(name).type == pa.timestamp("us", tz="UTC")
+    df = read_results(run).sort_values("start").reset_index(drop=True)
+    assert isinstance(df["started_at"].dtype, pd.DatetimeTZDtype)
+    assert df.loc[0, "started_at"] == pd.Timestamp("2026-03-01T10:00:00.25", tz="UTC")
+    assert df.loc[0, "finished_at"] == pd.Timestamp("2026-03-01T10:00:01", tz="UTC")
+    assert pd.isna(df.loc[1, "started_at"]) and pd.isna(df.loc[1, "finished_at"])
+    wall = (df.loc[0, "finished_at"] - df.loc[0, "started_at"]).total_seconds()
+    assert wall == pytest.approx(0.75)
+
+
+def test_schema_2_files_with_text_times_are_read_as_timestamps(tmp_path):
+    old_schema = pa.schema([pa.field(n, pa.string() if n in ("started_at", "finished_at")
+                                     else SCHEMA.field(n).type) for n in COLUMNS])
+    rows = [normalize(record(0), run_id="old")]
+    rows[0].update({"started_at": "2025-12-31T23:59:59+00:00",
+                    "finished_at": "2026-01-01T00:00:01", "schema_version": 2})
+    (tmp_path / "old").mkdir()
+    pq.write_table(pa.Table.from_pylist(rows, schema=old_schema),
+                   tmp_path / "old" / RESULTS_FILE)
+    write_run(tmp_path / "new", [record(1)])
+    df = read_results(tmp_path).sort_values("start").reset_index(drop=True)
+    assert isinstance(df["started_at"].dtype, pd.DatetimeTZDtype)
+    assert df["schema_version"].tolist() == [2, SCHEMA_VERSION]
+    assert df.loc[0, "started_at"] == pd.Timestamp("2025-12-31T23:59:59", tz="UTC")
+    assert df.loc[0, "finished_at"] == pd.Timestamp("2026-01-01T00:00:01", tz="UTC")
+    assert df.loc[1, "started_at"] == pd.Timestamp("2026-01-01T00:00:00", tz="UTC")

@@ -21,7 +21,8 @@ def bumpy(Z):
 
 SEARCHES = {"pso": {"n_particles": 17, "iters": 1000, "ftol_iter": 1000},
             "de": {"popsize": 7, "iters": 1000, "tol": 0.0},
-            "cmaes": {}}
+            "cmaes": {},
+            "pso_matlab": {"swarm_size": 17, "function_tolerance": 0.0}}
 
 
 @pytest.mark.parametrize("name", sorted(SEARCHES))

@@ -114,6 +114,76 @@ def test_full_worse_explanation_names_the_cell_and_its_variant():
     assert "mean evaluations 108 for 16 variables" in text
 
 
+@pytest.fixture(scope="module")
+def zermelo_run(tmp_path_factory):
+    """Small real Zermelo study at one budget: pso, cmaes, grid, and a warm-started pso."""
+    root = tmp_path_factory.mktemp("zermelo")
+    budget = {"max_evals": 90}
+    jobs = []
+    for param in ("diagonal", "full"):
+        jobs += runner.plan_jobs("zermelo", "default", param, "pso", 3, 7, {}, {},
+                                 {**budget, "n_particles": 6, "iters": 100}, {})
+        jobs += runner.plan_jobs("zermelo", "default", param, "cmaes", 3, 7, {}, {}, budget, {})
+        jobs += runner.plan_jobs("zermelo", "default", param, "grid", 1, 7, {}, {},
+                                 {"points_per_dim": 9, "n_local": 1, "local_max_evals": 40},
+                                 {})
+    jobs += runner.plan_jobs("zermelo", "default", "full", "pso", 2, 7, {}, {},
+                             {**budget, "n_particles": 6, "iters": 100}, {},
+                             warm_start_share=0.3)
+    runner.execute(jobs, root / "run")
+    return io.collect(root / "run")
+
+
+def test_zermelo_report_statistics_best_known_and_anytime(zermelo_run, tmp_path):
+    out = build_report(zermelo_run, tmp_path / "report")
+    text = (out / "report.md").read_text()
+    for heading in ("## Best-known optima", "best-known full vs best-known diagonal",
+                    "Optimizer shortfall", "## Map vs map at equal budget",
+                    "Fixed targets: ERT", "Holm family: every map-vs-map comparison"):
+        assert heading in text
+    assert "failed" not in text
+    summary = pd.read_csv(out / "summary.csv", keep_default_na=False)
+    assert set(summary["optimizer"]) == {"pso", "cmaes", "grid"}
+    warm = summary[summary["variant"] == "warm_start=0.3"]
+    assert list(warm["param"]) == ["full"] and list(warm["n_jobs"]) == [2]
+    assert (pd.to_numeric(summary.loc[summary["optimizer"] != "grid", "max_evals"]) == 90).all()
+    comp = pd.read_csv(out / "comparison.csv", keep_default_na=False)
+    # one diagonal-vs-full row per optimizer of the main variant, none for the warm variant
+    assert sorted(comp["optimizer"]) == ["cmaes", "grid", "pso"]
+    assert set(comp["variant"]) == {""}
+    assert (comp["note"] != "").all()  # 3 starts: underpowered (grid: no test)
+    bk = pd.read_csv(out / "best_known.csv")
+    assert sorted(bk["family"]) == ["diagonal", "full"]
+    jobs = pd.read_parquet(zermelo_run)
+    ok = jobs[jobs["status"] == "ok"]
+    assert bk.set_index("family").loc["diagonal", "best_known"] == pytest.approx(
+        ok.loc[ok["param"] == "diagonal", "best_cost"].min())
+    targets = pd.read_csv(out / "targets.csv", keep_default_na=False)
+    assert set(targets["epsilon"]) == {0.01, 0.001}
+    for name in ("anytime_zermelo_default.png", "ecdf_zermelo_default.png",
+                 "costs_zermelo_default.png", "anytime_zermelo_default_warm_start_0_3.png"):
+        assert (out / name).stat().st_size > 0
+
+
+def test_results_without_traces_still_report(zermelo_run, tmp_path):
+    """Schema-2 results (no traces, budgets or warm starts) give every table, no anytime."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    old = pq.read_table(zermelo_run).drop_columns(["trace_evals", "trace_best", "max_evals",
+                                                   "warm_start"])
+    old = old.set_column(old.schema.get_field_index("schema_version"), "schema_version",
+                         pa.array([2] * old.num_rows, pa.int64()))
+    (tmp_path / "old").mkdir()
+    pq.write_table(old, tmp_path / "old" / "results.parquet")
+    out = build_report(tmp_path / "old", tmp_path / "report")
+    text = (out / "report.md").read_text()
+    assert "## Best-known optima" in text and "## Map vs map" in text
+    assert "anytime and ECDF figures skipped" in text
+    assert "Fixed targets" not in text
+    assert not list(out.glob("anytime_*.png")) and (out / "costs_zermelo_default.png").exists()
+
+
 def test_zermelo_held_out_section(tmp_path):
     cells = [("zermelo", "default", param, "pso", 2, {"holdout_radii": [2.0, 5.0]})
              for param in ("diagonal", "full")]

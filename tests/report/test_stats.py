@@ -1,4 +1,4 @@
-"""Cell statistics, diagonal-vs-full comparison and table formatting on synthetic data."""
+"""Cell statistics (converged starts only, BCa intervals), A12, Holm, and table formatting."""
 
 from __future__ import annotations
 
@@ -7,28 +7,38 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats as sps
 
-from penaltyrun.report.stats import add_variant, bootstrap_ci, cell_summary, comparison
+from penaltyrun.report.stats import (
+    a12,
+    a12_magnitude,
+    add_variant,
+    bca_ci,
+    cell_summary,
+    converged,
+    holm,
+)
 from penaltyrun.report.tables import fmt, markdown, write_table
 
-DIAG = [4.0, 5.0, 6.0, 9.0]
-GEAGSP = [1.0, 2.0, 3.0, 6.0]
-GIVENS = [5.0, 7.0, 8.0]
+PENALTY = 1000.0  # a graded penalty: must never enter a cost statistic
+DIAG = [4.0, 5.0, 9.0]
 
 
 def rows(param, costs, problem="toy", case="c1", optimizer="pso", statuses=None):
     statuses = statuses or ["ok"] * len(costs)
     return [{"problem": problem, "case": case, "optimizer": optimizer, "param": param,
-             "best_cost": c, "status": s, "n_evals": 100 + i, "wall_time_s": 1.0 + i}
+             "best_cost": c, "status": s, "best_converged": s == "ok", "n_evals": 100 + i,
+             "wall_time_s": 1.0 + i}
             for i, (c, s) in enumerate(zip(costs, statuses))]
 
 
 @pytest.fixture
 def df():
-    data = (rows("diagonal", DIAG + [np.nan], statuses=["ok", "ok", "diverged", "ok", "failed"])
-            + rows("geagsp", GEAGSP, statuses=["ok", "ok", "ok", "diverged"])
-            + rows("givens", GIVENS)
+    data = (rows("diagonal", [4.0, 5.0, PENALTY, 9.0, np.nan],
+                 statuses=["ok", "ok", "diverged", "ok", "failed"])
+            + rows("geagsp", [1.0, 2.0, 3.0, PENALTY], statuses=["ok", "ok", "ok", "diverged"])
             + rows("diagonal", [10.0, 20.0], optimizer="de"))
     return pd.DataFrame(data)
 
@@ -39,37 +49,42 @@ def cell(summary, param, optimizer="pso"):
     return sel.iloc[0]
 
 
-def test_cell_summary_statistics(df):
+def test_converged_mask_needs_status_ok_and_a_converged_best():
+    frame = pd.DataFrame({"status": ["ok", "ok", "diverged", "failed"],
+                          "best_converged": [True, False, False, None]})
+    assert converged(frame).tolist() == [True, False, False, False]
+
+
+def test_cell_summary_uses_converged_starts_only(df):
     s = cell_summary(df)
-    assert len(s) == 4
+    assert len(s) == 3
     d = cell(s, "diagonal")
-    assert d["n_jobs"] == 5 and d["n_failed"] == 1
+    assert d["n_jobs"] == 5 and d["n_converged"] == 3
+    assert d["n_diverged"] == 1 and d["n_failed"] == 1
     assert d["success_rate"] == pytest.approx(3 / 5)
-    assert d["best"] == 4.0 and d["worst"] == 9.0
-    assert d["mean"] == pytest.approx(6.0)
-    assert d["median"] == pytest.approx(5.5)
+    assert (d["best"], d["median"], d["worst"]) == (4.0, 5.0, 9.0)
+    assert d["mean"] == pytest.approx(6.0)  # the diverged start's 1000 is not in it
     assert d["std"] == pytest.approx(np.std(DIAG, ddof=1))
-    assert d["mean_evals"] == pytest.approx(np.mean([100, 101, 102, 103, 104]))
-    assert d["mean_wall_s"] == pytest.approx(3.0)
-    assert d["mean_ci95_lo"] <= d["mean"] <= d["mean_ci95_hi"]
+    assert d["median_ci95_lo"] <= d["median"] <= d["median_ci95_hi"] <= 9.0
+    assert d["mean_ci95_lo"] <= d["mean"] <= d["mean_ci95_hi"] <= 9.0
+    assert d["mean_evals"] == pytest.approx(np.mean([100, 101, 102, 103]))  # failed: no evals
     g = cell(s, "geagsp")
-    assert (g["best"], g["mean"], g["median"], g["worst"]) == (1.0, 3.0, 2.5, 6.0)
+    assert (g["best"], g["mean"], g["median"], g["worst"]) == (1.0, 2.0, 2.0, 3.0)
     assert g["success_rate"] == pytest.approx(0.75)
-    assert g["n_failed"] == 0
     de = cell(s, "diagonal", "de")
     assert de["mean"] == 15.0 and de["n_jobs"] == 2
+    assert math.isnan(de["median_ci95_lo"]) and de["ci_note"] == "n = 2 < 3: no CI"
     assert math.isnan(de["paper_mean"])  # no paper number for the toy problem
 
 
-def test_cell_summary_single_and_all_failed():
-    df = pd.DataFrame(rows("diagonal", [2.0]) + rows("geagsp", [np.nan, np.nan],
-                                                      statuses=["failed", "failed"]))
-    s = cell_summary(df)
+def test_cell_summary_all_diverged_or_failed():
+    frame = pd.DataFrame(rows("diagonal", [PENALTY, PENALTY], statuses=["diverged"] * 2)
+                         + rows("geagsp", [np.nan], statuses=["failed"]))
+    s = cell_summary(frame)
     d = cell(s, "diagonal")
-    assert d["best"] == 2.0 and math.isnan(d["std"]) and math.isnan(d["mean_ci95_lo"])
-    g = cell(s, "geagsp")
-    assert g["n_jobs"] == 2 and g["n_failed"] == 2 and g["success_rate"] == 0.0
-    assert math.isnan(g["mean"]) and math.isnan(g["best"])
+    assert d["success_rate"] == 0.0 and d["n_converged"] == 0
+    assert all(math.isnan(d[k]) for k in ("best", "median", "mean", "worst", "std"))
+    assert cell(s, "geagsp")["n_failed"] == 1
 
 
 def test_cell_summary_separates_variants(df):
@@ -81,57 +96,86 @@ def test_cell_summary_separates_variants(df):
 
 
 def test_cell_summary_paper_mean_uses_the_parameterization():
-    df = pd.DataFrame(rows("diagonal", [0.5, 0.4], problem="attitude_lqr", case="detumble")
-                      + rows("geagsp", [0.2, 0.1], problem="attitude_lqr", case="detumble"))
-    s = cell_summary(df)
+    frame = pd.DataFrame(rows("diagonal", [0.5, 0.4], problem="attitude_lqr", case="detumble")
+                         + rows("geagsp", [0.2, 0.1], problem="attitude_lqr", case="detumble"))
+    s = cell_summary(frame)
     assert cell(s, "diagonal")["paper_mean"] == pytest.approx(0.423)
     assert cell(s, "geagsp")["paper_mean"] == pytest.approx(0.146)
-    c = comparison(df).iloc[0]
-    assert c["paper_improvement_mean_pct"] == pytest.approx(100 * (0.423 - 0.146) / 0.423)
 
 
-def test_comparison(df):
-    c = comparison(df)
-    # one row per full map with a diagonal cell of the same (problem, case, optimizer)
-    assert sorted(c["full_map"]) == ["geagsp", "givens"]
-    assert set(c["optimizer"]) == {"pso"}
-    g = c[c["full_map"] == "geagsp"].iloc[0]
-    assert g["n_diagonal"] == 5 and g["n_full"] == 4
-    assert g["diag_mean"] == pytest.approx(6.0) and g["full_mean"] == pytest.approx(3.0)
-    assert g["improvement_mean_pct"] == pytest.approx(50.0)
-    assert g["improvement_best_pct"] == pytest.approx(75.0)
-    assert g["diag_success"] == pytest.approx(0.6) and g["full_success"] == pytest.approx(0.75)
-    expected_p = sps.mannwhitneyu(GEAGSP, DIAG, alternative="less").pvalue
-    assert g["p_value_mwu"] == pytest.approx(expected_p)
-    assert not g["full_worse_on_best"]
-    v = c[c["full_map"] == "givens"].iloc[0]
-    assert v["improvement_mean_pct"] == pytest.approx(100 * (6.0 - 20 / 3) / 6.0)
-    assert v["improvement_best_pct"] == pytest.approx(-25.0)
-    assert v["full_worse_on_best"]
-    assert v["p_value_mwu"] == pytest.approx(
-        sps.mannwhitneyu(GIVENS, DIAG, alternative="less").pvalue)
-    assert v["p_value_mwu"] > 0.5
+# --------------------------------------------------------------------------- BCa
 
 
-def test_comparison_treats_full_as_a_full_map_and_needs_diagonal():
-    df = pd.DataFrame(rows("diagonal", [2.0, 3.0]) + rows("full", [1.0, 1.5]))
-    c = comparison(df)
-    assert list(c["full_map"]) == ["full"]
-    assert c.iloc[0]["improvement_mean_pct"] == pytest.approx(100 * (2.5 - 1.25) / 2.5)
-    assert comparison(pd.DataFrame(rows("geagsp", [1.0, 2.0]))).empty
-
-
-def test_bootstrap_ci():
-    rng = np.random.default_rng(0)
-    x = rng.normal(10.0, 2.0, 40)
-    lo, hi = bootstrap_ci(x)
-    assert lo < x.mean() < hi
-    assert x.min() <= lo and hi <= x.max()
-    assert bootstrap_ci(x) == (lo, hi)  # deterministic for a fixed seed
-    lo90, hi90 = bootstrap_ci(x, level=0.90)
+@pytest.mark.parametrize("statistic, func", [("median", np.median), ("mean", np.mean)])
+def test_bca_matches_scipy_bootstrap(statistic, func):
+    x = np.random.default_rng(3).lognormal(0.0, 0.5, 15)
+    lo, hi, note = bca_ci(x, statistic, seed=7)
+    ref = sps.bootstrap((x,), func, method="BCa", n_resamples=9999, confidence_level=0.95,
+                        rng=np.random.default_rng(7)).confidence_interval
+    assert (lo, hi) == pytest.approx((ref.low, ref.high), rel=1e-12)
+    assert note == ""
+    assert bca_ci(x, statistic, seed=7) == (lo, hi, "")  # seeded: same interval
+    lo90, hi90, _ = bca_ci(x, statistic, level=0.90, seed=7)
     assert lo <= lo90 and hi90 <= hi
-    assert all(math.isnan(v) for v in bootstrap_ci(np.array([1.0])))
-    assert bootstrap_ci(np.array([3.0, 3.0])) == (3.0, 3.0)
+
+
+def test_bca_small_and_constant_samples_are_nan_with_a_note():
+    for values, note in (([], "n = 0 < 3: no CI"), ([1.0], "n = 1 < 3: no CI"),
+                         ([1.0, 2.0], "n = 2 < 3: no CI"),
+                         ([3.0, 3.0, 3.0, 3.0], "constant sample: no CI")):
+        lo, hi, text = bca_ci(np.array(values))
+        assert math.isnan(lo) and math.isnan(hi) and text == note
+
+
+# --------------------------------------------------------------------------- A12, Holm
+
+
+def test_a12_of_known_samples():
+    # pairs (x, y): x > y once (3 > 2), ties twice (2 = 2, 3 = 3) of 9 → (1 + 2/2)/9
+    assert a12([1.0, 2.0, 3.0], [2.0, 3.0, 4.0]) == pytest.approx(2 / 9)
+    assert a12([5.0, 6.0], [1.0, 2.0]) == 1.0
+    assert a12([1.0, 2.0], [5.0, 6.0]) == 0.0
+    assert a12([1.0, 1.0], [1.0]) == 0.5
+    assert math.isnan(a12([], [1.0]))
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.integers(0, 5), min_size=1, max_size=8),
+       st.lists(st.integers(0, 5), min_size=1, max_size=8))
+def test_a12_is_the_pair_count(x, y):
+    wins = sum((a > b) + 0.5 * (a == b) for a in x for b in y)
+    assert a12(x, y) == pytest.approx(wins / (len(x) * len(y)))
+    assert a12(x, y) + a12(y, x) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("value, label", [
+    (0.5, "negligible"), (0.559, "negligible"), (0.56, "small"), (0.44, "small"),
+    (0.639, "small"), (0.64, "medium"), (0.36, "medium"), (0.71, "large"), (0.0, "large"),
+    (float("nan"), "—")])
+def test_a12_magnitude(value, label):
+    assert a12_magnitude(value) == label
+
+
+def test_holm_on_known_p_values():
+    # sorted 0.005·4 = 0.02, 0.01·3 = 0.03, 0.03·2 = 0.06, 0.04·1 = 0.04 → max-accumulated 0.06
+    p = np.array([0.01, 0.04, 0.03, np.nan, 0.005])
+    adj = holm(p)
+    assert adj[[0, 1, 2, 4]] == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    assert math.isnan(adj[3])
+    assert holm(np.array([0.5, 0.9])) == pytest.approx([1.0, 1.0])  # capped at 1
+    assert holm(np.array([0.02])) == pytest.approx([0.02])
+    assert holm(np.array([np.nan])).size == 1 and holm(np.array([])).size == 0
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=12))
+def test_holm_properties(p):
+    p = np.array(p)
+    adj = holm(p)
+    assert np.all(adj >= p - 1e-15) and np.all(adj <= 1.0)
+    order = np.argsort(p, kind="stable")
+    assert np.all(np.diff(adj[order]) >= -1e-15)  # monotone in the raw p order
+    assert adj.min() == pytest.approx(min(1.0, p.size * p.min()))
 
 
 # --------------------------------------------------------------------------- tables
@@ -183,3 +227,15 @@ def test_add_variant_splits_cells_run_with_another_budget():
     assert variants[3:5] == ["iters=300,n_particles=100"] * 2
     # alone in its problem variant, the side budget is that cell's main budget
     assert variants[5] == "t_max=500.0"
+
+
+def test_add_variant_labels_a_warm_start_as_a_variant_of_its_own():
+    frame = pd.DataFrame({
+        "problem": ["zermelo"] * 3, "case": ["default"] * 3, "problem_params": ["{}"] * 3,
+        "optimizer": ["pso"] * 3, "param": ["diagonal", "full", "full"],
+        "optimizer_settings": ['{"max_evals": 600}'] * 3,
+        "warm_start": [None, None, '{"share": 0.3, "n_evals": 180}'],
+    })
+    out = add_variant(frame)
+    assert out["variant"].tolist() == ["", "", "warm_start=0.3"]
+    assert out["problem_variant"].tolist() == ["", "", ""]

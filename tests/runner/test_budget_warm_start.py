@@ -12,7 +12,8 @@ from penaltyrun import io, runner
 BUDGET = 600
 OPTIONS = {"pso": {"n_particles": 30, "iters": 1000, "max_evals": BUDGET},
            "de": {"popsize": 15, "iters": 1000, "max_evals": BUDGET, "polish": "L-BFGS-B"},
-           "cmaes": {"max_evals": BUDGET}}
+           "cmaes": {"max_evals": BUDGET},
+           "pso_matlab": {"swarm_size": 30, "max_evals": BUDGET}}
 
 
 @pytest.mark.parametrize("optimizer", sorted(OPTIONS))
@@ -30,7 +31,7 @@ def test_every_job_respects_max_evals(tmp_path, optimizer):
         assert row["trace_best"][-1] == pytest.approx(row["best_cost"])
 
 
-@pytest.mark.parametrize("optimizer", ["pso", "cmaes"])
+@pytest.mark.parametrize("optimizer", ["pso", "cmaes", "pso_matlab"])
 def test_warm_started_full_job_is_never_worse_than_its_diagonal_stage(tmp_path, optimizer):
     options = {**OPTIONS[optimizer], "max_evals": 500}
     jobs = runner.plan_jobs("zermelo", "default", "full", optimizer, 1, 3, {}, {}, options,

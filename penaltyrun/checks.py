@@ -1,0 +1,248 @@
+"""Preflight checks of a composed config, before Hydra creates a run directory.
+
+Called by :func:`penaltyrun.cli.preflight` on the config composed from the command line:
+every option's type and range (runner, report, optimizer, parameterization, problem, case),
+keys that the shipped config does not know (``+foo=1``), the run directory (can it be
+created?) and, for the dask backend, the scheduler (can it be reached?). Each problem is
+one :class:`~penaltyrun.errors.ConfigError`. Nothing here compiles a kernel: problem
+modules are imported, their kernels compile at the first evaluation.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from penaltyrun.errors import ConfigError
+
+MODES = ("optimize", "evaluate", "report")
+#: Subtrees whose keys are free (candidate matrices / scalars of ``mode=evaluate``).
+FREE_KEYS = ("matrices", "scalars")
+REPORT_OPTIONS = {"input": (str, type(None)), "output": (str, type(None)), "paper": (bool,)}
+
+
+def plain(node: Any) -> Any:
+    """Plain Python value of a config node (resolved)."""
+    return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) or \
+        OmegaConf.is_list(node) else node
+
+
+def unknown_keys(cfg: Any, base: Any, prefix: str = "") -> tuple[str, list[str]] | None:
+    """First key of ``cfg`` absent from ``base`` as (dotted key, keys allowed there)."""
+    if not isinstance(cfg, Mapping) or not isinstance(base, Mapping):
+        return None
+    for key, value in cfg.items():
+        dotted = f"{prefix}{key}"
+        if dotted in FREE_KEYS or dotted == "hydra":
+            continue
+        if key not in base:
+            return dotted, sorted(str(k) for k in base)
+        found = unknown_keys(value, base[key], f"{dotted}.")
+        if found:
+            return found
+    return None
+
+
+def check_known_keys(cfg: Mapping[str, Any], base: Mapping[str, Any]) -> None:
+    """Reject keys added with ``+key=value`` that no part of penaltyrun reads, and keys
+    removed with ``~key`` that it needs.
+
+    Parameters
+    ----------
+    cfg, base : mapping
+        The composed config, and the config composed from the same config-group choices
+        without any value overrides.
+    """
+    found = unknown_keys(cfg, base)
+    if found:
+        raise ConfigError(found[0], "unknown config key", allowed=found[1])
+    deleted = unknown_keys(base, cfg)
+    if deleted:
+        raise ConfigError(deleted[0], "is required and cannot be removed (~key); set a value "
+                                      "instead")
+
+
+def check_report_options(options: Mapping[str, Any]) -> None:
+    """Check ``report.input``, ``report.output`` (path or null), ``report.paper`` (bool)."""
+    for key, value in options.items():
+        types = REPORT_OPTIONS.get(key)
+        if types is None:
+            raise ConfigError(f"report.{key}", "unknown report option",
+                              allowed=sorted(REPORT_OPTIONS))
+        if not isinstance(value, types) or (isinstance(value, str) and not value.strip()):
+            what = "true or false" if types == (bool,) else "a path or null"
+            raise ConfigError(f"report.{key}", f"must be {what}, got {value!r}")
+
+
+def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
+    """Check that directory ``path`` exists or can be created (nothing is left behind).
+
+    Raises
+    ------
+    ConfigError
+        If a part of the path is a file, or the first existing parent is not writable.
+    """
+    path = Path(path).expanduser()
+    if path.exists():
+        if not path.is_dir():
+            raise ConfigError(key, f"{path} exists and is not a directory")
+        anchor = path
+    else:
+        anchor = path
+        while not anchor.exists() and anchor != anchor.parent:
+            anchor = anchor.parent
+        if not anchor.is_dir():
+            raise ConfigError(key, f"cannot create {path}: {anchor} is a file")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".penaltyrun-check-", dir=anchor))
+    except OSError as exc:
+        raise ConfigError(key, f"cannot create {path}: {exc.strerror or exc} in "
+                               f"{anchor}") from None
+
+
+def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
+                        prefix: str) -> None:
+    """Check values against the type of the shipped default of the same key: a number
+    for a number, true/false for a boolean, a list of the same length for a list (a
+    ``null`` default accepts anything; the problem checks it)."""
+    for key, default in defaults.items():
+        value = values.get(key, default)
+        if default is None or value is None:
+            continue
+        if isinstance(default, bool):
+            ok, what = isinstance(value, bool), "true or false"
+        elif isinstance(default, (int, float)):
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            what = "a number"
+        elif isinstance(default, list):
+            ok = isinstance(value, list) and len(value) == len(default) and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+            what = f"a list of {len(default)} numbers"
+        else:
+            continue
+        if not ok:
+            raise ConfigError(f"{prefix}.{key}", f"must be {what}, got {value!r}")
+
+
+def check_param_options(options: Mapping[str, Any]) -> None:
+    """Check ``param.eig_bounds`` (null or [lower, upper] with 0 <= lower < upper) and
+    ``param.cayley_bound`` (positive number)."""
+    bounds = options.get("eig_bounds")
+    if bounds is not None:
+        ok = isinstance(bounds, list) and len(bounds) == 2 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in bounds)
+        if not ok or not 0 <= bounds[0] < bounds[1]:
+            raise ConfigError("param.eig_bounds", "must be null or [lower, upper] with "
+                              f"0 <= lower < upper, got {bounds!r}")
+    bound = options.get("cayley_bound", 1.0)
+    if isinstance(bound, bool) or not isinstance(bound, (int, float)) or not bound > 0:
+        raise ConfigError("param.cayley_bound", f"must be a positive number, got {bound!r}")
+
+
+def _options(cfg: DictConfig, group: str) -> dict[str, Any]:
+    return {k: v for k, v in (plain(cfg.get(group)) or {}).items() if k != "name"}
+
+
+def check_config(cfg: DictConfig, connect: bool = True,
+                 base: DictConfig | None = None) -> None:
+    """Check every option of a composed config (see the module docstring).
+
+    Parameters
+    ----------
+    cfg : DictConfig
+        The composed config (without the ``hydra`` node or with it).
+    connect : bool
+        Also check that a dask scheduler given in ``runner.scheduler`` can be reached.
+    base : DictConfig, optional
+        The config of the same group choices without value overrides: problem parameters
+        must then have the type of their shipped defaults.
+
+    Raises
+    ------
+    ConfigError
+        The first problem found, naming its key.
+    """
+    from penaltyrun import optim, penalty, problems, runner
+
+    mode = cfg.get("mode")
+    if mode not in MODES:
+        raise ConfigError("mode", f"unknown mode {mode!r}", allowed=MODES)
+    check_report_options(plain(cfg.get("report")) or {})
+    runner.check_runner_options(plain(cfg.get("runner")) or {},
+                                connect=connect and mode == "optimize")
+    if mode == "report":
+        return
+    if mode == "optimize":
+        optim.make_settings(cfg.optimizer.name, _options(cfg, "optimizer"))
+        if cfg.param.name not in penalty.KINDS:
+            raise ConfigError("param", f"unknown parameterization {cfg.param.name!r}",
+                              allowed=penalty.KINDS)
+        check_param_options(_options(cfg, "param"))
+    params = {k: v for k, v in (plain(cfg.problem.get("params")) or {}).items()
+              if v is not None}
+    if base is not None:
+        check_like_defaults(params, plain(base.problem.get("params")) or {}, "problem.params")
+    prob = _checked("problem.params", problems.make, cfg.problem.name, cfg.get("case"),
+                    params)
+    if mode == "optimize":
+        _checked("param", runner.build_layout, prob, cfg.param.name, _options(cfg, "param"))
+
+
+def _checked(key: str, func: Any, *args: Any) -> Any:
+    """``func(*args)``; an error other than ConfigError becomes a ConfigError on ``key``."""
+    try:
+        return func(*args)
+    except ConfigError:
+        raise
+    except (TypeError, ValueError, KeyError, IndexError) as exc:
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise ConfigError(key, f"invalid value: {text}") from None
+
+
+def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) -> None:
+    """Check a composed config (with its ``hydra`` node) against the shipped one ``base``:
+    unknown ``+keys``, every option's type and range, the run directory, the scheduler."""
+    check_known_keys(plain_nohydra(cfg), plain_nohydra(base))
+    check_config(cfg, base=base)
+    if multirun:
+        check_run_dir(cfg.hydra.sweep.dir, "hydra.sweep.dir")
+    else:
+        check_run_dir(cfg.hydra.run.dir, "hydra.run.dir")
+
+
+def plain_nohydra(cfg: DictConfig) -> dict[str, Any]:
+    """The config as plain Python values, without its ``hydra`` node."""
+    return {k: plain(cfg[k]) if isinstance(cfg[k], DictConfig) else cfg[k]
+            for k in cfg if k != "hydra"}
+
+
+def sweep_variants(parsed: list[Any], dry: list[str]) -> list[list[str]]:
+    """One override list per further value of each sweep (others at their first value),
+    so that every value of a sweep is checked, not only the first."""
+    variants = []
+    for o in parsed:
+        if not o.is_sweep_override() or o.key_or_group.startswith("hydra"):
+            continue
+        key = o.get_key_element()
+        for value in list(o.sweep_string_iterator())[1:]:
+            variants.append([d if d.split("=", 1)[0] != key else f"{key}={value}"
+                             for d in dry])
+    return variants
+
+
+def check_variant(compose: Callable[..., DictConfig], overrides: list[str],
+                  config_name: str = "config") -> None:
+    """Compose one sweep variant with ``compose`` (Hydra's) and check its options."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        cfg = compose(config_name=config_name, overrides=overrides)
+    except (HydraException, OmegaConfBaseException) as exc:
+        raise ConfigError("override", " ".join(str(exc).split()[:40])) from None
+    check_config(cfg, connect=False)

@@ -1,0 +1,134 @@
+"""Best-known optima per problem × case × problem variant and map family, their
+certification, and each optimizer's shortfall against them.
+
+A map family is ``diagonal`` or ``full`` (every orthogonal map — full/geagsp, givens,
+cayley — spans the same set of positive-definite matrices). Best-known values are taken
+over every converged start of every optimizer, budget and warm-start variant that solved
+the same problem (equal ``problem_variant``); the baseline (K = I) is not a search and does
+not enter. A best-known value is *certified* when the grid optimizer (exhaustive + local
+polish), or two different optimizers, reached it within :data:`CERTIFY_RTOL` relative.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+
+from penaltyrun.io import decode_json
+from penaltyrun.report.stats import converged
+
+#: Relative tolerance within which two optimizers "agree" on a best-known value.
+CERTIFY_RTOL = 1e-4
+KEY = ["problem", "case", "problem_variant"]
+FAMILIES = ("diagonal", "full")
+
+
+def family(param: str) -> str:
+    """Map family of a parameterization: ``diagonal`` or ``full``."""
+    return "diagonal" if param == "diagonal" else "full"
+
+
+def with_problem_variant(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with a ``problem_variant`` column (``variant`` or ``""`` when absent)."""
+    if "problem_variant" in df:
+        return df
+    return df.assign(problem_variant=df["variant"] if "variant" in df else "")
+
+
+def within(value: float, ref: float, rtol: float = CERTIFY_RTOL) -> bool:
+    """True when ``value`` is at most ``ref + rtol·|ref|`` (reaches ``ref`` to ``rtol``)."""
+    return bool(value <= ref + rtol * abs(ref))
+
+
+def _matrices_text(matrices_json: str | None) -> str:
+    mats = decode_json(matrices_json) or {}
+    return json.dumps({k: np.round(np.asarray(v, float), 6).tolist() for k, v in mats.items()})
+
+
+def best_known(df: pd.DataFrame) -> pd.DataFrame:
+    """One row per problem × case × problem variant × map family with a converged start.
+
+    Columns: ``best_known``, the ``optimizer``, ``param`` and ``job_id`` that found it, its
+    ``matrices`` (JSON, 6 decimals), ``certified`` and ``certified_by`` (the optimizers
+    whose best is within :data:`CERTIFY_RTOL`), and per-optimizer bests (``best_<opt>``).
+    """
+    df = with_problem_variant(df)
+    ok = df[converged(df) & (df["optimizer"] != "baseline")]
+    rows = []
+    for key, g in ok.groupby(KEY + [ok["param"].map(family).rename("family")], sort=True):
+        top = g.loc[g["best_cost"].astype(float).idxmin()]
+        ref = float(top["best_cost"])
+        per_opt = g.groupby("optimizer")["best_cost"].min().astype(float)
+        agree = [o for o, v in per_opt.items() if within(v, ref)]
+        certified = "grid" in agree or len(agree) >= 2
+        rows.append({
+            **dict(zip(KEY + ["family"], key)), "best_known": ref,
+            "optimizer": top["optimizer"], "param": top["param"], "job_id": top["job_id"],
+            "certified": certified,
+            "certified_by": (", ".join(agree) + f" (within {CERTIFY_RTOL:g} rel.)")
+            if certified else "—",
+            "n_converged": len(g),
+            **{f"best_{o}": v for o, v in per_opt.items()},
+            "matrices": _matrices_text(top["matrices"]),
+        })
+    return pd.DataFrame(rows)
+
+
+def reference(bk: pd.DataFrame, problem: str, case: str, problem_variant: str,
+              fam: str) -> float:
+    """Best-known cost of one family (NaN if none)."""
+    if bk.empty:
+        return float("nan")
+    sel = bk[(bk["problem"] == problem) & (bk["case"] == case)
+             & (bk["problem_variant"] == problem_variant) & (bk["family"] == fam)]
+    return float(sel["best_known"].iloc[0]) if len(sel) else float("nan")
+
+
+def improvement(bk: pd.DataFrame) -> pd.DataFrame:
+    """Best-known full vs best-known diagonal per problem × case × problem variant.
+
+    ``improvement_pct`` = (diagonal − full) / diagonal · 100 (positive: full is lower). It is
+    a claim about the maps only as far as the diagonal value is certified.
+    """
+    rows = []
+    if bk.empty:
+        return pd.DataFrame(rows)
+    for key, g in bk.groupby(KEY, sort=True):
+        fams = {r["family"]: r for _, r in g.iterrows()}
+        if set(FAMILIES) - set(fams):
+            continue
+        d, f = fams["diagonal"], fams["full"]
+        rows.append({**dict(zip(KEY, key)),
+                     "diagonal_best_known": d["best_known"], "diagonal_by": d["optimizer"],
+                     "diagonal_certified": d["certified"],
+                     "full_best_known": f["best_known"], "full_by": f"{f['optimizer']} / "
+                     f"{f['param']}", "full_certified": f["certified"],
+                     "improvement_pct": 100.0 * (d["best_known"] - f["best_known"])
+                     / d["best_known"]})
+    return pd.DataFrame(rows)
+
+
+def shortfall(df: pd.DataFrame, bk: pd.DataFrame) -> pd.DataFrame:
+    """Each cell's distance to its family's best-known value (converged starts only).
+
+    ``gap_best_pct`` and ``gap_median_pct`` = (cell best or median − best-known) /
+    best-known · 100. For a diagonal cell this gap is the optimizer's failure to reach the
+    diagonal optimum, not a gain of any full map.
+    """
+    df = with_problem_variant(df)
+    ok_mask = converged(df)
+    rows = []
+    cell = ["problem", "case", "problem_variant", "variant", "optimizer", "param"]
+    for key, g in df[df["optimizer"] != "baseline"].groupby(cell, sort=True):
+        cost = g.loc[ok_mask[g.index], "best_cost"].astype(float).to_numpy()
+        ref = reference(bk, key[0], key[1], key[2], family(key[5]))
+        best = float(cost.min()) if cost.size else np.nan
+        med = float(np.median(cost)) if cost.size else np.nan
+        rows.append({**dict(zip(cell, key)), "n_jobs": len(g), "n_converged": int(cost.size),
+                     "best_known": ref, "best": best, "median": med,
+                     "gap_best_pct": 100.0 * (best - ref) / abs(ref),
+                     "gap_median_pct": 100.0 * (med - ref) / abs(ref),
+                     "reached_best_known": bool(cost.size and within(best, ref))})
+    return pd.DataFrame(rows)

@@ -1,0 +1,95 @@
+"""Map-vs-map comparisons at equal budget: two-sided Mann–Whitney U, A12, Holm.
+
+Every comparison is between two maps of one cell group — the same problem, case, variant
+(problem parameters, warm start, optimizer settings and so the budget) and optimizer. No
+comparison pools optimizers, budgets or variants. Costs are those of converged starts only.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from penaltyrun.report.stats import MIN_N_TEST, a12, a12_magnitude, converged, holm
+
+GROUP = ["problem", "case", "variant", "optimizer"]
+#: Display order of the maps (others follow alphabetically).
+MAP_ORDER = ("diagonal", "full", "geagsp", "givens", "cayley")
+#: Holm family named in the report text.
+FAMILY = ("every map-vs-map comparison of this report (all problems, cases, variants and "
+          "optimizers together)")
+
+
+def map_order(params: list[str] | np.ndarray) -> list[str]:
+    """Maps sorted diagonal, full, geagsp, givens, cayley, then any other alphabetically."""
+    rank = {m: i for i, m in enumerate(MAP_ORDER)}
+    return sorted(set(params), key=lambda m: (rank.get(m, len(rank)), m))
+
+
+def _costs(g: pd.DataFrame, param: str) -> tuple[np.ndarray, int]:
+    sel = g[g["param"] == param]
+    return sel.loc[converged(sel), "best_cost"].astype(float).to_numpy(), len(sel)
+
+
+def pairwise(df: pd.DataFrame) -> pd.DataFrame:
+    """Every pair of maps within each (problem, case, variant, optimizer).
+
+    For the pair (a, b): converged counts and success rates, medians, the change of the
+    median ``(median_a − median_b)/median_a`` in % (positive: b is lower), A12 = P(b start
+    beats an a start) (+ ½ ties) with its magnitude, the two-sided Mann–Whitney U p-value,
+    the Holm-adjusted p over all rows with a p-value, and a note when a group has fewer
+    than :data:`~penaltyrun.report.stats.MIN_N_TEST` converged starts (underpowered). With
+    fewer than 2 converged starts in a group (e.g. the deterministic grid optimizer) there
+    is no test and the row is not in the Holm family.
+    """
+    if "variant" not in df:
+        df = df.assign(variant="")
+    rows = []
+    for key, g in df[df["optimizer"] != "baseline"].groupby(GROUP, sort=True):
+        for a, b in itertools.combinations(map_order(g["param"].unique()), 2):
+            xa, na = _costs(g, a)
+            xb, nb = _costs(g, b)
+            p = np.nan
+            if min(xa.size, xb.size) >= 2:
+                p = float(stats.mannwhitneyu(xa, xb, alternative="two-sided").pvalue)
+            effect = a12(xa, xb)
+            med_a = float(np.median(xa)) if xa.size else np.nan
+            med_b = float(np.median(xb)) if xb.size else np.nan
+            notes = []
+            if min(xa.size, xb.size) < MIN_N_TEST:
+                notes.append(f"underpowered (n < {MIN_N_TEST})")
+            if min(xa.size, xb.size) < 2:
+                notes.append("fewer than 2 converged starts in a group: no test")
+            rows.append({
+                **dict(zip(GROUP, key)), "map_a": a, "map_b": b,
+                "n_a": int(xa.size), "n_b": int(xb.size),
+                "success_a": xa.size / na, "success_b": xb.size / nb,
+                "best_a": float(xa.min()) if xa.size else np.nan,
+                "best_b": float(xb.min()) if xb.size else np.nan,
+                "median_a": med_a, "median_b": med_b,
+                "median_change_pct": 100.0 * (med_a - med_b) / med_a,
+                "a12_b_beats_a": effect, "a12_magnitude": a12_magnitude(effect),
+                "p_mwu": p, "note": "; ".join(notes),
+            })
+    out = pd.DataFrame(rows)
+    if not out.empty:
+        out.insert(out.columns.get_loc("p_mwu") + 1, "p_holm", holm(out["p_mwu"].to_numpy()))
+    return out
+
+
+def full_worse_rows(comp: pd.DataFrame) -> pd.DataFrame:
+    """Diagonal-vs-full rows where the best full start is worse than the best diagonal start.
+
+    The diagonal set is contained in every full set, so such a row is an optimizer
+    shortfall at that budget, not a property of the map. Columns for
+    :func:`penaltyrun.report.build.why_full_worse`: ``full_map``, ``full_best``,
+    ``diag_best``.
+    """
+    if comp.empty:
+        return comp
+    sel = comp[(comp["map_a"] == "diagonal") & (comp["best_b"] > comp["best_a"] * (1 + 1e-9))]
+    return sel.rename(columns={"map_b": "full_map", "best_b": "full_best",
+                               "best_a": "diag_best"})

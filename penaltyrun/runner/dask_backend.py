@@ -1,0 +1,132 @@
+"""The dask.distributed backend: one task per job on a LocalCluster or a remote scheduler.
+
+dask already re-runs the task of a worker that died on another worker; a task that kills
+``runner.max_retries + 1`` workers ends with ``KilledWorker`` and is recorded ``failed``
+(for a LocalCluster; a remote scheduler applies its own ``allowed-failures``). A run whose
+cluster has had no worker for ``worker_timeout`` seconds stops with
+:class:`~penaltyrun.errors.RunAbortedError` instead of waiting for ever.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Iterator
+from typing import Any
+
+from penaltyrun.errors import ConfigError, RunAbortedError
+from penaltyrun.runner.job import run_job
+from penaltyrun.runner.plan import Job
+from penaltyrun.runner.pool import failure_record
+
+logger = logging.getLogger(__name__)
+
+#: Seconds between two checks of the cluster's workers while waiting for results.
+POLL_S = 1.0
+#: Seconds to wait for the connection to a remote scheduler.
+CONNECT_TIMEOUT_S = 10.0
+_DASK_LOGGERS = ("distributed", "dask", "bokeh", "tornado")
+
+
+def quiet_dask_logs() -> None:
+    """dask's own logs at WARNING, unless penaltyrun runs verbose (``hydra.verbose``)."""
+    if logging.getLogger("penaltyrun").isEnabledFor(logging.DEBUG):
+        return
+    for name in _DASK_LOGGERS:
+        logging.getLogger(name).setLevel(logging.WARNING)
+
+
+def _import_distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise ConfigError("runner.backend", "dask backend needs `pip install "
+                          "'penaltyrun[dask]'` (dask.distributed is not installed)",
+                          allowed=("local", "dask")) from None
+    return distributed
+
+
+def _result_or_failure(job: Job, fut: Any) -> dict[str, Any]:
+    """The record of a finished task; a task that raised (e.g. ``KilledWorker``) is a
+    failed job, not a crashed run."""
+    try:
+        return fut.result()
+    except Exception as exc:
+        return failure_record(job, f"worker: {exc!r}")
+
+
+def _n_workers(client: Any) -> int:
+    try:
+        return len(client.scheduler_info().get("workers", {}))
+    except Exception:  # scheduler unreachable: counts as no worker
+        return 0
+
+
+def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: int = 1,
+             worker_timeout: float = 60.0) -> Iterator[tuple[Job, dict[str, Any]]]:
+    """Run ``jobs`` as dask tasks; yield ``(job, record)`` as each finishes.
+
+    Parameters
+    ----------
+    jobs : list of Job
+    workers : int
+        Worker processes of the LocalCluster (when ``scheduler`` is None).
+    scheduler : str or None
+        Address of a running scheduler, e.g. ``tcp://127.0.0.1:8786``.
+    max_retries : int
+        LocalCluster only: times a task may kill its worker before it fails.
+    worker_timeout : float
+        Seconds without any worker after which the run stops (s).
+
+    Raises
+    ------
+    RunAbortedError
+        If the scheduler cannot be reached or the cluster has no worker for
+        ``worker_timeout`` seconds.
+    """
+    distributed = _import_distributed()
+    import dask
+
+    quiet_dask_logs()
+    cluster = None
+    try:
+        if scheduler:
+            client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        else:
+            with dask.config.set({"distributed.scheduler.allowed-failures": int(max_retries)}):
+                cluster = distributed.LocalCluster(
+                    n_workers=workers, threads_per_worker=1, processes=True,
+                    dashboard_address=None, silence_logs=logging.WARNING)
+            client = distributed.Client(cluster)
+    except OSError as exc:
+        raise RunAbortedError(f"runner.scheduler: cannot connect to {scheduler}: {exc}") \
+            from None
+    futures: dict[Any, Job] = {}
+    try:
+        futures = {client.submit(run_job, job, pure=False, key=f"penaltyrun-{job.job_id}"):
+                   job for job in jobs}
+        pending = set(futures)
+        lost_since: float | None = None
+        while pending:
+            try:
+                done, pending = distributed.wait(pending, timeout=POLL_S,
+                                                 return_when="FIRST_COMPLETED")
+            except (TimeoutError, distributed.TimeoutError):
+                done = set()
+            for fut in done:
+                yield futures[fut], _result_or_failure(futures[fut], fut)
+            if done or _n_workers(client) > 0:
+                lost_since = None
+                continue
+            lost_since = lost_since or time.monotonic()
+            if time.monotonic() - lost_since > worker_timeout:
+                raise RunAbortedError(
+                    f"no dask worker for {worker_timeout:g} s (runner.worker_timeout) with "
+                    f"{len(pending)} jobs left; start workers and rerun with "
+                    f"runner.resume=true (finished jobs are kept)")
+    finally:
+        for fut in futures:
+            fut.cancel()
+        client.close()
+        if cluster is not None:
+            cluster.close()

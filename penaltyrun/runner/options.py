@@ -1,0 +1,120 @@
+"""Checks of every ``runner.*`` option before a run starts (one clear error each)."""
+
+from __future__ import annotations
+
+import math
+import re
+import socket
+from collections.abc import Mapping
+from typing import Any
+
+from penaltyrun.errors import ConfigError
+
+#: runner option → (kind, description of the allowed values).
+RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
+    "n_starts": ("pos_int", "a positive integer"),
+    "seed": ("nonneg_int", "a non-negative integer"),
+    "workers": ("pos_int", "a positive integer"),
+    "backend": ("choice", "local or dask"),
+    "scheduler": ("address", "null or a dask scheduler address tcp://host:port"),
+    "resume": ("bool", "true or false"),
+    "retry_failed": ("bool", "true or false"),
+    "report": ("bool", "true or false"),
+    "holdout": ("bool", "true or false"),
+    "max_retries": ("nonneg_int", "a non-negative integer"),
+    "worker_timeout": ("pos_float", "a positive number of seconds"),
+    "warm_start": ("bool", "true or false"),
+    "warm_start_share": ("unit_open", "a number in (0, 1)"),
+    "progress": ("progress", "auto, true or false"),
+}
+BACKENDS = ("local", "dask")
+_ADDRESS = re.compile(r"^(?:(?P<proto>tcp|tls)://)?(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+)"
+                      r":(?P<port>\d{1,5})$")
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def check_value(key: str, kind: str, value: Any, what: str) -> None:
+    """Check one option ``value`` of ``kind`` (pos_int, nonneg_int, bool, pos_float,
+    unit_open, choice, address)."""
+    ok = {
+        "pos_int": lambda v: _is_int(v) and v >= 1,
+        "nonneg_int": lambda v: _is_int(v) and v >= 0,
+        "bool": lambda v: isinstance(v, bool),
+        "pos_float": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
+        and math.isfinite(v) and v > 0,
+        "unit_open": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
+        and 0 < v < 1,
+        "choice": lambda v: v in BACKENDS,
+        "progress": lambda v: v == "auto" or isinstance(v, bool),
+        "address": lambda v: v is None or (isinstance(v, str) and bool(_ADDRESS.match(v))),
+    }[kind](value)
+    if not ok:
+        raise ConfigError(f"runner.{key}", f"must be {what}, got {value!r}",
+                          allowed=BACKENDS if kind == "choice"
+                          else ("auto", "true", "false") if kind == "progress" else None)
+
+
+def parse_address(address: str) -> tuple[str, int]:
+    """(host, port) of a scheduler address ``[tcp://|tls://]host:port``.
+
+    Raises
+    ------
+    ConfigError
+        If the address is malformed or the port out of range.
+    """
+    match = _ADDRESS.match(address) if isinstance(address, str) else None
+    if not match or not 0 < int(match["port"]) < 65536:
+        raise ConfigError("runner.scheduler", f"not a scheduler address: {address!r} "
+                          "(expected tcp://host:port, e.g. tcp://127.0.0.1:8786)")
+    return match["host"].strip("[]"), int(match["port"])
+
+
+def check_scheduler(address: str, timeout_s: float = 5.0) -> None:
+    """Check that a dask scheduler listens at ``address`` (TCP connection within
+    ``timeout_s`` seconds).
+
+    Raises
+    ------
+    ConfigError
+        Malformed address, unknown host, or nothing listening there.
+    """
+    host, port = parse_address(address)
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        if isinstance(exc, TimeoutError):
+            reason = f"no answer within {timeout_s:g} s"
+        raise ConfigError("runner.scheduler", f"cannot reach a scheduler at {address}: "
+                          f"{reason}; start one with `dask scheduler` or leave "
+                          "runner.scheduler=null for a local cluster") from None
+
+
+def check_runner_options(options: Mapping[str, Any], connect: bool = True) -> None:
+    """Check every ``runner.*`` option: known key, type and range, and (with ``connect``
+    and the dask backend) that the scheduler can be reached.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key and what it must be.
+    """
+    unknown = sorted(set(options) - set(RUNNER_OPTIONS))
+    if unknown:
+        raise ConfigError(f"runner.{unknown[0]}", "unknown runner option",
+                          allowed=sorted(RUNNER_OPTIONS))
+    for key, (kind, what) in RUNNER_OPTIONS.items():
+        if key in options:
+            check_value(key, kind, options[key], what)
+    scheduler = options.get("scheduler")
+    if scheduler is not None:
+        if options.get("backend", "local") != "dask":
+            raise ConfigError("runner.scheduler", "is used only with runner.backend=dask "
+                              "(pass both, or drop runner.scheduler)")
+        parse_address(scheduler)
+        if connect:
+            check_scheduler(scheduler)

@@ -1,0 +1,212 @@
+"""Where the command line's configs come from: penaltyrun's own ``conf/`` plus the user's
+directories (``--config-dir``, ``--config-path``, ``hydra.searchpath``).
+
+Used by the preflight of :mod:`penaltyrun.cli` so that the allowed values it lists are the
+ones Hydra will find, and so that a malformed user file is one line naming file and line.
+
+``--config-path`` is resolved against the current directory (Hydra itself would resolve a
+relative path against the installed package, which no user means); :func:`normalize_argv`
+rewrites it to an absolute path before Hydra parses the command line.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+from penaltyrun.errors import ConfigError
+
+CONF_DIR = Path(__file__).resolve().parent / "conf"
+#: Hydra's options that take a value: long form, short form.
+SOURCE_OPTIONS = {"--config-path": "-cp", "--config-name": "-cn", "--config-dir": "-cd"}
+
+
+@dataclass(frozen=True)
+class ConfigSource:
+    """The config sources named on one command line.
+
+    Attributes
+    ----------
+    primary : Path
+        Directory of the primary config (``--config-path``, default penaltyrun's ``conf/``).
+    config_name : str
+        Primary config name without ``.yaml`` (``--config-name``, default ``config``).
+    config_dirs : tuple of Path
+        Extra directories from ``--config-dir`` (searched before the package's).
+    """
+
+    primary: Path
+    config_name: str = "config"
+    config_dirs: tuple[Path, ...] = ()
+
+
+def _option_values(argv: list[str]) -> tuple[dict[str, str], list[str]]:
+    """Split ``argv`` into Hydra's config-source options and the rest."""
+    short = {v: k for k, v in SOURCE_OPTIONS.items()}
+    found: dict[str, str] = {}
+    rest: list[str] = []
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        name, eq, value = arg.partition("=")
+        name = short.get(name, name)
+        if name in SOURCE_OPTIONS:
+            if not eq:
+                if i + 1 >= len(argv):
+                    raise ConfigError(name, "expects a value")
+                value = argv[i + 1]
+                i += 1
+            found[name] = value
+        else:
+            rest.append(arg)
+        i += 1
+    return found, rest
+
+
+def normalize_argv(argv: list[str]) -> list[str]:
+    """``argv`` with a relative ``--config-path`` made absolute (relative to the cwd)."""
+    out = list(argv)
+    short = {v: k for k, v in SOURCE_OPTIONS.items()}
+    for i, arg in enumerate(out):
+        name, eq, value = arg.partition("=")
+        if short.get(name, name) != "--config-path":
+            continue
+        if eq and not value.startswith("pkg://"):
+            out[i] = f"{name}={os.path.abspath(value)}"
+        elif not eq and i + 1 < len(out) and not out[i + 1].startswith("pkg://"):
+            out[i + 1] = os.path.abspath(out[i + 1])
+    return out
+
+
+def parse_source(argv: list[str]) -> tuple[ConfigSource, list[str]]:
+    """The config sources of a command line, and the remaining arguments.
+
+    Raises
+    ------
+    ConfigError
+        If a named directory does not exist or lacks the primary config.
+    """
+    found, rest = _option_values(argv)
+    primary = CONF_DIR
+    name = found.get("--config-name", "config").removesuffix(".yaml")
+    if "--config-path" in found:
+        given = found["--config-path"]
+        local = _searchpath_dir(given) if given.startswith("pkg://") else Path(given)
+        primary = (local or Path(given)).expanduser().resolve()
+        if not primary.is_dir():
+            raise ConfigError("--config-path", f"{primary} is not a directory")
+    if not (primary / f"{name}.yaml").is_file():
+        raise ConfigError("--config-name" if "--config-name" in found else "--config-path",
+                          f"no primary config {name}.yaml in {primary}")
+    dirs: tuple[Path, ...] = ()
+    if "--config-dir" in found:
+        extra = Path(found["--config-dir"]).expanduser().resolve()
+        if not extra.is_dir():
+            raise ConfigError("--config-dir", f"{extra} is not a directory")
+        dirs = (extra,)
+    return ConfigSource(primary, name, dirs), rest
+
+
+@contextmanager
+def hydra_context(source: ConfigSource) -> Iterator[None]:
+    """Initialize Hydra's global state with the search path Hydra's app will use."""
+    from hydra._internal.hydra import Hydra
+    from hydra._internal.utils import create_config_search_path
+    from hydra.core.config_search_path import SearchPathQuery
+    from hydra.core.global_hydra import GlobalHydra
+
+    search_path = create_config_search_path(str(source.primary))
+    for extra in source.config_dirs:  # as Hydra's own --config-dir handling does
+        search_path.prepend(provider="command-line", path=f"file://{extra}",
+                            anchor=SearchPathQuery(provider="schema"))
+    GlobalHydra.instance().clear()
+    Hydra.create_main_hydra2("penaltyrun", search_path)  # initializes GlobalHydra
+    try:
+        yield
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def group_options(group: str, source: ConfigSource, hydra_overrides: list[str]) -> list[str]:
+    """Config names Hydra finds in ``group`` (package, ``--config-dir``, searchpath).
+
+    Must be called inside :func:`hydra_context`.
+    """
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.object_type import ObjectType
+
+    loader = GlobalHydra.instance().config_loader()
+    return sorted(loader.get_group_options(group, results_filter=ObjectType.CONFIG,
+                                           config_name=source.config_name,
+                                           overrides=hydra_overrides))
+
+
+def _searchpath_dir(entry: str) -> Path | None:
+    """Local directory of one ``hydra.searchpath`` entry (``file://``, ``pkg://``, plain)."""
+    if entry.startswith("pkg://"):
+        module = entry[len("pkg://"):].replace("/", ".").strip(".")
+        try:
+            spec = importlib.util.find_spec(module)
+        except (ImportError, ValueError):
+            return None
+        locations = list(spec.submodule_search_locations or []) if spec else []
+        return Path(locations[0]) if locations else None
+    return Path(entry.removeprefix("file://")).expanduser()
+
+
+def search_dirs(source: ConfigSource, searchpath: list[str]) -> list[Path]:
+    """Local directories searched for configs, in Hydra's order (user's first)."""
+    dirs = [*source.config_dirs, source.primary]
+    dirs += [d for d in map(_searchpath_dir, searchpath) if d is not None]
+    return dirs
+
+
+def check_yaml(path: Path, key: str) -> None:
+    """Parse one config file; a syntax error is one :class:`ConfigError` naming file and line.
+
+    Raises
+    ------
+    ConfigError
+        ``<key>: <file>:<line>: malformed YAML: <problem>``, or if the top level is not a
+        mapping.
+    """
+    import yaml
+    from omegaconf._utils import get_yaml_loader
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = yaml.load(fh, Loader=get_yaml_loader())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        line = f":{mark.line + 1}" if mark is not None else ""
+        what = " ".join(str(getattr(exc, "problem", None) or exc).split())
+        raise ConfigError(key, f"{path}{line}: malformed YAML: {what}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(key, f"{path}: cannot read ({exc})") from None
+    if data is not None and not isinstance(data, dict):
+        raise ConfigError(key, f"{path}:1: the top level must be a mapping of keys, "
+                               f"got {type(data).__name__}")
+
+
+def check_files(source: ConfigSource, searchpath: list[str],
+                choices: list[tuple[str, str]]) -> None:
+    """YAML-check the primary config and every chosen group file found in a user directory.
+
+    Parameters
+    ----------
+    source : ConfigSource
+    searchpath : list of str
+        ``hydra.searchpath`` entries given on the command line.
+    choices : list of (group, name)
+        Config-group choices of the command line, e.g. ``("experiment", "mine")``.
+    """
+    check_yaml(source.primary / f"{source.config_name}.yaml", "--config-name")
+    for group, name in choices:
+        for folder in search_dirs(source, searchpath):
+            path = folder / group / f"{name}.yaml"
+            if path.is_file():
+                check_yaml(path, group)

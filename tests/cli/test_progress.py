@@ -1,0 +1,78 @@
+"""Progress over jobs: a tqdm bar on a terminal, plain log lines elsewhere."""
+
+import fcntl
+import io
+import os
+import select
+import struct
+import subprocess
+import sys
+import termios
+
+import pytest
+
+from penaltyrun import progress
+from penaltyrun.errors import ConfigError
+
+RUN = ["runner.n_starts=2", "optimizer.n_particles=4", "optimizer.iters=2",
+       "runner.report=false"]
+
+
+def test_bar_counts_jobs_with_eta_and_statuses():
+    out = io.StringIO()
+    with progress.job_bar(5, initial=2, enabled=True, file=out) as on_record:
+        for status in ("ok", "diverged", "ok"):
+            on_record({"status": status})
+    text = out.getvalue()
+    assert "5/5" in text and "jobs" in text and "ok=2" in text and "diverged=1" in text
+    assert "<" in text  # elapsed<remaining: the ETA
+
+
+def test_no_bar_when_disabled_or_nothing_to_do():
+    with progress.job_bar(3, enabled=False) as on_record:
+        assert on_record is None
+    with progress.job_bar(3, initial=3, enabled=True) as on_record:
+        assert on_record is None
+
+
+def test_wanted():
+    assert progress.wanted("auto", io.StringIO()) is False
+    assert progress.wanted(True) and not progress.wanted(False)
+    with pytest.raises(ConfigError, match="runner.progress"):
+        progress.wanted("sometimes")
+
+
+def test_pipe_gets_log_lines_and_no_bar(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.cli", *RUN,
+                           f"hydra.run.dir={tmp_path / 'run'}"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    logs = proc.stdout + proc.stderr
+    assert "[2/2]" in logs and "ETA" in logs
+    assert "job/s" not in logs and "s/job" not in logs
+
+
+def test_terminal_gets_the_bar(tmp_path):
+    main, sub = os.openpty()
+    fcntl.ioctl(sub, termios.TIOCSWINSZ, struct.pack("HHHH", 30, 120, 0, 0))  # a real size
+    proc = subprocess.Popen([sys.executable, "-m", "penaltyrun.cli", *RUN,
+                             f"hydra.run.dir={tmp_path / 'run'}"], cwd=tmp_path,
+                            stdin=sub, stdout=sub, stderr=sub)
+    os.close(sub)
+    chunks = []
+    while True:
+        ready, _, _ = select.select([main], [], [], 300)
+        if not ready:
+            break
+        try:
+            data = os.read(main, 4096)
+        except OSError:  # the terminal closes when the child exits
+            break
+        if not data:
+            break
+        chunks.append(data)
+    assert proc.wait(timeout=60) == 0
+    os.close(main)
+    text = b"".join(chunks).decode(errors="replace")
+    assert "jobs: 100%" in text and "2/2" in text, text
+    assert "[2/2]" in text  # the log lines still come, above the bar

@@ -1,0 +1,173 @@
+"""The production Q-law (analytic one-pass gradient, fast effectivity search) against the
+complex-step reference law, the reference kernel mode, and the no-progress stop rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from penaltyrun.dynamics import lowthrust as lt
+from penaltyrun.errors import ConfigError
+from penaltyrun.problems import lyapunov_transfer, qlaw
+
+CASES = qlaw.CASES
+
+
+def _random_state(rng: np.random.Generator) -> np.ndarray:
+    return np.array([rng.uniform(6600.0, 80000.0), rng.uniform(0.0, 0.95),
+                     rng.uniform(0.0, np.pi), rng.uniform(-np.pi, np.pi),
+                     rng.uniform(-np.pi, np.pi)])
+
+
+def _random_spd(rng: np.random.Generator) -> np.ndarray:
+    q, _ = np.linalg.qr(rng.normal(size=(5, 5)))
+    return q @ np.diag(10.0 ** rng.uniform(-3.0, 2.0, 5)) @ q.T
+
+
+def _assert_close(grad: np.ndarray, ref: np.ndarray, a: float) -> None:
+    """Relative agreement 1e-9 per component (components below 1e-9 of the largest, in the
+    scaled units a → a·∂/∂a, are compared against that largest one)."""
+    scale = np.array([a, 1.0, 1.0, 1.0, 1.0])
+    big = np.max(np.abs(ref * scale))
+    floor = 1e-9 * big
+    assert np.all(np.abs(grad - ref) * scale <= 1e-9 * np.maximum(np.abs(ref) * scale, floor))
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_analytic_gradient_matches_complex_step_on_random_states(case: str) -> None:
+    rng = np.random.default_rng(CASES.index(case))
+    prob = qlaw.make_problem(case, {})
+    g = np.empty(5)
+    g_ref = np.empty(5)
+    for sides in (2, 1):
+        for a_cap in (0.0, 60000.0):
+            prm = prob._prm.copy()
+            prm[lt.I_SIDES] = sides
+            prm[lt.I_ACAP] = a_cap
+            for _ in range(60):
+                oe = _random_state(rng)
+                K = _random_spd(rng)
+                F = rng.uniform(1e-7, 1e-5)
+                q = lt.qlaw_gradient(oe, F, prob._oeT, prob._sel, K, prm, g)
+                q_ref = lt.qlaw_gradient_cs(oe, F, prob._oeT, prob._sel, K, prm, g_ref)
+                assert q == pytest.approx(q_ref, rel=1e-12)
+                _assert_close(g, g_ref, oe[0])
+
+
+def test_analytic_gradient_at_floors_and_cusps() -> None:
+    """e and i at or below their floors, i at π, ω where |sin ω| or |cos ω| has its cusp."""
+    prob = qlaw.make_problem("E", {})
+    g = np.empty(5)
+    g_ref = np.empty(5)
+    rng = np.random.default_rng(5)
+    for e in (0.0, 1e-5, 1e-4, 0.3, 0.95):
+        for inc in (0.0, 1e-5, 0.5, np.pi - 1e-5, np.pi):
+            for argp in (0.0, 0.5 * np.pi, np.pi, -0.5 * np.pi, 1.0):
+                oe = np.array([30000.0, e, inc, 1.0, argp])
+                K = _random_spd(rng)
+                q = lt.qlaw_gradient(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g)
+                q_ref = lt.qlaw_gradient_cs(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g_ref)
+                assert np.all(np.isfinite(g))
+                assert q == pytest.approx(q_ref, rel=1e-12)
+                _assert_close(g, g_ref, oe[0])
+
+
+def test_selector_drops_untargeted_elements() -> None:
+    """Two-sided selector: K entries on untargeted elements change neither Q nor ∇Q."""
+    prob = qlaw.make_problem("A", {})
+    rng = np.random.default_rng(2)
+    oe = _random_state(rng)
+    K = _random_spd(rng)
+    K2 = K.copy()
+    K2[2:, :] *= 3.0
+    K2[:, 2:] *= 3.0
+    g, g2 = np.empty(5), np.empty(5)
+    q = lt.qlaw_gradient(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g)
+    q2 = lt.qlaw_gradient(oe, 1e-6, prob._oeT, prob._sel, K2, prob._prm, g2)
+    assert q == q2 and np.array_equal(g, g2)
+    assert np.all(g[2:] == 0.0)
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_effectivity_extremes_match_golden_reference(case: str) -> None:
+    rng = np.random.default_rng(10 + CASES.index(case))
+    prob = qlaw.make_problem(case, {})
+    B = np.empty((5, 3))
+    g = np.empty(5)
+    for _ in range(100):
+        oe = _random_state(rng)
+        oe[1] = max(oe[1], 1e-4)
+        oe[2] = min(max(oe[2], 1e-4), np.pi - 1e-4)
+        lt.qlaw_gradient(oe, 1e-6, prob._oeT, prob._sel, _random_spd(rng), prob._prm, g)
+        gmax, gmin = lt.effectivity_extremes(oe[0], oe[1], oe[2], oe[4], g, 36, B)
+        rmax, rmin = lt.effectivity_extremes_golden(oe[0], oe[1], oe[2], oe[4], g, 36, B)
+        assert abs(gmax - rmax) <= 1e-9 * rmax
+        assert abs(gmin - rmin) <= 1e-9 * rmax
+
+
+def test_effectivity_finds_shallow_extreme_between_grid_points() -> None:
+    """Two shallow minima between neighbouring grid points: the search still finds the lower."""
+    g = np.array([-1.0653170585779974e10, -2.7425008335764819e14, 0.0, 0.0, 0.0])
+    B = np.empty((5, 3))
+    a, e, inc, argp = 21425.764093765116, 0.34556046077103819, 2.1916231557485637, -0.3927082
+    nus = np.linspace(0.0, 2.0 * np.pi, 200001)
+    dense = np.array([np.linalg.norm(B.T @ g) for nu in nus
+                      if lt.gauss_matrix(a, e, inc, argp, nu, B) is None])
+    gmax, gmin = lt.effectivity_extremes(a, e, inc, argp, g, 36, B)
+    assert gmax == pytest.approx(dense.max(), rel=1e-9)
+    assert gmin == pytest.approx(dense.min(), rel=1e-8)
+
+
+def test_reference_kernel_mode_gives_the_same_transfer() -> None:
+    """prm[I_GRAD] = GRAD_COMPLEX runs the complex-step law through the same loop."""
+    for objective in ("min_time", "min_fuel"):
+        prob = qlaw.make_problem("C", {"objective": objective, "eta_cut": 0.3})
+        fast = prob.evaluate({"K": np.eye(5)})
+        prob._prm[lt.I_GRAD] = lt.GRAD_COMPLEX
+        ref = prob.evaluate({"K": np.eye(5)})
+        assert fast["status"] == ref["status"] == "converged"
+        assert abs(fast["tof_days"] - ref["tof_days"]) <= 0.01
+        assert fast["final_mass_kg"] == pytest.approx(ref["final_mass_kg"], abs=0.05)
+
+
+@pytest.mark.parametrize("module", [qlaw, lyapunov_transfer])
+def test_no_progress_status_and_off_switch(module) -> None:
+    strict = {"no_progress_revs": 1.0, "no_progress_frac": 0.9}
+    prob = module.make_problem("A", strict)
+    res = prob.evaluate({"K": np.eye(5)})
+    assert res["status"] == "no_progress" and not res["converged"]
+    assert res["revolutions"] == pytest.approx(1.0, abs=0.1)
+    assert res["cost"] > prob.params.tof_cap_days
+    batch = prob.evaluate_batch({"K": np.eye(5)[None]})
+    assert batch.status[0] == "no_progress"
+    off = module.make_problem("A", {**strict, "no_progress_revs": 0.0})
+    assert off.evaluate({"K": np.eye(5)})["status"] == "converged"
+
+
+@pytest.mark.parametrize(("key", "value"), [("no_progress_revs", -1.0),
+                                            ("no_progress_frac", 1.0),
+                                            ("no_progress_frac", -0.1)])
+def test_no_progress_config_errors(key: str, value: float) -> None:
+    for module in (qlaw, lyapunov_transfer):
+        with pytest.raises(ConfigError) as exc:
+            module.make_problem("A", {key: value})
+        assert exc.value.key == f"problem.params.{key}"
+
+
+@settings(max_examples=200)
+@given(a=st.floats(6600.0, 2e5), e=st.floats(0.0, 0.97), inc=st.floats(0.0, np.pi),
+       raan=st.floats(-np.pi, np.pi), argp=st.floats(-np.pi, np.pi),
+       eig=st.lists(st.floats(-3.0, 2.0), min_size=5, max_size=5),
+       seed=st.integers(0, 2**31), case=st.sampled_from(CASES), sides=st.sampled_from([1, 2]))
+def test_gradient_property_matches_complex_step(a, e, inc, raan, argp, eig, seed, case, sides):
+    prob = qlaw.make_problem(case, {"selector_sides": sides})
+    q, _ = np.linalg.qr(np.random.default_rng(seed).normal(size=(5, 5)))
+    K = q @ np.diag(10.0 ** np.array(eig)) @ q.T
+    oe = np.array([a, e, inc, raan, argp])
+    g, g_ref = np.empty(5), np.empty(5)
+    val = lt.qlaw_gradient(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g)
+    ref = lt.qlaw_gradient_cs(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g_ref)
+    assert val == pytest.approx(ref, rel=1e-12)
+    _assert_close(g, g_ref, a)

@@ -1,0 +1,107 @@
+"""Best-known optima: converged starts only, certification rules, improvement, shortfall."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from penaltyrun.report.bestknown import (
+    best_known,
+    family,
+    improvement,
+    reference,
+    shortfall,
+    within,
+)
+
+
+def job(param, optimizer, cost, status="ok", variant="", job_id=None, pv=""):
+    return {"problem": "toy", "case": "c1", "problem_variant": pv, "variant": variant,
+            "param": param, "optimizer": optimizer, "best_cost": cost, "status": status,
+            "best_converged": status == "ok", "job_id": job_id or f"{param}-{optimizer}-{cost}",
+            "matrices": json.dumps({"K": [[cost, 0.0], [0.0, 1.0]]})}
+
+
+def bk_row(bk, fam, pv=""):
+    sel = bk[(bk["family"] == fam) & (bk["problem_variant"] == pv)]
+    assert len(sel) == 1
+    return sel.iloc[0]
+
+
+def test_family_and_within():
+    assert family("diagonal") == "diagonal"
+    assert {family(m) for m in ("full", "geagsp", "givens", "cayley")} == {"full"}
+    assert within(1.0001, 1.0) and not within(1.00011, 1.0)
+    assert within(-1.0001, -1.0)  # relative to |ref|
+
+
+def test_best_known_takes_converged_non_baseline_starts_of_every_full_map():
+    df = pd.DataFrame([
+        job("diagonal", "pso", 5.0), job("diagonal", "de", 4.0),
+        job("diagonal", "pso", 0.1, status="diverged"),  # not a cost
+        job("diagonal", "baseline", 3.0),  # K = I is not a search
+        job("geagsp", "pso", 2.0), job("givens", "de", 1.5, job_id="the-best"),
+        job("cayley", "cmaes", 1.6),
+    ])
+    bk = best_known(df)
+    d, f = bk_row(bk, "diagonal"), bk_row(bk, "full")
+    assert (d["best_known"], d["optimizer"], d["n_converged"]) == (4.0, "de", 2)
+    assert (f["best_known"], f["param"], f["job_id"]) == (1.5, "givens", "the-best")
+    assert json.loads(f["matrices"]) == {"K": [[1.5, 0.0], [0.0, 1.0]]}
+    assert (d["best_pso"], d["best_de"]) == (5.0, 4.0)
+    assert not d["certified"] and not f["certified"]  # 4.0 vs 5.0, 1.5 vs 1.6: no agreement
+    assert reference(bk, "toy", "c1", "", "full") == 1.5
+
+
+@pytest.mark.parametrize("costs, certified, by", [
+    ({"grid": 4.0}, True, "grid"),  # the exhaustive optimizer found it
+    ({"pso": 4.0, "grid": 4.0003}, True, "pso"),  # the grid is 7.5e-5 above: reached
+    ({"pso": 4.0, "de": 4.0 * (1 + 0.9e-4)}, True, "pso, de"),  # two optimizers agree
+    ({"pso": 4.0, "de": 4.0 * (1 + 2e-4)}, False, "—"),  # too far apart
+    ({"pso": 4.0}, False, "—"),  # one optimizer, however many starts
+    ({"grid": 4.002, "pso": 4.0}, False, "—"),  # the grid did not reach it
+])
+def test_certification_rules(costs, certified, by):
+    data = [job("diagonal", o, c) for o, c in costs.items()]
+    data += [job("diagonal", "pso", 4.0, job_id="second-pso-start")]
+    row = bk_row(best_known(pd.DataFrame(data)), "diagonal")
+    assert row["certified"] == certified
+    if certified:
+        assert set(row["certified_by"].split(" (")[0].split(", ")) >= set(by.split(", "))
+    else:
+        assert row["certified_by"] == "—"
+
+
+def test_problem_variants_have_their_own_best_known_but_budgets_do_not():
+    df = pd.DataFrame([job("diagonal", "pso", 4.0, variant="max_evals=300"),
+                       job("diagonal", "pso", 5.0),
+                       job("diagonal", "pso", 9.0, pv="t_max=500", variant="t_max=500")])
+    bk = best_known(df)
+    assert bk_row(bk, "diagonal")["best_known"] == 4.0
+    assert bk_row(bk, "diagonal", "t_max=500")["best_known"] == 9.0
+
+
+def test_improvement_is_best_known_full_vs_best_known_diagonal():
+    df = pd.DataFrame([job("diagonal", "grid", 4.0), job("diagonal", "pso", 4.5),
+                       job("geagsp", "pso", 3.0)])
+    imp = improvement(best_known(df)).iloc[0]
+    assert imp["improvement_pct"] == pytest.approx(25.0)
+    assert imp["diagonal_certified"] and not imp["full_certified"]
+    assert imp["full_by"] == "pso / geagsp"
+    assert improvement(best_known(pd.DataFrame([job("diagonal", "pso", 1.0)]))).empty
+
+
+def test_shortfall_is_the_gap_to_the_family_best_known():
+    df = pd.DataFrame([job("diagonal", "grid", 4.0), job("diagonal", "pso", 5.0),
+                       job("diagonal", "pso", 6.0), job("diagonal", "pso", 1.0, "diverged"),
+                       job("geagsp", "pso", 3.0)])
+    gaps = shortfall(df, best_known(df)).set_index(["optimizer", "param"])
+    pso = gaps.loc[("pso", "diagonal")]
+    assert (pso["n_jobs"], pso["n_converged"]) == (3, 2)
+    assert pso["gap_best_pct"] == pytest.approx(25.0)
+    assert pso["gap_median_pct"] == pytest.approx(37.5)
+    assert not pso["reached_best_known"]
+    assert gaps.loc[("grid", "diagonal"), "gap_best_pct"] == 0.0
+    assert gaps.loc[("pso", "geagsp"), "best_known"] == 3.0  # the full family's value

@@ -1,0 +1,103 @@
+"""Map-vs-map comparisons: two-sided MWU and A12 per optimizer and variant, Holm over all."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats as sps
+
+from penaltyrun.report.compare import full_worse_rows, map_order, pairwise
+from penaltyrun.report.stats import a12, holm
+
+PENALTY = 1000.0
+
+
+def rows(param, costs, optimizer="pso", variant="", statuses=None):
+    statuses = statuses or ["ok"] * len(costs)
+    return [{"problem": "toy", "case": "c1", "variant": variant, "optimizer": optimizer,
+             "param": param, "best_cost": c, "status": s, "best_converged": s == "ok"}
+            for c, s in zip(costs, statuses)]
+
+
+COSTS = {"diagonal": [4.0, 5.0, 6.0, 9.0], "geagsp": [1.0, 2.0, 3.0, 6.0],
+         "givens": [5.0, 7.0, 8.0], "cayley": [2.0, 2.5, 7.0]}
+
+
+@pytest.fixture
+def frame():
+    data = [r for m, c in COSTS.items() for r in rows(m, c)]
+    # diverged starts with penalty costs: they would change every test if they entered
+    data += rows("diagonal", [PENALTY, PENALTY], statuses=["diverged"] * 2)
+    data += rows("geagsp", [PENALTY], statuses=["diverged"])
+    # a second optimizer and a warm-start variant, never pooled with the pso rows
+    data += rows("diagonal", [100.0, 101.0], optimizer="de")
+    data += rows("geagsp", [50.0, 51.0, 52.0], optimizer="de")
+    data += rows("geagsp", [0.5, 0.6], variant="warm_start=0.3")
+    return pd.DataFrame(data)
+
+
+def test_map_order():
+    assert map_order(["cayley", "zeta", "diagonal", "givens", "geagsp"]) == \
+        ["diagonal", "geagsp", "givens", "cayley", "zeta"]
+
+
+def test_every_pair_of_maps_within_one_optimizer_and_variant(frame):
+    c = pairwise(frame)
+    pso = c[(c["optimizer"] == "pso") & (c["variant"] == "")]
+    expected = list(itertools.combinations(["diagonal", "geagsp", "givens", "cayley"], 2))
+    assert list(zip(pso["map_a"], pso["map_b"])) == expected
+    de = c[c["optimizer"] == "de"]
+    assert list(zip(de["map_a"], de["map_b"])) == [("diagonal", "geagsp")]
+    assert (de["n_a"].iloc[0], de["n_b"].iloc[0]) == (2, 3)
+    assert de["median_a"].iloc[0] == 100.5  # de costs only
+    # the warm-start variant has one map only: nothing to compare, and it is not pooled
+    assert not (c["variant"] == "warm_start=0.3").any()
+    assert len(c) == 7
+
+
+def test_statistics_of_one_pair_use_converged_costs_only(frame):
+    c = pairwise(frame)
+    r = c[(c["optimizer"] == "pso") & (c["map_a"] == "diagonal")
+          & (c["map_b"] == "geagsp")].iloc[0]
+    d, g = COSTS["diagonal"], COSTS["geagsp"]
+    assert (r["n_a"], r["n_b"]) == (4, 4)
+    assert r["success_a"] == pytest.approx(4 / 6) and r["success_b"] == pytest.approx(0.8)
+    assert (r["median_a"], r["median_b"]) == (5.5, 2.5)
+    assert r["median_change_pct"] == pytest.approx(100 * 3 / 5.5)
+    assert r["p_mwu"] == pytest.approx(sps.mannwhitneyu(d, g, alternative="two-sided").pvalue)
+    # A12 = P(a geagsp start beats a diagonal start) + ½ ties: geagsp 1, 2, 3 beat all four
+    # diagonal starts (12 pairs), 6 beats 9 and ties 6 → (13 + ½)/16
+    assert r["a12_b_beats_a"] == pytest.approx(13.5 / 16) == pytest.approx(a12(d, g))
+    assert r["a12_magnitude"] == "large"
+    assert r["note"] == "underpowered (n < 10)"
+
+
+def test_holm_over_every_comparison_of_the_report(frame):
+    c = pairwise(frame)
+    assert c["p_holm"].to_numpy() == pytest.approx(holm(c["p_mwu"].to_numpy()), nan_ok=True)
+    assert (c["p_holm"] >= c["p_mwu"]).all()
+
+
+def test_enough_starts_are_not_underpowered_and_one_start_is_no_test():
+    rng = np.random.default_rng(0)
+    data = rows("diagonal", list(rng.normal(10, 1, 12))) + rows("geagsp", list(rng.normal(
+        9, 1, 10))) + rows("diagonal", [3.0], optimizer="grid") + rows("geagsp", [2.0],
+                                                                      optimizer="grid")
+    c = pairwise(pd.DataFrame(data))
+    pso = c[c["optimizer"] == "pso"].iloc[0]
+    assert pso["note"] == "" and np.isfinite(pso["p_holm"])
+    grid = c[c["optimizer"] == "grid"].iloc[0]
+    assert math.isnan(grid["p_mwu"]) and math.isnan(grid["p_holm"])
+    assert "no test" in grid["note"]
+    assert pso["p_holm"] == pytest.approx(pso["p_mwu"])  # a family of one test
+
+
+def test_full_worse_rows_name_the_full_map(frame):
+    worse = full_worse_rows(pairwise(frame))
+    # best givens 5.0 > best diagonal 4.0; best geagsp 1.0 and cayley 2.0 are lower
+    assert worse["full_map"].tolist() == ["givens"]
+    assert (worse["full_best"].iloc[0], worse["diag_best"].iloc[0]) == (5.0, 4.0)

@@ -1,0 +1,99 @@
+"""Report figures: one panel per optimizer (never pooled), converged costs only, units."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+import pytest
+
+from penaltyrun.report import figures
+from penaltyrun.report.bestknown import best_known
+from penaltyrun.report.units import cost_label
+
+PENALTY = 1000.0
+
+
+def job(param, optimizer, cost, status="ok", trace=True):
+    return {"problem": "toy", "case": "c1", "problem_variant": "", "variant": "",
+            "param": param, "optimizer": optimizer, "status": status,
+            "best_converged": status == "ok", "best_cost": cost,
+            "trace_evals": [5, 50] if trace else None,
+            "trace_best": [cost * 3, cost] if trace else None, "n_evals": 50,
+            "job_id": f"{param}-{optimizer}-{cost}", "matrices": "{}"}
+
+
+@pytest.fixture
+def frame():
+    return pd.DataFrame([job("diagonal", "pso", c) for c in (4.0, 5.0, 6.0)]
+                        + [job("diagonal", "pso", PENALTY, "diverged")]
+                        + [job("geagsp", "pso", c) for c in (3.0, 3.5)]
+                        + [job("diagonal", "de", c) for c in (4.0, 4.1)]
+                        + [job("geagsp", "de", c) for c in (2.0, 2.5, 2.6, 2.7)])
+
+
+@pytest.fixture
+def kept(monkeypatch):
+    """Keep the figures open so that their panels can be inspected."""
+    plt.close("all")
+    monkeypatch.setattr(figures.plt, "close", lambda fig=None: None)
+    yield lambda: [plt.figure(n) for n in plt.get_fignums()]
+    plt.close("all")
+
+
+def legends(ax):
+    return [t.get_text() for t in ax.get_legend().get_texts()]
+
+
+def test_anytime_has_one_panel_per_optimizer(frame, kept, tmp_path):
+    path = figures.anytime(frame, best_known(frame), "J (unit)", "toy", tmp_path / "a.png")
+    assert path.stat().st_size > 0
+    (fig,) = kept()
+    axes = [ax for ax in fig.axes if ax.get_title()]
+    assert [ax.get_title() for ax in axes] == ["de", "pso"]
+    assert legends(axes[0]) == ["diagonal (median of 2)", "geagsp (median of 4)",
+                                "best-known diagonal"]
+    assert legends(axes[1]) == ["diagonal (median of 4)", "geagsp (median of 2)",
+                                "best-known diagonal"]
+    assert axes[0].get_xscale() == "log" and axes[0].get_yscale() == "log"
+    assert "J (unit)" in axes[0].get_ylabel()
+
+
+def test_ecdf_has_one_panel_per_optimizer_and_target(frame, kept, tmp_path):
+    figures.ecdf_figure(frame, best_known(frame), "toy", tmp_path / "e.png")
+    (fig,) = kept()
+    titles = [ax.get_title() for ax in fig.axes]
+    assert titles == ["de, target f*·(1 + 0.01)", "pso, target f*·(1 + 0.01)",
+                      "de, target f*·(1 + 0.001)", "pso, target f*·(1 + 0.001)"]
+    assert legends(fig.axes[1]) == ["diagonal (n = 4)", "geagsp (n = 2)"]
+
+
+def test_cost_distribution_per_optimizer_without_penalties(frame, kept, tmp_path):
+    figures.cost_distribution(frame, "J (unit)", "toy", tmp_path / "c.png")
+    (fig,) = kept()
+    axes = fig.axes
+    assert [ax.get_title().split(" ")[0] for ax in axes] == ["de", "pso"]
+    assert [t.get_text() for t in axes[1].get_xticklabels()] == ["diagonal\n3/4",
+                                                                 "geagsp\n2/2"]
+    points = np.concatenate([c.get_offsets()[:, 1] for ax in axes for c in ax.collections])
+    assert sorted(points) == sorted([4.0, 5.0, 6.0, 3.0, 3.5, 4.0, 4.1, 2.0, 2.5, 2.6, 2.7])
+    assert PENALTY not in points
+
+
+def test_anytime_and_ecdf_skip_results_without_traces(frame, tmp_path):
+    old = frame.assign(trace_evals=None, trace_best=None)
+    assert figures.anytime(old, best_known(old), "J", "toy", tmp_path / "a.png") is None
+    assert figures.ecdf_figure(old, best_known(old), "toy", tmp_path / "e.png") is None
+
+
+@pytest.mark.parametrize("problem, params, case, label", [
+    ("zermelo", None, "default", "J = ∫½‖u‖² dt (nondimensional)"),
+    ("attitude_lqr", "{}", "detumble", "J = ∫½‖u‖² dt (N²·m²·s)"),
+    ("attitude_lyapunov", None, None, "J = ∫½‖u‖² dt (N²·m²·s)"),
+    ("qlaw", "{}", "C", "time of flight (days)"),
+    ("qlaw", '{"objective": "min_fuel"}', "Estar", "propellant used (kg)"),
+    ("lyapunov_transfer", None, "B", "time of flight (days)"),
+    ("cartpole", None, None, "best cost (problem units)"),
+])
+def test_cost_labels_say_the_unit(problem, params, case, label):
+    assert cost_label(problem, params, case) == label

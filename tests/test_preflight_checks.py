@@ -1,0 +1,53 @@
+"""Preflight checks of a composed config (penaltyrun/checks.py)."""
+
+import pytest
+
+from penaltyrun import checks
+from penaltyrun.errors import ConfigError
+
+
+def test_run_dir_checks(tmp_path):
+    checks.check_run_dir(tmp_path / "a" / "b")
+    assert list(tmp_path.iterdir()) == []  # nothing left behind
+    checks.check_run_dir(tmp_path)
+    (tmp_path / "file").write_text("")
+    with pytest.raises(ConfigError, match="is a file"):
+        checks.check_run_dir(tmp_path / "file" / "run")
+    with pytest.raises(ConfigError, match="not a directory"):
+        checks.check_run_dir(tmp_path / "file")
+    with pytest.raises(ConfigError, match="hydra.run.dir: cannot create"):
+        checks.check_run_dir("/proc/penaltyrun-test/run")
+
+
+def test_unknown_and_deleted_keys():
+    base = {"runner": {"seed": 1, "workers": 1}, "matrices": {"K": None}}
+    checks.check_known_keys({"runner": {"seed": 2, "workers": 1},
+                             "matrices": {"K": None, "P": [[1]]}}, base)
+    with pytest.raises(ConfigError, match="runner.foo: unknown config key"):
+        checks.check_known_keys({"runner": {"seed": 1, "workers": 1, "foo": 1},
+                                 "matrices": {}}, base)
+    with pytest.raises(ConfigError, match="runner.workers: is required"):
+        checks.check_known_keys({"runner": {"seed": 1}, "matrices": {}}, base)
+
+
+@pytest.mark.parametrize(("values", "fragment"), [
+    ({"x0": "abc"}, "list of 2 numbers"), ({"x0": [1, 2, 3]}, "list of 2 numbers"),
+    ({"t_max": True}, "a number"), ({"t_max": "1"}, "a number"), ({"flag": 1}, "true or"),
+])
+def test_problem_params_like_defaults(values, fragment):
+    defaults = {"x0": [0.0, 1.0], "t_max": 10.0, "flag": False, "free": None}
+    checks.check_like_defaults({"x0": [1, 2], "t_max": 3, "free": "x"}, defaults, "p")
+    with pytest.raises(ConfigError, match=fragment):
+        checks.check_like_defaults(values, defaults, "p")
+
+
+def test_report_and_param_options():
+    checks.check_report_options({"input": None, "output": "x", "paper": True})
+    with pytest.raises(ConfigError, match="report.paper"):
+        checks.check_report_options({"paper": "maybe"})
+    with pytest.raises(ConfigError, match="report.nope"):
+        checks.check_report_options({"nope": 1})
+    checks.check_param_options({"eig_bounds": None, "cayley_bound": 100.0})
+    for bad in ({"eig_bounds": [2, 1]}, {"eig_bounds": "x"}, {"cayley_bound": 0}):
+        with pytest.raises(ConfigError):
+            checks.check_param_options(bad)

@@ -188,7 +188,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
     if base is not None:
         check_like_defaults(params, plain(base.problem.get("params")) or {}, "problem.params")
     prob = _checked("problem.params", problems.make, cfg.problem.name, cfg.get("case"),
-                    params)
+                    params, cfg.problem.get("module") or None)
     if mode == "optimize":
         _checked("param", runner.build_layout, prob, cfg.param.name, _options(cfg, "param"))
 

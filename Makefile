@@ -18,7 +18,7 @@ PIP ?= $(PYTHON) -m pip
 PYTEST_ARGS ?=
 WORKERS ?= 2
 
-.PHONY: help venv install install-dev run test test-slow lint bench reproduce-tables \
+.PHONY: help venv install install-dev run test test-slow test-reference lint bench reproduce-tables \
 	reproduce-zermelo reproduce-attitude reproduce-lowthrust referee-zermelo referee-attitude report clean
 
 help:  ## list targets
@@ -49,6 +49,9 @@ test: install-dev  ## run the default test suite (slow tests excluded)
 
 test-slow: install-dev  ## run only the long tests
 	$(PYTHON) -m pytest -q -m slow $(PYTEST_ARGS)
+
+test-reference: install-dev  ## run the very long reference checks (hours; not in CI)
+	$(PYTHON) -m pytest -q -m reference $(PYTEST_ARGS)
 
 lint: install-dev  ## ruff
 	$(PYTHON) -m ruff check penaltyrun tests bench examples

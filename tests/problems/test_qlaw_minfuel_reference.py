@@ -126,7 +126,7 @@ def test_case_c_relative_effectivity_matches_reference():
     check("C", 0.3, "eta_r")
 
 
-@pytest.mark.slow
+@pytest.mark.reference
 @pytest.mark.parametrize("eta_cut", [0.3, 0.6])
 def test_case_a_min_fuel_matches_reference(eta_cut):
     check("A", eta_cut)

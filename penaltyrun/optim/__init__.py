@@ -38,9 +38,6 @@ OPTIMIZERS = {"pso": (PSOSettings, run_pso), "de": (DESettings, run_de),
               "baseline": (BaselineSettings, run_baseline),
               "pso_matlab": (PSOMatlabSettings, run_pso_matlab)}
 
-_POSITIVE_INT = ("n_particles", "iters", "popsize", "ftol_iter")
-
-
 Settings = (PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
             | PSOMatlabSettings)
 
@@ -71,13 +68,6 @@ def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
     hints = settings_hints(cls)
     values = {k: coerce_field(f"optimizer.{k}", v, hints.get(k, Any))
               for k, v in options.items()}
-    for key in _POSITIVE_INT:
-        value = values.get(key)
-        if key in values and value is None and key == "popsize" and name == "cmaes":
-            continue
-        if key in values and (not isinstance(value, int) or value < 1):
-            raise ConfigError(f"optimizer.{key}", f"must be a positive integer, got "
-                              f"{options[key]!r}")
     try:
         settings = cls(**values)
     except TypeError as exc:

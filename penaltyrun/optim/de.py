@@ -22,6 +22,7 @@ from penaltyrun.optim.base import (
     OptimResult,
     as_counting,
     main_budget,
+    require_int,
 )
 from penaltyrun.optim.checks import check_range
 
@@ -56,7 +57,7 @@ class DESettings(CommonSettings):
         """Check ranges (and the shared fields)."""
         super().validate()
         for key in ("popsize", "iters"):
-            check_range(f"optimizer.{key}", getattr(self, key), 1)
+            require_int(key, getattr(self, key), 1)
         check_range("optimizer.tol", self.tol, 0.0)
         lo, hi = self.mutation
         if not 0.0 <= lo <= hi <= 2.0:

@@ -47,6 +47,7 @@ from penaltyrun.optim.base import (  # noqa: E402  (after the quiet pyswarms imp
     OptimResult,
     as_counting,
     main_budget,
+    require_int,
 )
 from penaltyrun.optim.checks import check_choice, check_range  # noqa: E402
 
@@ -112,7 +113,7 @@ class PSOSettings(CommonSettings):
         """
         super().validate()
         for key in ("n_particles", "iters", "ftol_iter"):
-            check_range(f"optimizer.{key}", getattr(self, key), 1)
+            require_int(key, getattr(self, key), 1)
         for key in ("c1", "c2", "w", "ftol"):
             check_range(f"optimizer.{key}", getattr(self, key), 0.0)
         check_choice("optimizer.bh_strategy", self.bh_strategy, BH_STRATEGIES)

@@ -1,6 +1,6 @@
 """Preflight checks of a composed config, before Hydra creates a run directory.
 
-Called by :func:`penaltyrun.cli.preflight` on the config composed from the command line:
+Called by :func:`penaltyrun.preflight.preflight` on the config composed from the command line:
 every option's type and range (runner, report, optimizer, parameterization, problem, case),
 keys that the shipped config does not know (``+foo=1``), the run directory (can it be
 created?) and, for the dask backend, the scheduler (can it be reached?). Each problem is

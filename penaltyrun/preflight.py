@@ -1,0 +1,124 @@
+"""Checks of the command line before Hydra runs, so every mistake is one clear line.
+
+:func:`preflight` parses the overrides, checks config-group choices against the files Hydra
+will search (penaltyrun's ``conf/`` and the user's directories) and composes the config once
+to catch unknown keys and type errors; :mod:`penaltyrun.checks` checks the values.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from penaltyrun import checks, userconf
+from penaltyrun.errors import ConfigError
+
+GROUPS = ("problem", "param", "optimizer", "experiment")
+#: Hydra settings the preflight needs to check the run directory.
+RUN_DIR_KEYS = ("hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir")
+
+
+def _searchpath(parsed: list[Any]) -> tuple[list[str], list[str]]:
+    """``hydra.searchpath`` overrides of the command line, and their entries."""
+    lines = [o.input_line for o in parsed if o.key_or_group == "hydra.searchpath"]
+    entries = []
+    for o in parsed:
+        if o.key_or_group == "hydra.searchpath" and not o.is_delete():
+            value = o.value()
+            entries += [str(v) for v in (value if isinstance(value, list) else [value])]
+    return lines, entries
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+    return " ".join(lines[:2]) if lines else type(exc).__name__
+
+
+def preflight(argv: list[str]) -> None:
+    """Check the command line before Hydra runs, so every mistake is one clear line.
+
+    Parses the overrides (syntax), checks config-group choices against the files Hydra
+    will search (penaltyrun's ``conf/`` and the user's directories), checks the YAML of
+    the chosen user files, then composes the config once (first value of each sweep) to
+    catch unknown keys and type errors.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key and, where there is a list, the allowed values.
+    """
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    source, argv = userconf.parse_source(argv)
+    args = [a for a in argv if ("=" in a or a.startswith("~")) and not a.startswith("-")]
+    parser = OverridesParser.create()
+    parsed = []
+    for arg in args:
+        try:
+            parsed.extend(parser.parse_overrides([arg]))
+        except HydraException as exc:
+            key = arg.split("=", 1)[0].lstrip("+~")
+            raise ConfigError(key, f"malformed override {arg!r}: {_first_line(exc)}") from None
+    hydra_overrides, searchpath = _searchpath(parsed)
+    with userconf.hydra_context(source):
+        _check_choices(parsed, source, hydra_overrides, searchpath)
+        _compose_dry(parsed, source, hydra_overrides,
+                     multirun="-m" in argv or "--multirun" in argv)
+
+
+def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
+                   hydra_overrides: list[str], searchpath: list[str]) -> None:
+    """Config-group choices against the files Hydra will find; chosen files' YAML."""
+    choices = []
+    for o in parsed:
+        if o.key_or_group not in GROUPS or o.is_delete():
+            continue
+        values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
+            [o.get_value_element_as_str()]
+        allowed = userconf.group_options(o.key_or_group, source, hydra_overrides)
+        for value in values:
+            if value not in allowed:
+                raise ConfigError(o.key_or_group, f"unknown choice {value!r}", allowed=allowed)
+            choices.append((o.key_or_group, value))
+    userconf.check_files(source, searchpath, choices)
+
+
+def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
+                 hydra_overrides: list[str], multirun: bool = False) -> None:
+    """Compose once (first value of each sweep) to catch unknown keys and type errors."""
+    from hydra import compose
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    dry = []
+    for o in parsed:
+        if o.key_or_group.startswith("hydra"):
+            if o.key_or_group in RUN_DIR_KEYS and not o.is_sweep_override():
+                dry.append(o.input_line)
+            continue
+        values = list(o.sweep_string_iterator()) if o.is_sweep_override() else \
+            [o.get_value_element_as_str()]
+        dry.append(o.input_line if not o.is_sweep_override()
+                   else f"{o.get_key_element()}={values[0]}")
+    dry += hydra_overrides
+    name = source.config_name
+    try:
+        cfg = compose(config_name=name, overrides=dry, return_hydra_config=True)
+    except (HydraException, OmegaConfBaseException) as exc:
+        hits = [o for o in parsed if o.key_or_group in str(exc)]
+        bad = max(hits, key=lambda o: len(o.key_or_group)) if hits else None
+        key = bad.key_or_group if bad else "override"
+        if "Could not override" not in str(exc) or bad is None:
+            raise ConfigError(key, _first_line(exc)) from None
+        groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
+        parent = OmegaConf.select(compose(config_name=name, overrides=groups + hydra_overrides),
+                                  key.rpartition(".")[0] or "")
+        allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
+        raise ConfigError(key, "unknown config key", allowed=allowed) from None
+    groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
+    base = compose(config_name=name, overrides=groups + hydra_overrides)
+    checks.check_composed(cfg, base, multirun=multirun)
+    for variant in checks.sweep_variants(parsed, dry):
+        checks.check_variant(compose, variant, config_name=name)

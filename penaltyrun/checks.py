@@ -108,8 +108,8 @@ def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
 def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
                         prefix: str) -> None:
     """Check values against the type of the shipped default of the same key: a number
-    for a number, true/false for a boolean, a list of the same length for a list (a
-    ``null`` default accepts anything; the problem checks it)."""
+    for a number, true/false for a boolean, a list of as many numbers for a list of numbers,
+    a list for any other list (a ``null`` default accepts anything; the problem checks it)."""
     for key, default in defaults.items():
         value = values.get(key, default)
         if default is None or value is None:
@@ -119,6 +119,8 @@ def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
         elif isinstance(default, (int, float)):
             ok = isinstance(value, (int, float)) and not isinstance(value, bool)
             what = "a number"
+        elif isinstance(default, list) and not all(_is_number(v) for v in default):
+            ok, what = isinstance(value, list), "a list"
         elif isinstance(default, list):
             ok = isinstance(value, list) and len(value) == len(default) and all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
@@ -127,6 +129,10 @@ def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
             continue
         if not ok:
             raise ConfigError(f"{prefix}.{key}", f"must be {what}, got {value!r}")
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def check_param_options(options: Mapping[str, Any]) -> None:

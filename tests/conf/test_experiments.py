@@ -21,6 +21,15 @@ def test_profile_composes(name):
     assert cfg.problem.name in problems.available()
 
 
+@pytest.mark.parametrize("name", sorted(p.stem for p in (CONF / "experiment").glob("*.yaml")))
+def test_profile_passes_the_preflight(name):
+    """The command line's checks accept every shipped profile (a profile's list of scenario
+    mappings once failed the list-of-numbers check and no study of it could start)."""
+    from penaltyrun.preflight import preflight
+
+    preflight(["-m", f"+experiment={name}"])
+
+
 def test_acc_attitude_profile():
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = compose(config_name="config", overrides=["+experiment=acc_attitude"],

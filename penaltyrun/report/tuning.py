@@ -99,7 +99,8 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     DataFrame
-        ``problem``, ``case``, ``setting``, ``optimizer``, ``max_evals``, ``full_map`` and,
+        ``problem``, ``case``, ``setting`` (the variant label of :func:`penaltyrun.report.
+        stats.add_variant` where present), ``optimizer``, ``max_evals``, ``full_map`` and,
         per tuning mode M (``single`` first), ``M: pairs``, ``M: median impr. %``,
         ``M: full better``, ``M: Wilcoxon p``, ``M: note``. Empty when no set-up has both.
     """
@@ -114,7 +115,7 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
             continue
         for full_map in sorted(p for p in g["param"].unique() if p != "diagonal"):
             row: dict[str, Any] = {"problem": problem, "case": case,
-                                   "setting": g["setting"].iloc[0], "optimizer": optimizer,
+                                   "setting": _shown(g), "optimizer": optimizer,
                                    "max_evals": g["max_evals"].iloc[0] if "max_evals" in g
                                    else None, "full_map": full_map}
             found = False
@@ -127,6 +128,15 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
             if found:
                 rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _shown(g: pd.DataFrame) -> str:
+    """The set-up as the report names it: the single-scenario jobs' variant label (problem
+    parameters that differ from the case's defaults) when known, else every parameter."""
+    single = g[g["tuning"] == SINGLE]
+    if "variant" in single and single["variant"].notna().any():
+        return str(single["variant"].dropna().iloc[0]) or "—"
+    return str(single["setting"].iloc[0])
 
 
 def _paired(g: pd.DataFrame, full_map: str) -> dict[str, Any] | None:

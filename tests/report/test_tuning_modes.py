@@ -101,3 +101,12 @@ def test_two_training_sets_with_one_label_stay_apart(tmp_path):
     labels = set(tuning.with_modes(df)["tuning"])
     assert "single" in labels and len(labels) == 3
     assert all(lab.startswith("multi (mean of 2) #") for lab in labels - {"single"})
+
+
+def test_setting_shows_the_variant_label_when_known(tmp_path):
+    df = synthetic(tmp_path)
+    assert tuning.comparison(df).iloc[0]["setting"] == "—"  # no variant column: params, none
+    labelled = df.assign(variant="")
+    assert tuning.comparison(labelled).iloc[0]["setting"] == "—"
+    labelled = df.assign(variant="t_max=80.0")
+    assert tuning.comparison(labelled).iloc[0]["setting"] == "t_max=80.0"

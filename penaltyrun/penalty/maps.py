@@ -1,8 +1,10 @@
 """Parameterizations: decision vector z in a box → symmetric positive-definite matrix K.
 
 * ``diagonal``: K = diag(z), N variables.
-* ``geagsp`` (alias ``full``), ``givens``, ``cayley``: z = (λ_1..λ_N, angles_1..angles_M),
-  K = Q diag(λ) Qᵀ with Q from :mod:`penaltyrun.penalty.orthogonal`; N + N(N−1)/2 variables.
+* ``geagsp`` (alias ``full``), ``givens``, ``cayley``, ``cayley_tan``: z = (λ_1..λ_N,
+  angles_1..angles_M), K = Q diag(λ) Qᵀ with Q from :mod:`penaltyrun.penalty.orthogonal`;
+  N + N(N−1)/2 variables. ``cayley_tan`` is the Cayley map with skew entries tan θ,
+  θ ∈ [−(π/2 − 0.01), π/2 − 0.01] (the authors' companion study, spec attitude.md).
 
 Every map is a pure function of z and decodes whole batches: ``decode(Z)`` with Z of shape
 (B, dim) returns (B, N, N); a single vector (dim,) returns (N, N).
@@ -17,8 +19,10 @@ import numpy as np
 from penaltyrun.errors import ConfigError
 from penaltyrun.penalty import orthogonal as orth
 
-KINDS = ("diagonal", "full", "geagsp", "givens", "cayley")
+KINDS = ("diagonal", "full", "geagsp", "givens", "cayley", "cayley_tan")
 ALIASES = {"full": "geagsp"}
+#: Margin m of the Cayley-tan angles, θ ∈ [−(π/2 − m), π/2 − m] (entries |tan θ| ≤ ≈ 100).
+CAYLEY_TAN_MARGIN = 0.01
 
 
 @dataclass(frozen=True)
@@ -28,14 +32,15 @@ class Parameterization:
     Attributes
     ----------
     kind : str
-        ``diagonal``, ``geagsp``, ``givens`` or ``cayley`` (``full`` is resolved to
-        ``geagsp`` by :func:`make`).
+        ``diagonal``, ``geagsp``, ``givens``, ``cayley`` or ``cayley_tan`` (``full`` is
+        resolved to ``geagsp`` by :func:`make`).
     n : int
         Matrix dimension N.
     eig_bounds : tuple of float
         (lower, upper) bounds of the eigenvalues, 0 < lower < upper.
     cayley_bound : float
-        Bound b of the Cayley skew entries, each in [−b, b].
+        Bound b of the Cayley skew entries, each in [−b, b] (``cayley`` only; the
+        ``cayley_tan`` box is fixed by :data:`CAYLEY_TAN_MARGIN`).
     """
 
     kind: str
@@ -65,6 +70,9 @@ class Parameterization:
         elif self.kind == "cayley":
             b = float(self.cayley_bound)
             alb, aub = np.full(self.n_angles, -b), np.full(self.n_angles, b)
+        elif self.kind == "cayley_tan":
+            b = 0.5 * np.pi - CAYLEY_TAN_MARGIN
+            alb, aub = np.full(self.n_angles, -b), np.full(self.n_angles, b)
         else:
             alb = aub = np.zeros(0)
         return np.concatenate(lb + [alb]), np.concatenate(ub + [aub])
@@ -79,6 +87,8 @@ class Parameterization:
             return orth.geagsp_batch(angles, self.n)
         if self.kind == "givens":
             return orth.givens_batch(angles, self.n)
+        if self.kind == "cayley_tan":
+            return orth.cayley_batch(np.tan(angles), self.n)
         return orth.cayley_batch(angles, self.n)
 
     def decode(self, Z: np.ndarray) -> np.ndarray:
@@ -105,7 +115,7 @@ class Parameterization:
         ------
         ValueError
             If K is not representable (diagonal map and non-diagonal K; eigenvalues or
-            Cayley entries outside the bounds).
+            Cayley entries / Cayley-tan angles outside the bounds).
         """
         K = np.asarray(K, float)
         if self.kind == "diagonal":
@@ -118,6 +128,8 @@ class Parameterization:
                 angles = orth.geagsp_inverse(Q)
             elif self.kind == "givens":
                 angles = orth.givens_inverse(Q)
+            elif self.kind == "cayley_tan":
+                angles = np.arctan(orth.cayley_inverse(Q))
             else:
                 angles = orth.cayley_inverse(Q)
         z = np.concatenate([lam, angles])

@@ -21,7 +21,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from numbers import Integral, Real
-from typing import Any
+from types import MappingProxyType
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -107,6 +108,8 @@ class Params(ParamsMixin, TrainingParams):
         Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
 
+    HOLDOUT_OFF: ClassVar[Mapping[str, Any]] = MappingProxyType(
+        {"holdout_n": 0, "holdout_n_perturbed": 0})
     inertia: tuple = (10.0, 15.0, 20.0)
     attitude_type: str = "euler"
     attitude: tuple = (60.0, 80.0, -60.0)

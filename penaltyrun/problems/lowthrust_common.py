@@ -244,8 +244,12 @@ class LowThrustProblem:
         """
         from dataclasses import replace
 
-        drawn = holdout_set.departures(replace(self.params, holdout_n_perturbed=int(n),
-                                               holdout_seed=int(seed)))
+        try:
+            drawn = holdout_set.departures(replace(self.params, holdout_n_perturbed=int(n),
+                                                   holdout_seed=int(seed)))
+        except ConfigError as err:
+            raise ConfigError("problem.params.train_sample", "a seeded training departure "
+                              f"(drawn with the holdout_* sizes) is invalid: {err}") from None
         names = ("a0_km", "e0", "i0_deg", "Omega0_deg", "omega0_deg", "nu0_deg")
         return [{name: (v if k < 2 else v / DEG) for k, (name, v) in
                  enumerate(zip(names, sc.oe0))} for sc in drawn]

@@ -6,7 +6,8 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
-from typing import Any
+from types import MappingProxyType
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -65,7 +66,8 @@ class LowThrustParams(ParamsMixin, TrainingParams):
     Attributes
     ----------
     a0_km, e0, i0_deg, Omega0_deg, omega0_deg, nu0_deg : float
-        Initial Keplerian elements.
+        Initial Keplerian elements (km, -, deg); 0 ≤ e0 < 1 and the periapsis a0(1 − e0)
+        above the Earth's radius.
     a_target_km, e_target, i_target_deg, Omega_target_deg, omega_target_deg : float
         Target slow elements (only the ``targeted`` ones matter).
     targeted : tuple of str
@@ -119,6 +121,8 @@ class LowThrustParams(ParamsMixin, TrainingParams):
         Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
 
+    HOLDOUT_OFF: ClassVar[Mapping[str, Any]] = MappingProxyType(
+        {"holdout_n_perturbed": 0, "holdout_control_steps": (), "holdout_substeps": ()})
     a0_km: float = 7000.0
     e0: float = 0.01
     i0_deg: float = 0.05
@@ -183,6 +187,10 @@ class LowThrustParams(ParamsMixin, TrainingParams):
                 raise ConfigError(f"problem.params.{name}", "must be > 0")
         if not 0.0 <= self.e0 < 1.0 or not 0.0 <= self.e_target < 1.0:
             raise ConfigError("problem.params.e0", "eccentricities must be in [0, 1)")
+        periapsis = float(self.a0_km) * (1.0 - float(self.e0))
+        if periapsis <= lt.R_E:
+            raise ConfigError("problem.params.a0_km", f"departure periapsis a0(1 - e0) = "
+                              f"{periapsis:.6g} km is inside the Earth (R_E = {lt.R_E:g} km)")
         if self.thrust_newton < 0.0:
             raise ConfigError("problem.params.thrust_newton", "must be >= 0")
         if self.selector_sides not in (1, 2):

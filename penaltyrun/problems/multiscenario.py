@@ -22,8 +22,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from types import ModuleType
-from typing import Any
+from types import MappingProxyType, ModuleType
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -49,8 +49,13 @@ class TrainingParams:
         Further training scenarios drawn by the problem's ``sample_training`` (0: none).
     train_seed : int
         Seed of that sample (different from the held-out seeds).
+    HOLDOUT_OFF : mapping (class attribute)
+        Overrides that empty a problem's held-out set: training scenarios are built with
+        them, since only the run's own held-out set counts (and a training scenario must not
+        fail on a held-out set of its own, e.g. one made from its own departure).
     """
 
+    HOLDOUT_OFF: ClassVar[Mapping[str, Any]] = MappingProxyType({})
     train_scenarios: tuple | None = None
     train_aggregate: str = "mean"
     train_sample: int = 0
@@ -200,7 +205,17 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
         if inner:
             raise ConfigError("problem.params.train_scenarios",
                               f"scenario {k} sets {inner[0]}, which is not a problem parameter")
-        prob = mod.make_problem(case, {**rest, **dict(scen)})
+        held_keys = sorted(name for name in scen if str(name).startswith("holdout_"))
+        if held_keys:
+            raise ConfigError("problem.params.train_scenarios",
+                              f"scenario {k} sets {held_keys[0]}: the held-out set belongs to "
+                              "the run, not to one training scenario")
+        off = dict(getattr(type(base.params), "HOLDOUT_OFF", {}))
+        try:
+            prob = mod.make_problem(case, {**rest, **dict(scen), **off})
+        except ConfigError as err:
+            raise ConfigError("problem.params.train_scenarios",
+                              f"scenario {k} ({dict(scen)}) is invalid: {err}") from None
         if hasattr(prob, "scenario_key") and prob.scenario_key() in held:
             raise ConfigError("problem.params.train_scenarios",
                               f"training scenario {k} ({dict(scen)}) is also in the held-out "

@@ -15,7 +15,8 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from types import MappingProxyType
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -76,6 +77,7 @@ class Params(ParamsMixin, TrainingParams):
         Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
 
+    HOLDOUT_OFF: ClassVar[Mapping[str, Any]] = MappingProxyType({"holdout_radii": ()})
     x0: tuple[float, float] = (-8.0, 6.0)
     event_radius: float = 1e-3
     t_max: float = 1000.0

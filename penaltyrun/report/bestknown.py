@@ -2,7 +2,7 @@
 certification, and each optimizer's shortfall against them.
 
 A map family is ``diagonal`` or ``full`` (every orthogonal map — full/geagsp, givens,
-cayley — spans the same set of positive-definite matrices). Best-known values are taken
+cayley, cayley_tan — spans the same set of positive-definite matrices). Best-known values are taken
 over every converged start of every optimizer, budget and warm-start variant that solved
 the same problem (equal ``problem_variant``); the baseline (K = I) is not a search and does
 not enter. A best-known value is *certified* when the grid optimizer (exhaustive + local

@@ -17,14 +17,15 @@ from penaltyrun.report.stats import MIN_N_TEST, a12, a12_magnitude, converged, h
 
 GROUP = ["problem", "case", "variant", "optimizer"]
 #: Display order of the maps (others follow alphabetically).
-MAP_ORDER = ("diagonal", "full", "geagsp", "givens", "cayley")
+MAP_ORDER = ("diagonal", "full", "geagsp", "givens", "cayley", "cayley_tan")
 #: Holm family named in the report text.
 FAMILY = ("every map-vs-map comparison of this report (all problems, cases, variants and "
           "optimizers together)")
 
 
 def map_order(params: list[str] | np.ndarray) -> list[str]:
-    """Maps sorted diagonal, full, geagsp, givens, cayley, then any other alphabetically."""
+    """Maps sorted diagonal, full, geagsp, givens, cayley, cayley_tan, then any other
+    alphabetically."""
     rank = {m: i for i, m in enumerate(MAP_ORDER)}
     return sorted(set(params), key=lambda m: (rank.get(m, len(rank)), m))
 

@@ -65,7 +65,7 @@ def scenario_table(holdout: Any) -> pd.DataFrame | None:
     return table
 
 
-def _best(g: pd.DataFrame) -> pd.Series | None:
+def best_start(g: pd.DataFrame) -> pd.Series | None:
     """Best non-failed start with a held-out result (converged starts first)."""
     ok = g[(g["status"] != "failed") & g["holdout"].notna()]
     if ok.empty:
@@ -133,12 +133,12 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
     keys = ["problem", "case", "variant", "optimizer"]
     for (problem, case, variant, optimizer), g in df.groupby(keys, sort=True):
         dg = g[g["param"] == "diagonal"]
-        drow = _best(dg)
+        drow = best_start(dg)
         if drow is None:
             continue
         dtab = scenario_table(drow["holdout"])
         for param, fg in g[g["param"] != "diagonal"].groupby("param", sort=True):
-            frow = _best(fg)
+            frow = best_start(fg)
             ftab = None if frow is None else scenario_table(frow["holdout"])
             if dtab is None or ftab is None:
                 continue
@@ -166,9 +166,9 @@ def discretization_rows(df: pd.DataFrame) -> pd.DataFrame:
     rows = []
     keys = ["problem", "case", "variant", "optimizer"]
     for (problem, case, variant, optimizer), g in df.groupby(keys, sort=True):
-        best = {"diagonal": _best(g[g["param"] == "diagonal"])}
+        best = {"diagonal": best_start(g[g["param"] == "diagonal"])}
         for param, fg in g[g["param"] != "diagonal"].groupby("param", sort=True):
-            best[param] = _best(fg)
+            best[param] = best_start(fg)
         spread, nominal = {}, {}
         for param, row in best.items():
             data = None if row is None else decode_json(row["holdout"])
@@ -267,5 +267,5 @@ def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
     return lines
 
 
-__all__ = ["discretization_rows", "family_section", "holdout_rows", "paired",
+__all__ = ["best_start", "discretization_rows", "family_section", "holdout_rows", "paired",
            "scenario_table", "study_sections"]

@@ -31,7 +31,7 @@ CLAIMS: dict[str, str] = {
             "(min fuel)",
 }
 
-FULL_KINDS = ("full", "geagsp", "givens", "cayley")
+FULL_KINDS = ("full", "geagsp", "givens", "cayley", "cayley_tan")
 
 
 def paper_mean(problem: str, case: str, param: str) -> float:

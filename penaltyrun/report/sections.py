@@ -16,7 +16,7 @@ import pandas as pd  # noqa: E402
 
 from penaltyrun import problems  # noqa: E402
 from penaltyrun.io import decode_json  # noqa: E402
-from penaltyrun.report import attitude, companion, holdout, lowthrust  # noqa: E402
+from penaltyrun.report import attitude, companion, holdout, lowthrust, tuning  # noqa: E402
 from penaltyrun.report.paper import BEST_MATRICES  # noqa: E402
 from penaltyrun.report.tables import markdown  # noqa: E402
 
@@ -114,4 +114,5 @@ STUDIES: dict[str, Callable[[pd.DataFrame, Path, bool], list[str]]] = {
     "low thrust": lowthrust.study_sections,
     "attitude companion": companion.study_sections,
     "held-out": holdout.study_sections,
+    "tuning modes": tuning.study_sections,
 }

@@ -35,12 +35,16 @@ def test_acc_attitude_profile():
         cfg = compose(config_name="config", overrides=["+experiment=acc_attitude"],
                       return_hydra_config=True)
     assert cfg.problem.name == "attitude_lyapunov" and cfg.runner.n_starts == 20
-    assert cfg.optimizer.name == "pso" and cfg.optimizer.n_particles == 100
-    assert (cfg.optimizer.ftol, cfg.optimizer.ftol_iter) == (1e-6, 20)
+    # MATLAB particleswarm defaults: swarm min(100, 10 nvars), stall 1e-6 over 20
+    assert cfg.optimizer.name == "pso_matlab" and cfg.optimizer.swarm_size is None
+    assert cfg.optimizer.max_iterations is None
+    assert (cfg.optimizer.function_tolerance, cfg.optimizer.max_stall_iterations) == (1e-6, 20)
     sweep = yaml.safe_load((CONF / "experiment" / "acc_attitude.yaml").read_text())
     params = sweep["hydra"]["sweeper"]["params"]
     assert params["case"].split(",") == ["schaub_detumble", "schaub_detumble_sat"]
-    assert set(params["param"].split(",")) == {"diagonal", "givens", "cayley", "geagsp"}
+    assert params["param"].split(",") == ["diagonal", "givens", "cayley", "cayley_tan",
+                                          "geagsp"]
+    assert params["optimizer"].split(",") == ["pso_matlab", "cmaes"]
     for case in params["case"].split(","):
         prob = problems.make("attitude_lyapunov", case)
         assert all(m.eig_bounds == (1e-8, 20.0) for m in prob.matrices)

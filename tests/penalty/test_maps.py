@@ -12,8 +12,12 @@ from penaltyrun.errors import ConfigError
 from penaltyrun.penalty import KINDS, make
 from penaltyrun.penalty import orthogonal as orth
 
-MAPS = ("diagonal", "geagsp", "givens", "cayley")
-FULL = ("geagsp", "givens", "cayley")
+MAPS = ("diagonal", "geagsp", "givens", "cayley", "cayley_tan")
+FULL = ("geagsp", "givens", "cayley", "cayley_tan")
+#: Maps whose Q has det +1 (rotations).
+PROPER = ("givens", "cayley", "cayley_tan", "diagonal")
+#: Maps that cannot represent every rotation (Cayley: none near a rotation by π).
+PARTIAL = ("cayley", "cayley_tan")
 NS = (2, 3, 5, 6)
 EIG = (0.1, 100.0)
 CASES = [(kind, n) for kind in MAPS for n in NS]
@@ -45,7 +49,7 @@ def check_spd_properties(p, z):
     np.testing.assert_allclose(Q.T @ Q, np.eye(n), rtol=0, atol=1e-12)
     np.testing.assert_allclose(Q @ np.diag(lam) @ Q.T, K, rtol=0, atol=1e-10 * scale)
     det = np.linalg.det(Q)
-    if p.kind in ("givens", "cayley", "diagonal"):
+    if p.kind in PROPER:
         assert det == pytest.approx(1.0, abs=1e-10)
     else:
         assert abs(det) == pytest.approx(1.0, abs=1e-10)
@@ -82,7 +86,7 @@ def test_properties_on_many_random_and_corner_points(kind, n):
     QtQ = np.einsum("bji,bjk->bik", Q, Q)
     np.testing.assert_allclose(QtQ, np.broadcast_to(np.eye(n), QtQ.shape), rtol=0, atol=1e-12)
     det = np.linalg.det(Q)
-    if kind in ("givens", "cayley", "diagonal"):
+    if kind in PROPER:
         np.testing.assert_allclose(det, 1.0, atol=1e-10)
     else:
         np.testing.assert_allclose(np.abs(det), 1.0, atol=1e-10)
@@ -132,6 +136,10 @@ def test_angle_bounds_per_kind():
     lb, ub = make("cayley", n, EIG, cayley_bound=7.0).bounds()
     np.testing.assert_allclose(lb[n:], -7.0)
     np.testing.assert_allclose(ub[n:], 7.0)
+    lb, ub = make("cayley_tan", n, EIG, cayley_bound=7.0).bounds()  # bound not used
+    np.testing.assert_allclose(lb[n:], -(np.pi / 2 - 0.01))
+    np.testing.assert_allclose(ub[n:], np.pi / 2 - 0.01)
+    assert np.tan(ub[n]) == pytest.approx(99.9967, abs=1e-4)
 
 
 def test_full_is_alias_of_geagsp():
@@ -218,7 +226,7 @@ def test_round_trip_from_box(kind, n, data):
     try:
         z2 = p.encode(K)
     except ValueError:
-        if kind != "cayley":
+        if kind not in PARTIAL:
             raise
         return
     lb, ub = p.bounds()
@@ -244,7 +252,7 @@ def test_round_trip_random_spd(kind, n, seed):
     try:
         z = p.encode(K)
     except ValueError:
-        if kind != "cayley":
+        if kind not in PARTIAL:
             raise
         return
     lb, ub = p.bounds()
@@ -368,3 +376,36 @@ def test_decode_wrong_dim_raises_value_error(kind):
         p.decode(np.ones(p.dim + 1))
     with pytest.raises(ValueError):
         p.decode(np.ones((4, p.dim - 1)))
+
+
+# --------------------------------------------------------------------------- Cayley-tan
+
+
+@pytest.mark.parametrize("n", NS)
+@settings(max_examples=40)
+@given(data=st.data())
+def test_cayley_tan_is_cayley_of_tan_theta(n, data):
+    """Cayley-tan at (λ, θ) is Cayley at (λ, tan θ), and its box maps into |C_ij| < 100."""
+    tan_map = make("cayley_tan", n, EIG)
+    z = data.draw(z_in_box(tan_map))
+    entries = np.tan(z[n:])
+    assert np.all(np.abs(entries) <= 100.0)
+    z_cayley = np.concatenate([z[:n], entries])
+    np.testing.assert_allclose(tan_map.decode(z), make("cayley", n, EIG).decode(z_cayley),
+                               rtol=0, atol=1e-13 * z[:n].max())
+    C = orth.skew_from_entries(entries, n)[0]
+    eye = np.eye(n)
+    Q = (eye - C) @ np.linalg.inv(eye + C)
+    np.testing.assert_allclose(tan_map.orthogonal(z)[0], Q, atol=1e-10)
+
+
+def test_cayley_tan_encode_gives_arctan_of_cayley_entries():
+    """Rotation by 40° in the (1, 2) plane: Q = (I − C)(I + C)⁻¹ with C_12 = tan 20°."""
+    p = make("cayley_tan", 2, EIG)
+    th = np.deg2rad(40.0)
+    R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    K = R @ np.diag([1.0, 5.0]) @ R.T
+    z = p.encode(K)
+    np.testing.assert_allclose(z, [1.0, 5.0, np.deg2rad(20.0)], atol=1e-12)
+    np.testing.assert_allclose(p.decode(z), K, atol=1e-12)
+

@@ -97,3 +97,12 @@ def test_bad_scenario_settings_on_the_command_line(tmp_path):
 
 def test_kinds_cover_every_scenario():
     assert {s.kind for s in make("qlaw", "A").holdout_scenarios()} == set(lh.KINDS)
+
+
+@pytest.mark.parametrize("over", [{"a0_km": 5000.0}, {"e0": 0.75}])
+def test_departure_inside_the_earth_names_a0(over):
+    """Case A: a0 = 7000 km, e0 = 0.01 (periapsis 6930 km); both overrides put it inside."""
+    with pytest.raises(ConfigError) as info:
+        make("qlaw", "A", over)
+    assert info.value.key == "problem.params.a0_km"
+    assert "inside the Earth" in str(info.value)

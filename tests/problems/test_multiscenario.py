@@ -68,7 +68,13 @@ def test_lowthrust_departures_times_steps():
     ("zermelo", None, {"train_scenarios": [{}], "train_aggregate": "median"}, "aggregate"),
     ("zermelo", None, {"train_scenarios": [5]}, "not a mapping"),
     ("zermelo", None, {"train_scenarios": [{"nonsense": 1}]}, "nonsense"),
-    ("qlaw", "A", {"train_scenarios": [{}, {"control_step_s": 40.0}]}, "held-out"),
+    ("qlaw", "A", {"train_scenarios": [{}, {"control_step_s": 40.0}]},
+     "scenario 1 .* is also in the held-out set"),
+    ("qlaw", "C", {"train_scenarios": [{}, {"e0": 0.9}]},
+     r"scenario 1 .*periapsis a0\(1 - e0\) = 922.27 km is inside the Earth"),
+    ("qlaw", "A", {"train_scenarios": [{"e0": 1.2}]}, r"scenario 0 .*e0.*\[0, 1\)"),
+    ("qlaw", "A", {"train_scenarios": [{"holdout_de": 0.01}]},
+     "sets holdout_de: the held-out set belongs to the run"),
     ("attitude_lyapunov", "detumble",
      {"train_scenarios": [{"attitude": (10.0, 10.0, 10.0), "omega0": (0.0, 0.0, 0.0)}]},
      "held-out"),
@@ -129,3 +135,24 @@ def test_seeded_sample_mean_matches_members():
 def test_bad_sample_settings(over, key):
     with pytest.raises(ConfigError, match=key):
         make("zermelo", None, over)
+
+
+def test_training_scenarios_do_not_carry_a_held_out_set_of_their_own():
+    """A training departure whose own perturbations would be invalid orbits is still fine:
+    only the run's held-out set (around the case's departure) is built and checked."""
+    # Case A: a0 = 7000 km, e0 = 0.01; around a training departure at e0 = 0.085 (periapsis
+    # 6405 km), held-out perturbations with holdout_de 0.01 reach inside the Earth.
+    over = {"holdout_de": 0.01, "train_scenarios": [{}, {"e0": 0.085}]}
+    with pytest.raises(ConfigError):
+        make("qlaw", "A", {"holdout_de": 0.01, "e0": 0.085})
+    prob = make("qlaw", "A", over)
+    assert [len(p.holdout_scenarios()) for p in prob.scenarios] == [0, 0]
+    assert len(prob.holdout_scenarios()) == len(make("qlaw", "A", {"holdout_de": 0.01})
+                                                .holdout_scenarios()) > 0
+
+
+def test_invalid_seeded_training_departure_names_train_sample():
+    with pytest.raises(ConfigError) as info:
+        make("qlaw", "A", {"train_sample": 3, "holdout_n_perturbed": 0, "holdout_de": 0.3})
+    assert info.value.key == "problem.params.train_sample"
+    assert "inside the Earth" in str(info.value)

@@ -73,6 +73,11 @@ def test_lowthrust_tables_and_case_e(tmp_path):
     assert row_c["K=I"] == "1.412 d"
     assert row_c["diag conv."] == "2/2"
     assert np.isfinite(row_c["full mean ToF d"])
+    # discretization column from the jobs' held-out control steps / substeps
+    assert row_c["discr. K (diag/full)"] == "2/2"
+    assert np.isfinite(row_c["discr. spread"]) and row_c["discr. spread"] > 0
+    assert row_c["discr. verdict"] in ("within discretization noise",
+                                       "beyond discretization spread")
     row_e = table5[table5["case"] == "E"].iloc[0]
     assert row_e["K=I"] == "tof_cap"
     table4 = pd.read_csv(out / "table_lyapunov_transfer.csv")

@@ -49,3 +49,10 @@ def test_median_test_by_hand():
     assert p == pytest.approx(2 * one_tail)
     assert companion.median_test(np.array([0.5, 2.0]), 1.0) == pytest.approx(1.0)
     assert np.isnan(companion.median_test(np.array([1.0]), 1.0))
+
+
+def test_their_cayley_tan_row_beside_our_cayley_tan_cell():
+    rows = _df()
+    rows = pd.concat([rows, rows.iloc[[0]].assign(param="cayley_tan", best_cost=61.0)])
+    table = companion.companion_table(rows).set_index("map")
+    assert table.loc["cayley_tan", "theirs (PSO, 20 runs)"] == "60.89 / 71.51 / 80.05 / 116.38"

@@ -1,0 +1,171 @@
+"""Multi-scenario vs single-scenario tuning: the held-out full-vs-diagonal gap side by side.
+
+A job's tuning mode is read from its ``problem_params`` (no extra column): *single* when it
+sets neither ``train_scenarios`` nor ``train_sample``, otherwise *multi* with the aggregate
+and the number of training scenarios, e.g. ``multi (mean of 8)``
+(:mod:`penaltyrun.problems.multiscenario`). Jobs are compared across modes only when
+everything else is equal: problem, case, the other problem parameters, optimizer and its
+settings (so the budget), and warm start. Within each mode the best diagonal start and the
+best start of each full map are paired scenario by scenario on the held-out set, as in
+:func:`penaltyrun.report.holdout.paired`: median improvement (J_diag − J_full)/J_diag over
+the scenarios where both converge, the share of those where full is better, and the
+two-sided Wilcoxon signed-rank p.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from penaltyrun.io import decode_json
+from penaltyrun.report import holdout
+from penaltyrun.report.tables import markdown
+
+#: Problem parameters that define the training set (multi-scenario tuning).
+TRAIN_KEYS = ("train_scenarios", "train_aggregate", "train_sample", "train_seed")
+SINGLE = "single"
+#: Per-mode statistics shown side by side: (key of holdout.paired, column suffix).
+STATS = (("pairs", "pairs"), ("median_imp_pct", "median impr. %"),
+         ("full_better_share", "full better"), ("wilcoxon_p", "Wilcoxon p"),
+         ("note", "note"))
+
+
+def _json(value: Any) -> dict[str, Any]:
+    data = decode_json(value) if isinstance(value, str) else value
+    return dict(data) if isinstance(data, dict) else {}
+
+
+def training_of(params: Any) -> dict[str, Any]:
+    """The training settings of a job's ``problem_params`` (JSON text or dict); ``{}`` for
+    single-scenario tuning."""
+    p = _json(params)
+    listed = p.get("train_scenarios")
+    sample = p.get("train_sample") or 0
+    if not listed and not sample:
+        return {}
+    return {k: p.get(k) for k in TRAIN_KEYS if p.get(k) is not None}
+
+
+def mode_label(training: dict[str, Any]) -> str:
+    """``single`` or ``multi (<aggregate> of <n>)``."""
+    if not training:
+        return SINGLE
+    n = len(training.get("train_scenarios") or []) + int(training.get("train_sample") or 0)
+    return f"multi ({training.get('train_aggregate') or 'mean'} of {n})"
+
+
+def _canonical(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, default=str)
+
+
+def _setting(row: pd.Series) -> tuple[str, str]:
+    """(comparison key, display text) of everything but the training set."""
+    params = {k: v for k, v in _json(row.get("problem_params")).items()
+              if k not in TRAIN_KEYS and v is not None}
+    opt = _canonical(_json(row.get("optimizer_settings")))
+    warm = _canonical(_json(row.get("warm_start")).get("share"))
+    shown = ", ".join(f"{k}={v}" for k, v in sorted(params.items())) or "—"
+    return _canonical(params) + "|" + opt + "|" + warm, shown
+
+
+def with_modes(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with columns ``tuning`` (mode label), ``tuning_key`` (the training settings as
+    JSON), ``setting_key`` and ``setting`` (the rest of the set-up)."""
+    out = df.copy()
+    training = [training_of(p) for p in out["problem_params"]]
+    out["tuning_key"] = [_canonical(t) for t in training]
+    out["tuning"] = [mode_label(t) for t in training]
+    settings = [_setting(r) for _, r in out.iterrows()]
+    out["setting_key"] = [s[0] for s in settings]
+    out["setting"] = [s[1] for s in settings]
+    # two different training sets with the same label get a short hash of their own
+    for _, g in out[out["tuning_key"] != "{}"].groupby("tuning"):
+        if g["tuning_key"].nunique() > 1:
+            for key in g["tuning_key"].unique():
+                tag = hashlib.sha1(key.encode()).hexdigest()[:6]
+                sel = out["tuning_key"] == key
+                out.loc[sel, "tuning"] = out.loc[sel, "tuning"] + f" #{tag}"
+    return out
+
+
+def comparison(df: pd.DataFrame) -> pd.DataFrame:
+    """One row per set-up × full map that was tuned both single- and multi-scenario.
+
+    Returns
+    -------
+    DataFrame
+        ``problem``, ``case``, ``setting`` (the variant label of :func:`penaltyrun.report.
+        stats.add_variant` where present), ``optimizer``, ``max_evals``, ``full_map`` and,
+        per tuning mode M (``single`` first), ``M: pairs``, ``M: median impr. %``,
+        ``M: full better``, ``M: Wilcoxon p``, ``M: note``. Empty when no set-up has both.
+    """
+    if "holdout" not in df or "problem_params" not in df or df.empty:
+        return pd.DataFrame()
+    m = with_modes(df)
+    rows = []
+    keys = ["problem", "case", "setting_key", "optimizer"]
+    for (problem, case, _, optimizer), g in m.groupby(keys, sort=True):
+        modes = sorted(g["tuning"].unique(), key=lambda t: (t != SINGLE, t))
+        if SINGLE not in modes or len(modes) < 2:
+            continue
+        for full_map in sorted(p for p in g["param"].unique() if p != "diagonal"):
+            row: dict[str, Any] = {"problem": problem, "case": case,
+                                   "setting": _shown(g), "optimizer": optimizer,
+                                   "max_evals": g["max_evals"].iloc[0] if "max_evals" in g
+                                   else None, "full_map": full_map}
+            found = False
+            for mode in modes:
+                res = _paired(g[g["tuning"] == mode], full_map)
+                found |= res is not None
+                for key, suffix in STATS:
+                    row[f"{mode}: {suffix}"] = (res or {}).get(key, np.nan if key != "note"
+                                                               else "no held-out data")
+            if found:
+                rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _shown(g: pd.DataFrame) -> str:
+    """The set-up as the report names it: the single-scenario jobs' variant label (problem
+    parameters that differ from the case's defaults) when known, else every parameter."""
+    single = g[g["tuning"] == SINGLE]
+    if "variant" in single and single["variant"].notna().any():
+        return str(single["variant"].dropna().iloc[0]) or "—"
+    return str(single["setting"].iloc[0])
+
+
+def _paired(g: pd.DataFrame, full_map: str) -> dict[str, Any] | None:
+    """holdout.paired of the best diagonal and best ``full_map`` start of one mode."""
+    drow = holdout.best_start(g[g["param"] == "diagonal"])
+    frow = holdout.best_start(g[g["param"] == full_map])
+    if drow is None or frow is None:
+        return None
+    dtab, ftab = holdout.scenario_table(drow["holdout"]), holdout.scenario_table(frow["holdout"])
+    if dtab is None or ftab is None:
+        return None
+    return holdout.paired(dtab, ftab)
+
+
+def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
+    """Markdown lines of the tuning-mode comparison (empty without both modes)."""
+    table = comparison(df)
+    if table.empty:
+        return []
+    table.to_csv(out / "holdout_tuning_modes.csv", index=False)
+    return ["## Held-out scenarios: multi-scenario vs single-scenario tuning", "",
+            "The full-vs-diagonal gap on the held-out set for each tuning mode, side by "
+            "side: same problem, case, other parameters, optimizer and budget; within each "
+            "mode the best diagonal and the best full start, paired by scenario. Median "
+            "improvement = median of (J_diag − J_full)/J_diag over the scenarios where both "
+            "converge; full better = share of those where J_full < J_diag; Wilcoxon "
+            "signed-rank, two-sided (raw p). `multi (mean of n)`: tuned on the mean (or max) "
+            "of n training scenarios.", "", markdown(table), ""]
+
+
+__all__ = ["SINGLE", "TRAIN_KEYS", "comparison", "mode_label", "study_sections",
+           "training_of", "with_modes"]

@@ -23,6 +23,7 @@ from penaltyrun.optim.base import (
     CountingObjective,
     OptimResult,
     main_budget,
+    planned_evals,
 )
 from penaltyrun.optim.baseline import BaselineSettings, run_baseline
 from penaltyrun.optim.checks import coerce_field, settings_hints
@@ -119,4 +120,5 @@ def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarra
 
 __all__ = ["OPTIMIZERS", "POLISH_METHODS", "BaselineSettings", "CMAESSettings",
            "CommonSettings", "DESettings", "GridSettings", "OptimResult", "PSOMatlabSettings",
-           "PSOSettings", "Settings", "check_dimension", "make_settings", "minimize"]
+           "PSOSettings", "Settings", "check_dimension", "make_settings", "minimize",
+           "planned_evals"]

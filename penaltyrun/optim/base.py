@@ -78,6 +78,12 @@ class CommonSettings:
             raise ConfigError("optimizer.polish_share", f"must be in (0, 1), got "
                               f"{self.polish_share!r}")
 
+    def search_evals(self, dim: int) -> int | None:
+        """Most evaluations the search itself can spend on ``dim`` variables (its own
+        iteration limits, before ``max_evals`` and the polish); ``None`` if it has none.
+        Each optimizer's settings class overrides this."""
+        return None
+
 
 @dataclass
 class OptimResult:
@@ -209,6 +215,28 @@ def main_budget(settings: CommonSettings) -> int | None:
     if settings.polish == "none":
         return settings.max_evals
     return max(1, settings.max_evals - int(settings.polish_share * settings.max_evals))
+
+
+def planned_evals(settings: CommonSettings, dim: int) -> int | None:
+    """Most evaluations one start of ``settings`` can spend on ``dim`` variables.
+
+    The search's own limit (:meth:`CommonSettings.search_evals`: swarm × iterations,
+    population × generations, ...), plus an uncapped polish, all bounded by ``max_evals``.
+    A stall rule may stop the search earlier, so this is an upper bound.
+
+    Returns
+    -------
+    int or None
+        ``None`` when nothing bounds the run (no ``max_evals`` and a search or polish
+        without its own limit, e.g. CMA-ES restarts or a polish after DE).
+    """
+    if not isinstance(settings, CommonSettings):
+        return 1  # the baseline evaluates its one point
+    search = settings.search_evals(dim)
+    total = search if settings.polish == "none" else None
+    if settings.max_evals is None:
+        return total
+    return settings.max_evals if total is None else min(total, settings.max_evals)
 
 
 def uniform_box(rng: np.random.Generator, lb: np.ndarray, ub: np.ndarray, n: int

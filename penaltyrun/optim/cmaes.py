@@ -72,6 +72,11 @@ class CMAESSettings(CommonSettings):
                 raise ConfigError(f"optimizer.{key}", f"must be positive, got "
                                   f"{getattr(self, key)!r}")
 
+    def search_evals(self, dim: int) -> None:
+        """``None``: each run ends on cma's own tolerances, so only ``max_evals`` bounds
+        the restarts."""
+        return None
+
 
 def run_cmaes(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
               settings: CMAESSettings, seed: int, x0: np.ndarray | None = None

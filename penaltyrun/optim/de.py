@@ -67,6 +67,11 @@ class DESettings(CommonSettings):
             raise ConfigError("optimizer.recombination", f"must be in [0, 1], got "
                               f"{self.recombination!r}")
 
+    def search_evals(self, dim: int) -> int:
+        """At most population · (iters + 1): scipy's population is max(5, popsize · dim),
+        evaluated once initially and once per generation (convergence stop aside)."""
+        return max(5, self.popsize * dim) * (self.iters + 1)
+
 
 def run_de(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: DESettings,
            seed: int, x0: np.ndarray | None = None) -> OptimResult:

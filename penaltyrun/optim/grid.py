@@ -87,6 +87,12 @@ class GridSettings(CommonSettings):
                               f"budget {budget}")
 
 
+    def search_evals(self, dim: int) -> int:
+        """The grid (points_per_dim^dim) plus ``n_local`` local searches of at most
+        ``local_max_evals`` each."""
+        return self.points_per_dim ** dim + self.n_local * self.local_max_evals
+
+
 def grid_minima(cost: np.ndarray) -> np.ndarray:
     """Flat indices of the grid points no neighbour undercuts, best first.
 

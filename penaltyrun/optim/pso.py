@@ -119,6 +119,10 @@ class PSOSettings(CommonSettings):
         check_choice("optimizer.bh_strategy", self.bh_strategy, BH_STRATEGIES)
         check_choice("optimizer.vh_strategy", self.vh_strategy, VH_STRATEGIES)
 
+    def search_evals(self, dim: int) -> int:
+        """At most ``n_particles · iters`` (one swarm per iteration, stall rule aside)."""
+        return self.n_particles * self.iters
+
 
 def run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: PSOSettings,
             seed: int, x0: np.ndarray | None = None) -> OptimResult:

@@ -162,6 +162,11 @@ class PSOMatlabSettings(CommonSettings):
             raise ConfigError("optimizer.initial_swarm_span", f"must be positive, got "
                               f"{self.initial_swarm_span!r}")
 
+    def search_evals(self, dim: int) -> int:
+        """At most S · (MaxIterations + 1): the initial swarm, then one per iteration."""
+        swarm = self.swarm_size or default_swarm_size(dim)
+        return swarm * ((self.max_iterations or default_max_iterations(dim)) + 1)
+
 
 class Adaptive(NamedTuple):
     """Adaptive state between iterations: stall counter c, neighbourhood size N, inertia W."""

@@ -20,7 +20,9 @@ from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun.errors import ConfigError
 
-MODES = ("optimize", "evaluate", "report")
+MODES = ("optimize", "evaluate", "report", "plan")
+#: Modes that plan optimizer jobs (``plan`` forecasts them without running them).
+JOB_MODES = ("optimize", "plan")
 #: Subtrees whose keys are free (candidate matrices / scalars of ``mode=evaluate``).
 FREE_KEYS = ("matrices", "scalars")
 REPORT_OPTIONS = {"input": (str, type(None)), "output": (str, type(None)), "paper": (bool,)}
@@ -183,7 +185,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
                                 connect=connect and mode == "optimize")
     if mode == "report":
         return
-    if mode == "optimize":
+    if mode in JOB_MODES:
         optim.make_settings(cfg.optimizer.name, _options(cfg, "optimizer"))
         if cfg.param.name not in penalty.KINDS:
             raise ConfigError("param", f"unknown parameterization {cfg.param.name!r}",
@@ -195,7 +197,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
         check_like_defaults(params, plain(base.problem.get("params")) or {}, "problem.params")
     prob = _checked("problem.params", problems.make, cfg.problem.name, cfg.get("case"),
                     params, cfg.problem.get("module") or None)
-    if mode == "optimize":
+    if mode in JOB_MODES:
         _checked("param", runner.build_layout, prob, cfg.param.name, _options(cfg, "param"))
 
 

@@ -24,7 +24,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__, checks, userconf
+from penaltyrun import __version__, cells, checks, planmode, userconf
 from penaltyrun.errors import (
     ConfigError,
     ResultsUnreadableError,
@@ -72,55 +72,8 @@ def git_commit() -> str:
         return "unknown"
 
 
-def _plain(node: Any) -> Any:
-    return OmegaConf.to_container(node, resolve=True) if node is not None else None
-
-
-def problem_params(cfg: DictConfig) -> dict[str, Any]:
-    """Problem overrides from ``problem.params`` (nulls mean "from the case table")."""
-    params = _plain(cfg.problem.get("params")) or {}
-    return {k: v for k, v in params.items() if v is not None}
-
-
-def problem_module(cfg: DictConfig) -> str | None:
-    """Module of a problem outside penaltyrun (``problem.module``), or None."""
-    value = cfg.problem.get("module")
-    return str(value) if value else None
-
-
-def _setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
-    from penaltyrun import runner
-
-    return runner.build(cfg.problem.name, cfg.case, problem_params(cfg), cfg.param.name,
-                        _plain(cfg.param), cfg.optimizer.name,
-                        {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"},
-                        problem_module(cfg))
-
-
-def _warm_start_share(cfg: DictConfig) -> float:
-    """Share of the budget spent on the diagonal stage (0: no warm start).
-
-    Raises
-    ------
-    ConfigError
-        A warm start without ``optimizer.max_evals``, or a share outside (0, 1).
-    """
-    rc = cfg.runner
-    if not rc.get("warm_start", False):
-        return 0.0
-    if not isinstance(rc.warm_start, bool):
-        raise ConfigError("runner.warm_start", f"must be true or false, got {rc.warm_start!r}")
-    share = rc.get("warm_start_share", 0.3)
-    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0 < share < 1:
-        raise ConfigError("runner.warm_start_share", f"must be in (0, 1), got {share!r}")
-    if cfg.optimizer.get("max_evals") is None:
-        raise ConfigError("runner.warm_start", "needs an evaluation budget: set "
-                          "optimizer.max_evals (the diagonal stage spends "
-                          "warm_start_share of it)")
-    if cfg.optimizer.name == "grid" or cfg.optimizer.name == "baseline":
-        raise ConfigError("runner.warm_start", f"not for optimizer {cfg.optimizer.name!r}",
-                          allowed=("pso", "de", "cmaes"))
-    return float(share)
+_plain = cells.plain
+problem_params, problem_module, _setup = cells.problem_params, cells.problem_module, cells.setup
 
 
 def run_optimize(cfg: DictConfig) -> Path:
@@ -137,21 +90,17 @@ def run_optimize(cfg: DictConfig) -> Path:
             "package_version": __version__, "git_commit": git_commit(),
             "run_id": run_dir.name}
     rc = cfg.runner
-    warm_share = _warm_start_share(cfg)
-    jobs = runner.plan_jobs(
-        cfg.problem.name, prob.case, cfg.param.name, cfg.optimizer.name, rc.n_starts,
-        int(rc.seed), problem_params(cfg), _plain(cfg.param),
-        {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"}, meta,
-        holdout=bool(rc.holdout), warm_start_share=warm_share,
-        problem_module=problem_module(cfg))
+    jobs = cells.cell_jobs(cfg, prob.case, meta)
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 cfg.param.name, cfg.optimizer.name, run_dir)
+    expected = runner.log_forecast(jobs, cells.forecast_samples(cfg), int(rc.seed),
+                                   planmode.local_workers(cfg))
     with _progress(cfg, jobs, run_dir) as on_record:
         runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
                        scheduler=rc.scheduler, resume=bool(rc.resume),
                        retry_failed=bool(rc.retry_failed), on_record=on_record,
                        max_retries=rc.get("max_retries", 1),
-                       worker_timeout=float(rc.get("worker_timeout", 60)))
+                       worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected)
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
@@ -285,8 +234,8 @@ def _hydra_main(cfg: DictConfig) -> None:
         if cfg.mode not in MODES:
             raise ConfigError("mode", f"unknown mode {cfg.mode!r}", allowed=MODES)
         try:
-            return {"optimize": run_optimize, "evaluate": run_evaluate,
-                    "report": run_report}[cfg.mode](cfg)
+            return {"optimize": run_optimize, "evaluate": run_evaluate, "report": run_report,
+                    "plan": planmode.print_cell_plan}[cfg.mode](cfg)
         except ConfigError:
             _discard_run_dir()
             raise
@@ -310,7 +259,8 @@ def main() -> None:
     if print_version(sys.argv[1:]):
         return
     install_signal_handlers()
-    _guard(lambda: preflight(sys.argv[1:]))
+    if _guard(lambda: preflight(sys.argv[1:])) == "plan":  # forecast only: Hydra runs nothing
+        return _guard(lambda: planmode.run(sys.argv[1:]))
     sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
     _guard(_hydra_main)
     if FAILED_RUNS:

@@ -35,13 +35,13 @@ def _first_line(exc: BaseException) -> str:
     return " ".join(lines[:2]) if lines else type(exc).__name__
 
 
-def preflight(argv: list[str]) -> None:
+def preflight(argv: list[str]) -> str:
     """Check the command line before Hydra runs, so every mistake is one clear line.
 
     Parses the overrides (syntax), checks config-group choices against the files Hydra
     will search (penaltyrun's ``conf/`` and the user's directories), checks the YAML of
     the chosen user files, then composes the config once (first value of each sweep) to
-    catch unknown keys and type errors.
+    catch unknown keys and type errors. Returns the composed ``mode``.
 
     Raises
     ------
@@ -64,8 +64,8 @@ def preflight(argv: list[str]) -> None:
     hydra_overrides, searchpath = _searchpath(parsed)
     with userconf.hydra_context(source):
         _check_choices(parsed, source, hydra_overrides, searchpath)
-        _compose_dry(parsed, source, hydra_overrides,
-                     multirun="-m" in argv or "--multirun" in argv)
+        return _compose_dry(parsed, source, hydra_overrides,
+                            multirun="-m" in argv or "--multirun" in argv)
 
 
 def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
@@ -86,8 +86,9 @@ def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
 
 
 def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
-                 hydra_overrides: list[str], multirun: bool = False) -> None:
-    """Compose once (first value of each sweep) to catch unknown keys and type errors."""
+                 hydra_overrides: list[str], multirun: bool = False) -> str:
+    """Compose once (first value of each sweep) to catch unknown keys and type errors;
+    returns the composed ``mode``."""
     from hydra import compose
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
@@ -122,3 +123,4 @@ def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
     checks.check_composed(cfg, base, multirun=multirun)
     for variant in checks.sweep_variants(parsed, dry):
         checks.check_variant(compose, variant, config_name=name)
+    return str(cfg.mode)

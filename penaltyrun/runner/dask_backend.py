@@ -69,6 +69,7 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
     Parameters
     ----------
     jobs : list of Job
+        Submitted in this order, the first with the highest priority (longest first).
     workers : int
         Worker processes of the LocalCluster (when ``scheduler`` is None).
     scheduler : str or None
@@ -103,8 +104,9 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
             from None
     futures: dict[Any, Job] = {}
     try:
-        futures = {client.submit(run_job, job, pure=False, key=f"penaltyrun-{job.job_id}"):
-                   job for job in jobs}
+        futures = {client.submit(run_job, job, pure=False, key=f"penaltyrun-{job.job_id}",
+                                 priority=len(jobs) - i): job  # in the given order
+                   for i, job in enumerate(jobs)}
         pending = set(futures)
         lost_since: float | None = None
         while pending:

@@ -12,15 +12,15 @@ from __future__ import annotations
 import logging
 import signal
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from penaltyrun.errors import ConfigError, RunInterruptedError
 from penaltyrun.runner.dask_backend import run_dask
 from penaltyrun.runner.job import run_job
-from penaltyrun.runner.options import BACKENDS
-from penaltyrun.runner.plan import Job
+from penaltyrun.runner.options import BACKENDS, resolve_workers
+from penaltyrun.runner.plan import Job, order_longest_first
 from penaltyrun.runner.pool import run_pool
 from penaltyrun.runner.records import JOBS_DIR, pending_jobs, write_record
 
@@ -33,23 +33,23 @@ def _serial(jobs: list[Job]) -> Iterator[tuple[Job, dict[str, Any]]]:
 
 
 def check_settings(workers: Any, backend: Any) -> None:
-    """Validate ``runner.workers`` and ``runner.backend``.
+    """Validate ``runner.workers`` (an integer ≥ 1 or ``auto``) and ``runner.backend``.
 
     Raises
     ------
     ConfigError
         Naming the key (and the allowed backends).
     """
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-        raise ConfigError("runner.workers", f"must be a positive integer, got {workers!r}")
+    resolve_workers(workers)
     if backend not in BACKENDS:
         raise ConfigError("runner.backend", f"unknown backend {backend!r}", allowed=BACKENDS)
 
 
-def execute(jobs: Iterable[Job], run_dir: Path, workers: int = 1, backend: str = "local",
-            scheduler: str | None = None, resume: bool = False, retry_failed: bool = False,
-            on_record: Callable[[dict[str, Any]], None] | None = None,
-            max_retries: int = 1, worker_timeout: float = 60.0) -> list[Path]:
+def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
+            backend: str = "local", scheduler: str | None = None, resume: bool = False,
+            retry_failed: bool = False, on_record: Callable[[dict[str, Any]], None] | None = None,
+            max_retries: int = 1, worker_timeout: float = 60.0,
+            expected_s: Mapping[str, float] | None = None) -> list[Path]:
     """Run ``jobs`` and write one record file per finished job.
 
     Parameters
@@ -57,8 +57,8 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int = 1, backend: str =
     jobs : iterable of Job
     run_dir : Path
         Run directory; records go to ``run_dir/jobs``.
-    workers : int
-        Parallel jobs (processes), ≥ 1 (1: in this process).
+    workers : int or "auto"
+        Parallel jobs (processes), ≥ 1 (1: in this process); ``auto``: one per core.
     backend : {"local", "dask"}
     scheduler : str, optional
         dask scheduler address (``None``: a LocalCluster of ``workers`` processes).
@@ -70,6 +70,9 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int = 1, backend: str =
         Times a job whose worker process died is run again before it is recorded failed.
     worker_timeout : float
         dask: seconds without any worker before the run stops (s).
+    expected_s : mapping, optional
+        ``job_id`` → expected CPU time (s): jobs are dispatched longest first (see
+        :func:`~penaltyrun.runner.plan.order_longest_first`); without it, in the given order.
 
     Returns
     -------
@@ -85,7 +88,8 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int = 1, backend: str =
         dask: the scheduler is unreachable or the cluster lost its last worker.
     """
     check_settings(workers, backend)
-    todo = pending_jobs(jobs, run_dir, resume, retry_failed)
+    workers = resolve_workers(workers)
+    todo = order_longest_first(pending_jobs(jobs, run_dir, resume, retry_failed), expected_s)
     Path(run_dir, JOBS_DIR).mkdir(parents=True, exist_ok=True)
     if backend == "dask":
         stream = run_dask(todo, workers, scheduler, max_retries, worker_timeout)

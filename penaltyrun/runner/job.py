@@ -41,7 +41,8 @@ class Heartbeat:
     """Batched objective that logs a progress line at most every ``interval_s`` seconds.
 
     A low-thrust job can run for an hour between the runner's per-job lines; this says it
-    is alive, how many candidates it has evaluated and the best cost so far.
+    is alive, how many candidates it has evaluated out of how many at most, the best cost
+    so far and, at the pace so far, the time left if the whole budget is spent.
 
     Parameters
     ----------
@@ -51,11 +52,16 @@ class Heartbeat:
         Job id shown in the line.
     interval_s : float, optional
         Seconds between lines (default :data:`HEARTBEAT_S`).
+    total : int, optional
+        Most evaluations the job can spend (:func:`penaltyrun.optim.planned_evals`);
+        ``None``: no bound known.
     """
 
-    def __init__(self, func: Any, label: str, interval_s: float | None = None) -> None:
+    def __init__(self, func: Any, label: str, interval_s: float | None = None,
+                 total: int | None = None) -> None:
         self.func = func
         self.label = label
+        self.total = total
         self.interval_s = float(HEARTBEAT_S if interval_s is None else interval_s)
         self.n_evals = 0
         self.best = float("inf")
@@ -70,19 +76,28 @@ class Heartbeat:
         now = time.perf_counter()
         if now - self.last >= self.interval_s:
             self.last = now
-            logger.info("%s: running, %d evaluations in %.0f s, best cost so far %.6g",
-                        self.label, self.n_evals, now - self.t0, self.best)
+            logger.info("%s: running, %s in %.0f s, best cost so far %.6g", self.label,
+                        self.progress(now - self.t0), now - self.t0, self.best)
         return cost
 
+    def progress(self, elapsed_s: float) -> str:
+        """``120 of 2500 evaluations (4.8 %, ≤ 95 s left at this pace)``."""
+        if not self.total:
+            return f"{self.n_evals} evaluations (no bound)"
+        left = max(0, self.total - self.n_evals) * elapsed_s / max(1, self.n_evals)
+        return (f"{self.n_evals} of {self.total} evaluations "
+                f"({100.0 * self.n_evals / self.total:.1f} %, ≤ {left:.0f} s left at this pace)")
 
-def _objective(prob: Any, layout: Any, label: str) -> Heartbeat:
-    """Batched objective of ``prob`` over ``layout``'s box, with progress lines."""
+
+def _objective(prob: Any, layout: Any, label: str, settings: Any) -> Heartbeat:
+    """Batched objective of ``prob`` over ``layout``'s box, with progress lines counting
+    against the most evaluations ``settings`` can spend."""
 
     def evaluate(Z: np.ndarray) -> np.ndarray:
         mats, scalars = layout.split(Z)
         return prob.evaluate_batch(mats, scalars or None).cost
 
-    return Heartbeat(evaluate, label)
+    return Heartbeat(evaluate, label, total=optim.planned_evals(settings, layout.dim))
 
 
 def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
@@ -106,16 +121,18 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
     diag_layout = build_layout(prob, "diagonal", job.param_options)
     diag_budget = max(1, int(job.warm_start_share * budget))
     dlb, dub = diag_layout.bounds()
-    diag = optim.minimize(job.optimizer, _objective(prob, diag_layout, job.job_id), dlb, dub,
-                          replace(settings, max_evals=diag_budget), job.seed)
+    diag_settings = replace(settings, max_evals=diag_budget)
+    diag = optim.minimize(job.optimizer, _objective(prob, diag_layout, job.job_id,
+                                                    diag_settings), dlb, dub,
+                          diag_settings, job.seed)
     mats, scalars = diag_layout.split(diag.best_z[None, :])
     diag_mats = {k: v[0] for k, v in mats.items()}
     diag_scalars = {k: float(v[0]) for k, v in scalars.items()}
     x0 = layout.join(diag_mats, diag_scalars)
     lb, ub = layout.bounds()
-    full = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id), lb, ub,
-                          replace(settings, max_evals=max(1, budget - diag.n_evals)),
-                          job.seed, x0)
+    full_settings = replace(settings, max_evals=max(1, budget - diag.n_evals))
+    full = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id, full_settings),
+                          lb, ub, full_settings, job.seed, x0)
     trace_evals = list(diag.trace_evals) + [diag.n_evals + n for n in full.trace_evals]
     trace_best = np.minimum.accumulate(list(diag.trace_best) + list(full.trace_best))
     result = optim.OptimResult(
@@ -163,8 +180,9 @@ def run_job(job: Job) -> dict[str, Any]:
             result, warm = _warm_started(job, prob, layout, settings)
             record["warm_start"] = warm
         else:
-            result = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id), lb,
-                                    ub, settings, job.seed, x0)
+            result = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id,
+                                                              settings), lb, ub, settings,
+                                    job.seed, x0)
         mats, scalars = layout.split(result.best_z[None, :])
         best_mats = {k: v[0] for k, v in mats.items()}
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}

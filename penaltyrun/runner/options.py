@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import re
 import socket
 from collections.abc import Mapping
@@ -14,7 +15,7 @@ from penaltyrun.errors import ConfigError
 RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "n_starts": ("pos_int", "a positive integer"),
     "seed": ("nonneg_int", "a non-negative integer"),
-    "workers": ("pos_int", "a positive integer"),
+    "workers": ("workers", "a positive integer or auto (all cores)"),
     "backend": ("choice", "local or dask"),
     "scheduler": ("address", "null or a dask scheduler address tcp://host:port"),
     "resume": ("bool", "true or false"),
@@ -26,6 +27,7 @@ RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "warm_start": ("bool", "true or false"),
     "warm_start_share": ("unit_open", "a number in (0, 1)"),
     "progress": ("progress", "auto, true or false"),
+    "forecast_samples": ("nonneg_int", "a non-negative integer (0: no forecast)"),
 }
 BACKENDS = ("local", "dask")
 _ADDRESS = re.compile(r"^(?:(?P<proto>tcp|tls)://)?(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+)"
@@ -41,6 +43,7 @@ def check_value(key: str, kind: str, value: Any, what: str) -> None:
     unit_open, choice, address)."""
     ok = {
         "pos_int": lambda v: _is_int(v) and v >= 1,
+        "workers": lambda v: v == "auto" or (_is_int(v) and v >= 1),
         "nonneg_int": lambda v: _is_int(v) and v >= 0,
         "bool": lambda v: isinstance(v, bool),
         "pos_float": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
@@ -55,6 +58,26 @@ def check_value(key: str, kind: str, value: Any, what: str) -> None:
         raise ConfigError(f"runner.{key}", f"must be {what}, got {value!r}",
                           allowed=BACKENDS if kind == "choice"
                           else ("auto", "true", "false") if kind == "progress" else None)
+
+
+def available_cores() -> int:
+    """Cores this process may run on (``sched_getaffinity``, else ``os.cpu_count``)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def resolve_workers(value: Any) -> int:
+    """``runner.workers`` as a number of processes: ``auto`` → :func:`available_cores`.
+
+    Raises
+    ------
+    ConfigError
+        Unless ``value`` is ``auto`` or an integer ≥ 1.
+    """
+    check_value("workers", "workers", value, RUNNER_OPTIONS["workers"][1])
+    return available_cores() if value == "auto" else int(value)
 
 
 def parse_address(address: str) -> tuple[str, int]:

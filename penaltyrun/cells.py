@@ -1,0 +1,88 @@
+"""From one composed config (one cell of a sweep) to its problem and its jobs.
+
+Shared by ``mode=optimize`` (:func:`penaltyrun.cli.run_optimize`) and ``mode=plan``
+(:mod:`penaltyrun.planmode`), so that a plan forecasts exactly the jobs a run would run.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from penaltyrun.errors import ConfigError
+
+
+def plain(node: Any) -> Any:
+    """Plain Python value of a config node (resolved), or None."""
+    return OmegaConf.to_container(node, resolve=True) if node is not None else None
+
+
+def problem_params(cfg: DictConfig) -> dict[str, Any]:
+    """Problem overrides from ``problem.params`` (nulls mean "from the case table")."""
+    params = plain(cfg.problem.get("params")) or {}
+    return {k: v for k, v in params.items() if v is not None}
+
+
+def problem_module(cfg: DictConfig) -> str | None:
+    """Module of a problem outside penaltyrun (``problem.module``), or None."""
+    value = cfg.problem.get("module")
+    return str(value) if value else None
+
+
+def optimizer_options(cfg: DictConfig) -> dict[str, Any]:
+    """The optimizer's settings (``optimizer.*`` without its name)."""
+    return {k: v for k, v in plain(cfg.optimizer).items() if k != "name"}
+
+
+def setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
+    """Validated (problem, decision layout, optimizer settings) of the cell."""
+    from penaltyrun import runner
+
+    return runner.build(cfg.problem.name, cfg.case, problem_params(cfg), cfg.param.name,
+                        plain(cfg.param), cfg.optimizer.name, optimizer_options(cfg),
+                        problem_module(cfg))
+
+
+def warm_start_share(cfg: DictConfig) -> float:
+    """Share of the budget spent on the diagonal stage (0: no warm start).
+
+    Raises
+    ------
+    ConfigError
+        A warm start without ``optimizer.max_evals``, or a share outside (0, 1).
+    """
+    rc = cfg.runner
+    if not rc.get("warm_start", False):
+        return 0.0
+    if not isinstance(rc.warm_start, bool):
+        raise ConfigError("runner.warm_start", f"must be true or false, got {rc.warm_start!r}")
+    share = rc.get("warm_start_share", 0.3)
+    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0 < share < 1:
+        raise ConfigError("runner.warm_start_share", f"must be in (0, 1), got {share!r}")
+    if cfg.optimizer.get("max_evals") is None:
+        raise ConfigError("runner.warm_start", "needs an evaluation budget: set "
+                          "optimizer.max_evals (the diagonal stage spends "
+                          "warm_start_share of it)")
+    if cfg.optimizer.name == "grid" or cfg.optimizer.name == "baseline":
+        raise ConfigError("runner.warm_start", f"not for optimizer {cfg.optimizer.name!r}",
+                          allowed=("pso", "de", "cmaes"))
+    return float(share)
+
+
+def cell_jobs(cfg: DictConfig, case: str, meta: dict[str, Any] | None = None) -> list[Any]:
+    """The jobs of the cell (one per start), as :func:`penaltyrun.runner.plan_jobs` plans
+    them; ``case`` is the problem's resolved case."""
+    from penaltyrun import runner
+
+    rc = cfg.runner
+    return runner.plan_jobs(
+        cfg.problem.name, case, cfg.param.name, cfg.optimizer.name, rc.n_starts,
+        int(rc.seed), problem_params(cfg), plain(cfg.param), optimizer_options(cfg),
+        meta or {}, holdout=bool(rc.holdout), warm_start_share=warm_start_share(cfg),
+        problem_module=problem_module(cfg))
+
+
+def forecast_samples(cfg: DictConfig) -> int:
+    """``runner.forecast_samples`` (8 if absent)."""
+    return int(cfg.runner.get("forecast_samples", 8))

@@ -1,4 +1,4 @@
-"""Command line: ``penaltyrun`` (Hydra app: optimize / evaluate / report) and
+"""Command line: ``penaltyrun`` (Hydra app: optimize / evaluate / report / plan) and
 ``penaltyrun-report`` (report from Parquet files).
 
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
@@ -259,8 +259,8 @@ def main() -> None:
     if print_version(sys.argv[1:]):
         return
     install_signal_handlers()
-    if _guard(lambda: preflight(sys.argv[1:])) == "plan":  # forecast only: Hydra runs nothing
-        return _guard(lambda: planmode.run(sys.argv[1:]))
+    if planmode.intercepts(sys.argv[1:], _guard(lambda: preflight(sys.argv[1:]))):
+        return _guard(lambda: planmode.run(sys.argv[1:]))  # forecast only: Hydra runs nothing
     sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
     _guard(_hydra_main)
     if FAILED_RUNS:

@@ -27,6 +27,15 @@ from penaltyrun import cells, userconf
 from penaltyrun.runner import forecast as fc
 from penaltyrun.runner.options import available_cores, resolve_workers
 
+#: Hydra's own flags: with one of them Hydra handles the command line (e.g. ``--cfg job``).
+HYDRA_FLAGS = ("--cfg", "-c", "--help", "-h", "--hydra-help", "--info", "-i",
+               "--shell-completion", "-sc", "--resolve", "--package", "-p")
+
+
+def intercepts(argv: list[str], mode: str) -> bool:
+    """Whether ``penaltyrun`` prints the plan itself (``mode=plan`` without Hydra flags)."""
+    return mode == "plan" and not any(a.split("=", 1)[0] in HYDRA_FLAGS for a in argv)
+
 
 def local_workers(cfg: DictConfig) -> int | None:
     """Worker processes of the cell on this machine (``runner.workers``, ``auto``

@@ -266,8 +266,8 @@ def summary_lines(cell: CellForecast, workers: int | None,
     evals = "no bound (set optimizer.max_evals)" if cell.evals is None else \
         f"≤ {cell.evals:,} evaluations + {cell.extra} after the search (detail, held-out set)"
     lines = [f"forecast: {n} jobs × {evals}",
-             f"forecast: CPU per evaluation {cell.timing.describe()}; first evaluation "
-             f"(compiling) {cell.timing.warmup_s:.3g} s"]
+             f"forecast: CPU per evaluation {cell.timing.describe()}; untimed first "
+             f"evaluation (compiling or loading kernels) {cell.timing.warmup_s:.3g} s"]
     cpu = cell.job_cpu_s
     if cpu is None:
         lines.append("forecast: no CPU estimate without a bound and a timing")

@@ -78,6 +78,17 @@ def test_timing_of_random_candidates():
     assert off.job_cpu_s is None and "forecast_samples=0" in off.timing.describe()
 
 
+def test_forecast_samples_zero_turns_the_run_forecast_off(caplog):
+    jobs = plan_jobs("zermelo", "default", "full", "pso", n_starts=2, root_seed=0,
+                     optimizer_options=PSO)
+    with caplog.at_level(logging.INFO, logger="penaltyrun.runner.forecast"):
+        assert fc.log_forecast(jobs, 0, 1, workers=2) == {}
+        assert not caplog.records
+        expected = fc.log_forecast(jobs, 2, 1, workers=2)
+    assert set(expected) == {j.job_id for j in jobs}
+    assert [r.getMessage()[:9] for r in caplog.records] == ["forecast:"] * 3
+
+
 def test_timing_error_is_reported_not_raised():
     class Broken:
         def evaluate_batch(self, mats, scalars=None):

@@ -83,6 +83,17 @@ def cell_jobs(cfg: DictConfig, case: str, meta: dict[str, Any] | None = None) ->
         problem_module=problem_module(cfg))
 
 
+def local_workers(cfg: DictConfig) -> int | None:
+    """Worker processes of the cell on this machine (``runner.workers``, ``auto``
+    resolved); ``None`` for a remote dask scheduler (cluster size unknown here)."""
+    from penaltyrun.runner.options import resolve_workers
+
+    rc = cfg.runner
+    if rc.get("backend", "local") == "dask" and rc.get("scheduler"):
+        return None
+    return resolve_workers(rc.workers)
+
+
 def forecast_samples(cfg: DictConfig) -> int:
     """``runner.forecast_samples`` (8 if absent)."""
     return int(cfg.runner.get("forecast_samples", 8))

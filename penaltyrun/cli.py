@@ -24,7 +24,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__, cells, checks, planmode, userconf
+from penaltyrun import __version__, cells, checks, userconf
 from penaltyrun.errors import (
     ConfigError,
     ResultsUnreadableError,
@@ -94,7 +94,7 @@ def run_optimize(cfg: DictConfig) -> Path:
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 cfg.param.name, cfg.optimizer.name, run_dir)
     expected = runner.log_forecast(jobs, cells.forecast_samples(cfg), int(rc.seed),
-                                   planmode.local_workers(cfg))
+                                   cells.local_workers(cfg))
     with _progress(cfg, jobs, run_dir) as on_record:
         runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
                        scheduler=rc.scheduler, resume=bool(rc.resume),
@@ -235,12 +235,18 @@ def _hydra_main(cfg: DictConfig) -> None:
             raise ConfigError("mode", f"unknown mode {cfg.mode!r}", allowed=MODES)
         try:
             return {"optimize": run_optimize, "evaluate": run_evaluate, "report": run_report,
-                    "plan": planmode.print_cell_plan}[cfg.mode](cfg)
+                    "plan": _print_cell_plan}[cfg.mode](cfg)
         except ConfigError:
             _discard_run_dir()
             raise
 
     _guard(dispatch)
+
+
+def _print_cell_plan(cfg: DictConfig) -> None:
+    from penaltyrun import planmode
+
+    planmode.print_cell_plan(cfg)
 
 
 def print_version(argv: list[str]) -> bool:
@@ -259,8 +265,11 @@ def main() -> None:
     if print_version(sys.argv[1:]):
         return
     install_signal_handlers()
-    if planmode.intercepts(sys.argv[1:], _guard(lambda: preflight(sys.argv[1:]))):
-        return _guard(lambda: planmode.run(sys.argv[1:]))  # forecast only: Hydra runs nothing
+    if _guard(lambda: preflight(sys.argv[1:])) == "plan":
+        from penaltyrun import planmode
+
+        if planmode.intercepts(sys.argv[1:]):  # forecast only: Hydra runs nothing
+            return _guard(lambda: planmode.run(sys.argv[1:]))
     sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
     _guard(_hydra_main)
     if FAILED_RUNS:

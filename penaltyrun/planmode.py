@@ -25,25 +25,17 @@ from omegaconf import DictConfig
 
 from penaltyrun import cells, userconf
 from penaltyrun.runner import forecast as fc
-from penaltyrun.runner.options import available_cores, resolve_workers
+from penaltyrun.runner.options import available_cores
 
 #: Hydra's own flags: with one of them Hydra handles the command line (e.g. ``--cfg job``).
 HYDRA_FLAGS = ("--cfg", "-c", "--help", "-h", "--hydra-help", "--info", "-i",
                "--shell-completion", "-sc", "--resolve", "--package", "-p")
 
 
-def intercepts(argv: list[str], mode: str) -> bool:
-    """Whether ``penaltyrun`` prints the plan itself (``mode=plan`` without Hydra flags)."""
-    return mode == "plan" and not any(a.split("=", 1)[0] in HYDRA_FLAGS for a in argv)
-
-
-def local_workers(cfg: DictConfig) -> int | None:
-    """Worker processes of the cell on this machine (``runner.workers``, ``auto``
-    resolved); ``None`` for a remote dask scheduler (cluster size unknown here)."""
-    rc = cfg.runner
-    if rc.get("backend", "local") == "dask" and rc.get("scheduler"):
-        return None
-    return resolve_workers(rc.workers)
+def intercepts(argv: list[str]) -> bool:
+    """Whether ``penaltyrun mode=plan`` prints the plan itself: unless a Hydra flag asks
+    Hydra for something else (the config, help)."""
+    return not any(a.split("=", 1)[0] in HYDRA_FLAGS for a in argv)
 
 
 def _first_values(parsed: Sequence[Any]) -> list[str]:
@@ -130,7 +122,7 @@ def _row(cell: fc.CellForecast, workers: int | None) -> str:
 def render(cells_fc: Sequence[fc.CellForecast], cfgs: Sequence[DictConfig],
            multirun: bool, model: fc.WallModel = fc.job_level_wall) -> str:
     """The plan screen: one row per cell, totals, this machine and 64 / 512 cores."""
-    workers = local_workers(cfgs[0])
+    workers = cells.local_workers(cfgs[0])
     n_jobs = sum(len(c.jobs) for c in cells_fc)
     samples = max((len(c.timing.samples_s) for c in cells_fc), default=0)
     how = "multirun: Hydra runs the cells one after another" if multirun else "one cell"

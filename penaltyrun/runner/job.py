@@ -14,6 +14,7 @@ import numpy as np
 from penaltyrun import optim
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
+from penaltyrun.runner.swarm import LocalEvaluation
 
 logger = logging.getLogger(__name__)
 
@@ -75,17 +76,13 @@ class Heartbeat:
         return cost
 
 
-def _objective(prob: Any, layout: Any, label: str) -> Heartbeat:
-    """Batched objective of ``prob`` over ``layout``'s box, with progress lines."""
-
-    def evaluate(Z: np.ndarray) -> np.ndarray:
-        mats, scalars = layout.split(Z)
-        return prob.evaluate_batch(mats, scalars or None).cost
-
-    return Heartbeat(evaluate, label)
+def _objective(evaluation: Any, job: Job, prob: Any, layout: Any, param: str) -> Heartbeat:
+    """Batched objective of ``prob`` over ``layout``'s box (parameterization ``param``),
+    evaluated by ``evaluation``, with progress lines."""
+    return Heartbeat(evaluation.objective(job, prob, layout, param), job.job_id)
 
 
-def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
+def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: Any
                   ) -> tuple[optim.OptimResult, dict[str, Any]]:
     """Diagonal stage, then the full search seeded with the best diagonal matrix.
 
@@ -106,14 +103,16 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
     diag_layout = build_layout(prob, "diagonal", job.param_options)
     diag_budget = max(1, int(job.warm_start_share * budget))
     dlb, dub = diag_layout.bounds()
-    diag = optim.minimize(job.optimizer, _objective(prob, diag_layout, job.job_id), dlb, dub,
+    diag = optim.minimize(job.optimizer,
+                          _objective(evaluation, job, prob, diag_layout, "diagonal"), dlb, dub,
                           replace(settings, max_evals=diag_budget), job.seed)
     mats, scalars = diag_layout.split(diag.best_z[None, :])
     diag_mats = {k: v[0] for k, v in mats.items()}
     diag_scalars = {k: float(v[0]) for k, v in scalars.items()}
     x0 = layout.join(diag_mats, diag_scalars)
     lb, ub = layout.bounds()
-    full = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id), lb, ub,
+    full = optim.minimize(job.optimizer, _objective(evaluation, job, prob, layout, job.param),
+                          lb, ub,
                           replace(settings, max_evals=max(1, budget - diag.n_evals)),
                           job.seed, x0)
     trace_evals = list(diag.trace_evals) + [diag.n_evals + n for n in full.trace_evals]
@@ -130,8 +129,15 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
     return result, warm
 
 
-def run_job(job: Job) -> dict[str, Any]:
+def run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
     """Optimize one job and evaluate its best candidate in detail.
+
+    Parameters
+    ----------
+    job : Job
+    evaluation : LocalEvaluation or DaskEvaluation, optional
+        Where candidates are evaluated (default: in this process). The record does not
+        depend on it (costs are bitwise the same), only its timing columns do.
 
     Returns
     -------
@@ -150,6 +156,7 @@ def run_job(job: Job) -> dict[str, Any]:
         "started_at": started.isoformat(),
         **job.meta,
     }
+    evaluation = LocalEvaluation() if evaluation is None else evaluation
     try:
         prob, layout, settings = build(job.problem, job.case, job.problem_params, job.param,
                                        job.param_options, job.optimizer,
@@ -160,19 +167,17 @@ def run_job(job: Job) -> dict[str, Any]:
             eye = {name: settings.scale * np.eye(p.n) for name, p in layout.matrices}
             x0 = layout.join(eye, {name: 0.5 * (lo + hi) for name, (lo, hi) in layout.scalars})
         if job.warm_start_share:
-            result, warm = _warm_started(job, prob, layout, settings)
+            result, warm = _warm_started(job, prob, layout, settings, evaluation)
             record["warm_start"] = warm
         else:
-            result = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id), lb,
+            result = optim.minimize(job.optimizer,
+                                    _objective(evaluation, job, prob, layout, job.param), lb,
                                     ub, settings, job.seed, x0)
         mats, scalars = layout.split(result.best_z[None, :])
         best_mats = {k: v[0] for k, v in mats.items()}
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}
-        detail = prob.evaluate(best_mats, best_scalars or None)
+        detail, holdout = evaluation.best(job, prob, best_mats, best_scalars)
         converged = bool(detail.get("converged", False))
-        holdout = None
-        if job.holdout and hasattr(prob, "holdout"):
-            holdout = prob.holdout(best_mats, best_scalars or None)
         record.update({
             "status": "ok" if converged else "diverged",
             "error": "" if converged else f"best candidate did not converge "

@@ -1,0 +1,297 @@
+"""Swarm-level Dask distribution (``runner.evaluate_on=dask``): every optimizer iteration's
+batch of candidates is split into chunks evaluated on Dask workers, gathered in order.
+
+The optimizer loops (one thread per concurrent start) run in this process; the workers only
+evaluate. So a worker lost mid-iteration costs only its chunk, which the scheduler runs again
+on another worker (up to ``allowed-failures``, :func:`~.dask_backend.open_client`), and the
+start goes on with bitwise the same costs. Each start's problem settings reach every worker
+once, through a worker plugin (:class:`SpecPlugin`, also applied to workers that join later);
+a worker builds the problem at its first chunk and keeps it for the run
+(:func:`penaltyrun.runner.swarm.cached`).
+
+Job-level and swarm-level parallelism combine (:func:`shares`): with T worker threads and J
+jobs, ``min(J, T)`` starts run at once and each batch is split into ``T // starts`` chunks
+(``runner.chunks: auto``), fewer when a chunk would take less than :data:`OVERHEAD_FACTOR`
+times the measured per-batch overhead (a calibration from the batches already evaluated).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import logging
+import threading
+import time
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+import distributed
+import numpy as np
+
+from penaltyrun.errors import RunAbortedError
+from penaltyrun.runner import swarm
+from penaltyrun.runner.dask_backend import POLL_S, n_workers, open_client
+from penaltyrun.runner.job import run_job
+from penaltyrun.runner.plan import Job
+
+logger = logging.getLogger(__name__)
+
+#: auto chunks: a chunk should cost at least this many times the per-batch overhead.
+OVERHEAD_FACTOR = 10.0
+#: Floor of the measured per-batch overhead (s), so one fast batch does not mislead.
+MIN_OVERHEAD_S = 1e-3
+
+
+def shares(n_jobs: int, threads: int, chunks: int | str) -> tuple[int, int]:
+    """Concurrent starts and chunks per batch for ``n_jobs`` on ``threads`` worker threads.
+
+    Parameters
+    ----------
+    n_jobs : int
+        Jobs to run (≥ 1).
+    threads : int
+        Worker threads of the cluster (≥ 1).
+    chunks : int or "auto"
+        ``runner.chunks``. auto: ``min(n_jobs, threads)`` starts at once, each batch in
+        ``threads // starts`` chunks. An integer c: ``threads // c`` starts (at least one).
+
+    Returns
+    -------
+    (int, int)
+        Concurrent starts, chunks per batch (an upper bound under auto, see
+        :class:`DaskBatch`).
+    """
+    threads, n_jobs = max(1, int(threads)), max(1, int(n_jobs))
+    if chunks == "auto":
+        starts = min(n_jobs, threads)
+        return starts, max(1, threads // starts)
+    return max(1, min(n_jobs, threads // int(chunks))), int(chunks)
+
+
+class SpecPlugin(distributed.WorkerPlugin):
+    """Registers one :class:`~penaltyrun.runner.swarm.ProblemSpec` on each worker.
+
+    Parameters
+    ----------
+    spec : ProblemSpec
+    """
+
+    def __init__(self, spec: swarm.ProblemSpec) -> None:
+        self.spec = spec
+
+    def setup(self, worker: Any) -> None:
+        """Register the spec in the worker process."""
+        swarm.register(self.spec)
+
+    def teardown(self, worker: Any) -> None:
+        """Drop the spec and its cached problem."""
+        swarm.forget(self.spec.key)
+
+
+class DaskBatch:
+    """Batched objective Z (B, dim) → (B,) evaluated as chunks on Dask workers.
+
+    Parameters
+    ----------
+    client : distributed.Client
+    key : str
+        Key of a registered problem spec.
+    chunks : int
+        Chunks per batch (at most B); an upper bound when ``auto``.
+    auto : bool
+        Use fewer chunks when the calibration says a chunk would be too short.
+    stop : threading.Event
+        Set when the run ends: a pending batch raises :class:`RunAbortedError`.
+    """
+
+    def __init__(self, client: Any, key: str, chunks: int, auto: bool,
+                 stop: threading.Event) -> None:
+        self.client, self.key, self.chunks, self.auto, self.stop = client, key, chunks, \
+            auto, stop
+        self.cpu_per_eval: float | None = None  # CPU s per candidate (mean so far)
+        self.overhead_s: float | None = None  # wall s of a batch beyond its longest chunk
+        self.n_batches = 0
+
+    def n_chunks(self, n: int) -> int:
+        """Chunks for a batch of ``n`` candidates."""
+        c = min(n, self.chunks)
+        if self.auto and self.cpu_per_eval is not None and self.overhead_s is not None:
+            floor_s = OVERHEAD_FACTOR * max(self.overhead_s, MIN_OVERHEAD_S)
+            c = min(c, max(1, int(n * self.cpu_per_eval / floor_s)))
+        return max(1, c)
+
+    def __call__(self, Z: np.ndarray) -> np.ndarray:
+        Z = np.atleast_2d(np.asarray(Z, float))
+        t0 = time.perf_counter()
+        parts = np.array_split(Z, self.n_chunks(Z.shape[0]))
+        futures = [self.client.submit(swarm.evaluate_chunk, self.key, part, pure=False)
+                   for part in parts]
+        results = gather(self.client, futures, self.stop)
+        wall = time.perf_counter() - t0
+        cpu = np.array([r[1] for r in results])
+        self._calibrate(Z.shape[0], float(cpu.sum()), max(0.0, wall - float(cpu.max())))
+        return np.concatenate([r[0] for r in results])
+
+    def _calibrate(self, n: int, cpu_s: float, overhead_s: float) -> None:
+        k = self.n_batches
+        per = cpu_s / max(n, 1)
+        self.cpu_per_eval = per if k == 0 else (k * self.cpu_per_eval + per) / (k + 1)
+        self.overhead_s = overhead_s if k == 0 else (k * self.overhead_s + overhead_s) / (k + 1)
+        self.n_batches = k + 1
+
+
+def gather(client: Any, futures: list[Any], stop: threading.Event) -> list[Any]:
+    """Results of ``futures`` in order; waits in short steps so that ``stop`` ends the wait.
+
+    Raises
+    ------
+    RunAbortedError
+        If ``stop`` is set first.
+    Exception
+        The error of a chunk that failed (e.g. ``KilledWorker``).
+    """
+    pending = futures
+    while True:
+        if stop.is_set():
+            for fut in futures:
+                fut.cancel()
+            raise RunAbortedError("run stopped while a batch was being evaluated")
+        try:
+            distributed.wait(pending, timeout=POLL_S)
+            break
+        except (TimeoutError, distributed.TimeoutError):
+            pending = [f for f in pending if not f.done()]
+    return client.gather(futures)
+
+
+class DaskEvaluation:
+    """Evaluation of every job's candidates on a Dask cluster (see the module docstring).
+
+    Parameters
+    ----------
+    client : distributed.Client
+    chunks : int
+        Chunks per batch (upper bound under ``auto``).
+    auto : bool
+        ``runner.chunks: auto``.
+    """
+
+    def __init__(self, client: Any, chunks: int, auto: bool) -> None:
+        self.client, self.chunks, self.auto = client, chunks, auto
+        self.stop = threading.Event()
+        self._plugins: dict[str, str] = {}
+        self._lock = threading.Lock()
+
+    def register(self, spec: swarm.ProblemSpec) -> str:
+        """Send ``spec`` to every worker (once per run); return its key."""
+        with self._lock:
+            if spec.key not in self._plugins:
+                name = f"penaltyrun-problem-{spec.key}"
+                self.client.register_plugin(SpecPlugin(spec), name=name)
+                self._plugins[spec.key] = name
+        return spec.key
+
+    def objective(self, job: Job, prob: Any, layout: Any, param: str) -> DaskBatch:
+        """Batched objective of ``job`` under ``param``, evaluated on the workers."""
+        key = self.register(swarm.ProblemSpec.of(job, param))
+        batch = DaskBatch(self.client, key, self.chunks, self.auto, self.stop)
+        logger.debug("%s: batches in up to %d chunks on dask workers", job.job_id,
+                     self.chunks)
+        return batch
+
+    def best(self, job: Job, prob: Any, mats: Mapping[str, np.ndarray],
+             scalars: Mapping[str, float]) -> tuple[dict[str, Any], Any]:
+        """Detailed (and held-out) evaluation of the job's best candidate, on a worker."""
+        key = self.register(swarm.ProblemSpec.of(job))
+        fut = self.client.submit(swarm.evaluate_best_chunk, key, dict(mats), dict(scalars),
+                                 job.holdout, pure=False)
+        return gather(self.client, [fut], self.stop)[0]
+
+    def close(self) -> None:
+        """Stop pending batches and remove the plugins (workers drop their problems)."""
+        self.stop.set()
+        for name in self._plugins.values():
+            try:
+                self.client.unregister_worker_plugin(name)
+            except Exception as exc:  # scheduler gone: nothing left to clean
+                logger.debug("could not unregister %s: %s", name, exc)
+        self._plugins.clear()
+
+
+def cluster_threads(client: Any, timeout_s: float) -> int:
+    """Worker threads of the cluster, waiting up to ``timeout_s`` for a first worker.
+
+    Raises
+    ------
+    RunAbortedError
+        If no worker joins within ``timeout_s`` seconds.
+    """
+    try:
+        client.wait_for_workers(1, timeout=timeout_s)
+    except (TimeoutError, distributed.TimeoutError):
+        raise RunAbortedError(f"no dask worker for {timeout_s:g} s (runner.worker_timeout); "
+                              "start workers and rerun") from None
+    workers = client.scheduler_info().get("workers", {})
+    return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+
+
+def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries: int = 1,
+              worker_timeout: float = 60.0, chunks: int | str = "auto"
+              ) -> Iterator[tuple[Job, dict[str, Any]]]:
+    """Run ``jobs`` with their batches on Dask workers; yield ``(job, record)`` as each ends.
+
+    Parameters
+    ----------
+    jobs : list of Job
+    workers : int
+        Worker processes of the LocalCluster (when ``scheduler`` is None).
+    scheduler : str or None
+        Address of a running scheduler.
+    max_retries : int
+        LocalCluster only: times a chunk may kill its worker before it fails.
+    worker_timeout : float
+        Seconds without any worker after which the run stops (s).
+    chunks : int or "auto"
+        ``runner.chunks`` (see :func:`shares`).
+
+    Raises
+    ------
+    RunAbortedError
+        If the scheduler cannot be reached or the cluster has no worker for
+        ``worker_timeout`` seconds.
+    """
+    client, cluster = open_client(workers, scheduler, max_retries)
+    evaluation = None
+    pool = None
+    try:
+        threads = cluster_threads(client, worker_timeout)
+        starts, per = shares(len(jobs), threads, chunks)
+        logger.info("swarm-level dask: %d worker threads, %d starts at once, batches in up to "
+                    "%d chunks%s", threads, starts, per, " (auto)" if chunks == "auto" else "")
+        evaluation = DaskEvaluation(client, per, chunks == "auto")
+        pool = cf.ThreadPoolExecutor(max_workers=starts, thread_name_prefix="penaltyrun-start")
+        futures = {pool.submit(run_job, job, evaluation): job for job in jobs}
+        pending = set(futures)
+        lost_since: float | None = None
+        while pending:
+            done, pending = cf.wait(pending, timeout=POLL_S, return_when=cf.FIRST_COMPLETED)
+            for fut in done:
+                yield futures[fut], fut.result()
+            if done or n_workers(client) > 0:
+                lost_since = None
+                continue
+            lost_since = lost_since or time.monotonic()
+            if time.monotonic() - lost_since > worker_timeout:
+                raise RunAbortedError(
+                    f"no dask worker for {worker_timeout:g} s (runner.worker_timeout) with "
+                    f"{len(pending)} jobs left; start workers and rerun with "
+                    f"runner.resume=true (finished jobs are kept)")
+    finally:
+        if evaluation is not None:
+            evaluation.stop.set()
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+        if evaluation is not None:
+            evaluation.close()
+        client.close()
+        if cluster is not None:
+            cluster.close()

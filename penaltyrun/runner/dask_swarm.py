@@ -9,6 +9,11 @@ once, through a worker plugin (:class:`SpecPlugin`, also applied to workers that
 a worker builds the problem at its first chunk and keeps it for the run
 (:func:`penaltyrun.runner.swarm.cached`).
 
+Concurrent starts are threads of this process. pyswarms and cma draw from numpy's *global*
+random state, so a :class:`Baton` lets one start's Python run at a time, with its own copy
+of that state, and is passed on while the start waits for its chunks: each start draws
+exactly the numbers of a serial run (evaluations run on the workers meanwhile).
+
 Job-level and swarm-level parallelism combine (:func:`shares`): with T worker threads and J
 jobs, ``min(J, T)`` starts run at once and each batch is split into ``T // starts`` chunks
 (``runner.chunks: auto``), fewer when a chunk would take less than :data:`OVERHEAD_FACTOR`
@@ -22,6 +27,7 @@ import logging
 import threading
 import time
 from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any
 
 import distributed
@@ -67,6 +73,35 @@ def shares(n_jobs: int, threads: int, chunks: int | str) -> tuple[int, int]:
     return max(1, min(n_jobs, threads // int(chunks))), int(chunks)
 
 
+class Baton:
+    """One thread at a time runs a start's Python, each with its own global numpy state.
+
+    A start's thread holds the baton (:meth:`held`) except while it waits for the workers
+    (:meth:`passed`); ``np.random``'s global state is saved when the baton is passed and
+    restored when it comes back, so interleaved starts never draw each other's numbers.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+
+    @contextmanager
+    def held(self) -> Iterator[None]:
+        """Hold the baton for the whole block (a start's thread)."""
+        with self._lock:
+            yield
+
+    @contextmanager
+    def passed(self) -> Iterator[None]:
+        """Let other starts run during the block (a wait); the caller must hold the baton."""
+        state = np.random.get_state()  # noqa: NPY002  (the state pyswarms and cma draw from)
+        self._lock.release()
+        try:
+            yield
+        finally:
+            self._lock.acquire()
+            np.random.set_state(state)  # noqa: NPY002
+
+
 class SpecPlugin(distributed.WorkerPlugin):
     """Registers one :class:`~penaltyrun.runner.swarm.ProblemSpec` on each worker.
 
@@ -92,21 +127,18 @@ class DaskBatch:
 
     Parameters
     ----------
-    client : distributed.Client
+    evaluation : DaskEvaluation
+        Its client submits the chunks and its :meth:`~DaskEvaluation.gather` collects them.
     key : str
         Key of a registered problem spec.
     chunks : int
         Chunks per batch (at most B); an upper bound when ``auto``.
     auto : bool
         Use fewer chunks when the calibration says a chunk would be too short.
-    stop : threading.Event
-        Set when the run ends: a pending batch raises :class:`RunAbortedError`.
     """
 
-    def __init__(self, client: Any, key: str, chunks: int, auto: bool,
-                 stop: threading.Event) -> None:
-        self.client, self.key, self.chunks, self.auto, self.stop = client, key, chunks, \
-            auto, stop
+    def __init__(self, evaluation: Any, key: str, chunks: int, auto: bool) -> None:
+        self.evaluation, self.key, self.chunks, self.auto = evaluation, key, chunks, auto
         self.cpu_per_eval: float | None = None  # CPU s per candidate (mean so far)
         self.overhead_s: float | None = None  # wall s of a batch beyond its longest chunk
         self.n_batches = 0
@@ -123,9 +155,10 @@ class DaskBatch:
         Z = np.atleast_2d(np.asarray(Z, float))
         t0 = time.perf_counter()
         parts = np.array_split(Z, self.n_chunks(Z.shape[0]))
-        futures = [self.client.submit(swarm.evaluate_chunk, self.key, part, pure=False)
+        client = self.evaluation.client
+        futures = [client.submit(swarm.evaluate_chunk, self.key, part, pure=False)
                    for part in parts]
-        results = gather(self.client, futures, self.stop)
+        results = self.evaluation.gather(futures)
         wall = time.perf_counter() - t0
         cpu = np.array([r[1] for r in results])
         self._calibrate(Z.shape[0], float(cpu.sum()), max(0.0, wall - float(cpu.max())))
@@ -137,30 +170,6 @@ class DaskBatch:
         self.cpu_per_eval = per if k == 0 else (k * self.cpu_per_eval + per) / (k + 1)
         self.overhead_s = overhead_s if k == 0 else (k * self.overhead_s + overhead_s) / (k + 1)
         self.n_batches = k + 1
-
-
-def gather(client: Any, futures: list[Any], stop: threading.Event) -> list[Any]:
-    """Results of ``futures`` in order; waits in short steps so that ``stop`` ends the wait.
-
-    Raises
-    ------
-    RunAbortedError
-        If ``stop`` is set first.
-    Exception
-        The error of a chunk that failed (e.g. ``KilledWorker``).
-    """
-    pending = futures
-    while True:
-        if stop.is_set():
-            for fut in futures:
-                fut.cancel()
-            raise RunAbortedError("run stopped while a batch was being evaluated")
-        try:
-            distributed.wait(pending, timeout=POLL_S)
-            break
-        except (TimeoutError, distributed.TimeoutError):
-            pending = [f for f in pending if not f.done()]
-    return client.gather(futures)
 
 
 class DaskEvaluation:
@@ -178,6 +187,7 @@ class DaskEvaluation:
     def __init__(self, client: Any, chunks: int, auto: bool) -> None:
         self.client, self.chunks, self.auto = client, chunks, auto
         self.stop = threading.Event()
+        self.baton = Baton()
         self._plugins: dict[str, str] = {}
         self._lock = threading.Lock()
 
@@ -193,7 +203,7 @@ class DaskEvaluation:
     def objective(self, job: Job, prob: Any, layout: Any, param: str) -> DaskBatch:
         """Batched objective of ``job`` under ``param``, evaluated on the workers."""
         key = self.register(swarm.ProblemSpec.of(job, param))
-        batch = DaskBatch(self.client, key, self.chunks, self.auto, self.stop)
+        batch = DaskBatch(self, key, self.chunks, self.auto)
         logger.debug("%s: batches in up to %d chunks on dask workers", job.job_id,
                      self.chunks)
         return batch
@@ -204,7 +214,37 @@ class DaskEvaluation:
         key = self.register(swarm.ProblemSpec.of(job))
         fut = self.client.submit(swarm.evaluate_best_chunk, key, dict(mats), dict(scalars),
                                  job.holdout, pure=False)
-        return gather(self.client, [fut], self.stop)[0]
+        return self.gather([fut])[0]
+
+    def gather(self, futures: list[Any]) -> list[Any]:
+        """Results of ``futures`` in order, waiting with the baton passed, in short steps so
+        that :attr:`stop` ends the wait.
+
+        Raises
+        ------
+        RunAbortedError
+            If :attr:`stop` is set first.
+        Exception
+            The error of a chunk that failed (e.g. ``KilledWorker``).
+        """
+        pending = futures
+        with self.baton.passed():
+            while pending:
+                if self.stop.is_set():
+                    for fut in futures:
+                        fut.cancel()
+                    raise RunAbortedError("run stopped while a batch was being evaluated")
+                try:
+                    distributed.wait(pending, timeout=POLL_S)
+                except (TimeoutError, distributed.TimeoutError):
+                    pass
+                pending = [f for f in pending if not f.done()]
+        return self.client.gather(futures)
+
+    def run_job(self, job: Job) -> dict[str, Any]:
+        """:func:`~penaltyrun.runner.job.run_job` of ``job`` with the baton held."""
+        with self.baton.held():
+            return run_job(job, self)
 
     def close(self) -> None:
         """Stop pending batches and remove the plugins (workers drop their problems)."""
@@ -269,7 +309,7 @@ def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries:
                     "%d chunks%s", threads, starts, per, " (auto)" if chunks == "auto" else "")
         evaluation = DaskEvaluation(client, per, chunks == "auto")
         pool = cf.ThreadPoolExecutor(max_workers=starts, thread_name_prefix="penaltyrun-start")
-        futures = {pool.submit(run_job, job, evaluation): job for job in jobs}
+        futures = {pool.submit(evaluation.run_job, job): job for job in jobs}
         pending = set(futures)
         lost_since: float | None = None
         while pending:

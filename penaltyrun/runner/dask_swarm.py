@@ -15,9 +15,10 @@ of that state, and is passed on while the start waits for its chunks: each start
 exactly the numbers of a serial run (evaluations run on the workers meanwhile).
 
 Job-level and swarm-level parallelism combine (:func:`shares`): with T worker threads and J
-jobs, ``min(J, T)`` starts run at once and each batch is split into ``T // starts`` chunks
-(``runner.chunks: auto``), fewer when a chunk would take less than :data:`OVERHEAD_FACTOR`
-times the measured per-batch overhead (a calibration from the batches already evaluated).
+jobs, ``min(J, T)`` starts run at once and, under ``runner.chunks: auto``, each batch is split
+into T // (starts running now) chunks, so the cluster stays full and the last starts of a run
+get all of it; fewer when a chunk would cost less than :data:`OVERHEAD_FACTOR` times the
+measured per-batch overhead (a calibration from the start's batches so far).
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ logger = logging.getLogger(__name__)
 OVERHEAD_FACTOR = 10.0
 #: Floor of the measured per-batch overhead (s), so one fast batch does not mislead.
 MIN_OVERHEAD_S = 1e-3
+#: auto chunks: seconds between two looks at the cluster's thread count.
+REFRESH_S = 10.0
 
 
 def shares(n_jobs: int, threads: int, chunks: int | str) -> tuple[int, int]:
@@ -128,25 +131,37 @@ class DaskBatch:
     Parameters
     ----------
     evaluation : DaskEvaluation
-        Its client submits the chunks and its :meth:`~DaskEvaluation.gather` collects them.
+        Its client submits the chunks, its :meth:`~DaskEvaluation.gather` collects them and
+        its :meth:`~DaskEvaluation.chunk_cap` bounds their number.
     key : str
         Key of a registered problem spec.
-    chunks : int
-        Chunks per batch (at most B); an upper bound when ``auto``.
-    auto : bool
-        Use fewer chunks when the calibration says a chunk would be too short.
+
+    Attributes
+    ----------
+    cpu_per_eval : float or None
+        Mean CPU seconds per candidate on the workers (calibration).
+    overhead_s : float or None
+        Mean wall seconds of a batch beyond its longest chunk (round trip, serialization,
+        queueing).
+    n_batches : int
+    wall_s, cpu_s, critical_cpu_s : float
+        Totals over the batches: wall time, CPU time of every chunk, CPU time of the longest
+        chunk of each batch (the critical path on idle cores).
     """
 
-    def __init__(self, evaluation: Any, key: str, chunks: int, auto: bool) -> None:
-        self.evaluation, self.key, self.chunks, self.auto = evaluation, key, chunks, auto
-        self.cpu_per_eval: float | None = None  # CPU s per candidate (mean so far)
-        self.overhead_s: float | None = None  # wall s of a batch beyond its longest chunk
+    def __init__(self, evaluation: Any, key: str) -> None:
+        self.evaluation, self.key = evaluation, key
+        self.cpu_per_eval: float | None = None
+        self.overhead_s: float | None = None
         self.n_batches = 0
+        self.wall_s = self.cpu_s = self.critical_cpu_s = 0.0
 
     def n_chunks(self, n: int) -> int:
-        """Chunks for a batch of ``n`` candidates."""
-        c = min(n, self.chunks)
-        if self.auto and self.cpu_per_eval is not None and self.overhead_s is not None:
+        """Chunks for a batch of ``n`` candidates: the evaluation's cap; under auto fewer
+        when a chunk would cost less than :data:`OVERHEAD_FACTOR` × the overhead."""
+        c = min(n, self.evaluation.chunk_cap())
+        if self.evaluation.auto and self.cpu_per_eval is not None \
+                and self.overhead_s is not None:
             floor_s = OVERHEAD_FACTOR * max(self.overhead_s, MIN_OVERHEAD_S)
             c = min(c, max(1, int(n * self.cpu_per_eval / floor_s)))
         return max(1, c)
@@ -161,15 +176,19 @@ class DaskBatch:
         results = self.evaluation.gather(futures)
         wall = time.perf_counter() - t0
         cpu = np.array([r[1] for r in results])
-        self._calibrate(Z.shape[0], float(cpu.sum()), max(0.0, wall - float(cpu.max())))
+        self.calibrate(Z.shape[0], float(cpu.sum()), float(cpu.max()), wall)
         return np.concatenate([r[0] for r in results])
 
-    def _calibrate(self, n: int, cpu_s: float, overhead_s: float) -> None:
+    def calibrate(self, n: int, cpu_s: float, max_cpu_s: float, wall_s: float) -> None:
+        """Fold one batch of ``n`` candidates into the means and totals."""
         k = self.n_batches
-        per = cpu_s / max(n, 1)
+        per, over = cpu_s / max(n, 1), max(0.0, wall_s - max_cpu_s)
         self.cpu_per_eval = per if k == 0 else (k * self.cpu_per_eval + per) / (k + 1)
-        self.overhead_s = overhead_s if k == 0 else (k * self.overhead_s + overhead_s) / (k + 1)
+        self.overhead_s = over if k == 0 else (k * self.overhead_s + over) / (k + 1)
         self.n_batches = k + 1
+        self.wall_s += wall_s
+        self.cpu_s += cpu_s
+        self.critical_cpu_s += max_cpu_s
 
 
 class DaskEvaluation:
@@ -178,18 +197,33 @@ class DaskEvaluation:
     Parameters
     ----------
     client : distributed.Client
-    chunks : int
-        Chunks per batch (upper bound under ``auto``).
-    auto : bool
-        ``runner.chunks: auto``.
+    chunks : int or "auto"
+        ``runner.chunks``: a fixed number of chunks per batch, or auto (the cluster's
+        threads shared by the starts running now, see :meth:`chunk_cap`).
+    threads : int
+        Worker threads of the cluster now (refreshed every :data:`REFRESH_S` s).
     """
 
-    def __init__(self, client: Any, chunks: int, auto: bool) -> None:
-        self.client, self.chunks, self.auto = client, chunks, auto
+    def __init__(self, client: Any, chunks: int | str, threads: int) -> None:
+        self.client, self.chunks, self.threads = client, chunks, max(1, int(threads))
+        self.auto = chunks == "auto"
         self.stop = threading.Event()
         self.baton = Baton()
+        self.active = 0  # starts running now
+        self._threads_at = time.monotonic()
         self._plugins: dict[str, str] = {}
         self._lock = threading.Lock()
+
+    def chunk_cap(self) -> int:
+        """Most chunks per batch: ``runner.chunks``, or under auto the cluster's threads
+        divided among the starts running now (so the last starts of a run get the whole
+        cluster)."""
+        if not self.auto:
+            return int(self.chunks)
+        if time.monotonic() - self._threads_at > REFRESH_S:
+            self._threads_at = time.monotonic()
+            self.threads = max(1, worker_threads(self.client) or self.threads)
+        return max(1, self.threads // max(1, self.active))
 
     def register(self, spec: swarm.ProblemSpec) -> str:
         """Send ``spec`` to every worker (once per run); return its key."""
@@ -203,10 +237,7 @@ class DaskEvaluation:
     def objective(self, job: Job, prob: Any, layout: Any, param: str) -> DaskBatch:
         """Batched objective of ``job`` under ``param``, evaluated on the workers."""
         key = self.register(swarm.ProblemSpec.of(job, param))
-        batch = DaskBatch(self, key, self.chunks, self.auto)
-        logger.debug("%s: batches in up to %d chunks on dask workers", job.job_id,
-                     self.chunks)
-        return batch
+        return DaskBatch(self, key)
 
     def best(self, job: Job, prob: Any, mats: Mapping[str, np.ndarray],
              scalars: Mapping[str, float]) -> tuple[dict[str, Any], Any]:
@@ -244,7 +275,11 @@ class DaskEvaluation:
     def run_job(self, job: Job) -> dict[str, Any]:
         """:func:`~penaltyrun.runner.job.run_job` of ``job`` with the baton held."""
         with self.baton.held():
-            return run_job(job, self)
+            self.active += 1
+            try:
+                return run_job(job, self)
+            finally:
+                self.active -= 1
 
     def close(self) -> None:
         """Stop pending batches and remove the plugins (workers drop their problems)."""
@@ -255,6 +290,15 @@ class DaskEvaluation:
             except Exception as exc:  # scheduler gone: nothing left to clean
                 logger.debug("could not unregister %s: %s", name, exc)
         self._plugins.clear()
+
+
+def worker_threads(client: Any) -> int:
+    """Worker threads the scheduler knows now (0 when it cannot be reached)."""
+    try:
+        workers = client.scheduler_info().get("workers", {})
+    except Exception:  # scheduler unreachable: the caller keeps its last count
+        return 0
+    return sum(int(w.get("nthreads", 1)) for w in workers.values())
 
 
 def cluster_threads(client: Any, timeout_s: float) -> int:
@@ -270,8 +314,7 @@ def cluster_threads(client: Any, timeout_s: float) -> int:
     except (TimeoutError, distributed.TimeoutError):
         raise RunAbortedError(f"no dask worker for {timeout_s:g} s (runner.worker_timeout); "
                               "start workers and rerun") from None
-    workers = client.scheduler_info().get("workers", {})
-    return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+    return max(1, worker_threads(client))
 
 
 def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries: int = 1,
@@ -307,7 +350,7 @@ def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries:
         starts, per = shares(len(jobs), threads, chunks)
         logger.info("swarm-level dask: %d worker threads, %d starts at once, batches in up to "
                     "%d chunks%s", threads, starts, per, " (auto)" if chunks == "auto" else "")
-        evaluation = DaskEvaluation(client, per, chunks == "auto")
+        evaluation = DaskEvaluation(client, chunks, threads)
         pool = cf.ThreadPoolExecutor(max_workers=starts, thread_name_prefix="penaltyrun-start")
         futures = {pool.submit(evaluation.run_job, job): job for job in jobs}
         pending = set(futures)

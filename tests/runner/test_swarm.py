@@ -69,20 +69,43 @@ def test_shares_fill_the_cluster(n_jobs, threads, chunks, expected):
     assert shares(n_jobs, threads, chunks) == expected
 
 
+class _Cap:
+    """Stands in for a DaskEvaluation: a chunk cap and the auto flag."""
+
+    def __init__(self, cap, auto=True):
+        self.cap, self.auto = cap, auto
+
+    def chunk_cap(self):
+        return self.cap
+
+
 @needs_dask
 def test_auto_chunks_shrink_when_a_chunk_would_be_too_short():
     from penaltyrun.runner.dask_swarm import DaskBatch
 
-    batch = DaskBatch(None, "k", chunks=8, auto=True)
+    batch = DaskBatch(_Cap(8), "k")
     assert batch.n_chunks(30) == 8 and batch.n_chunks(3) == 3
-    batch._calibrate(30, cpu_s=30 * 1e-4, overhead_s=5e-3)  # 0.1 ms per candidate
+    batch.calibrate(30, cpu_s=30 * 1e-4, max_cpu_s=4e-4, wall_s=6e-3)  # 0.1 ms a candidate
     assert batch.n_chunks(30) == 1  # 3 ms of work: one chunk
-    slow = DaskBatch(None, "k", chunks=8, auto=True)
-    slow._calibrate(30, cpu_s=30 * 1.0, overhead_s=5e-3)  # 1 s per candidate
+    slow = DaskBatch(_Cap(8), "k")
+    slow.calibrate(30, cpu_s=30 * 1.0, max_cpu_s=4.0, wall_s=4.1)  # 1 s a candidate
     assert slow.n_chunks(30) == 8
-    fixed = DaskBatch(None, "k", chunks=8, auto=False)
-    fixed._calibrate(30, cpu_s=30 * 1e-4, overhead_s=5e-3)
+    assert slow.critical_cpu_s == 4.0 and slow.overhead_s == pytest.approx(0.1)
+    fixed = DaskBatch(_Cap(8, auto=False), "k")
+    fixed.calibrate(30, cpu_s=30 * 1e-4, max_cpu_s=4e-4, wall_s=6e-3)
     assert fixed.n_chunks(30) == 8
+
+
+@needs_dask
+def test_auto_cap_shares_the_threads_among_running_starts():
+    from penaltyrun.runner.dask_swarm import DaskEvaluation
+
+    evaluation = DaskEvaluation(None, "auto", threads=8)
+    evaluation.active = 3
+    assert evaluation.chunk_cap() == 2
+    evaluation.active = 1  # the last start of the run gets the whole cluster
+    assert evaluation.chunk_cap() == 8
+    assert DaskEvaluation(None, 5, threads=8).chunk_cap() == 5
 
 
 @pytest.fixture(scope="module")

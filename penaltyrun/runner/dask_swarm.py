@@ -167,6 +167,8 @@ class DaskBatch:
         return max(1, c)
 
     def __call__(self, Z: np.ndarray) -> np.ndarray:
+        """Costs (B,) of the candidates Z (B, dim): contiguous chunks submitted at once,
+        gathered in order (bitwise the costs of the whole batch evaluated locally)."""
         Z = np.atleast_2d(np.asarray(Z, float))
         t0 = time.perf_counter()
         parts = np.array_split(Z, self.n_chunks(Z.shape[0]))

@@ -100,7 +100,9 @@ def run_optimize(cfg: DictConfig) -> Path:
                        scheduler=rc.scheduler, resume=bool(rc.resume),
                        retry_failed=bool(rc.retry_failed), on_record=on_record,
                        max_retries=rc.get("max_retries", 1),
-                       worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected)
+                       worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected,
+                       evaluate_on=rc.get("evaluate_on", "local"),
+                       chunks=rc.get("chunks", "auto"))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"

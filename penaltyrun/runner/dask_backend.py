@@ -36,7 +36,8 @@ def quiet_dask_logs() -> None:
         logging.getLogger(name).setLevel(logging.WARNING)
 
 
-def _import_distributed() -> Any:
+def import_distributed() -> Any:
+    """The ``distributed`` module, or a ConfigError saying how to install it."""
     try:
         import distributed
     except ImportError:
@@ -55,11 +56,52 @@ def _result_or_failure(job: Job, fut: Any) -> dict[str, Any]:
         return failure_record(job, f"worker: {exc!r}")
 
 
-def _n_workers(client: Any) -> int:
+def n_workers(client: Any) -> int:
+    """Workers the scheduler knows now (0 when it cannot be reached)."""
     try:
         return len(client.scheduler_info().get("workers", {}))
     except Exception:  # scheduler unreachable: counts as no worker
         return 0
+
+
+def open_client(workers: int, scheduler: str | None, max_retries: int = 1
+                ) -> tuple[Any, Any]:
+    """A client of the scheduler at ``scheduler``, or of a new LocalCluster.
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes (one thread each) of the LocalCluster (when ``scheduler`` is None).
+    scheduler : str or None
+        Address of a running scheduler, e.g. ``tcp://127.0.0.1:8786``.
+    max_retries : int
+        LocalCluster only: times a task may kill its worker before it fails.
+
+    Returns
+    -------
+    (Client, LocalCluster or None)
+        Close both when done (the cluster is None for a remote scheduler).
+
+    Raises
+    ------
+    RunAbortedError
+        If the scheduler cannot be reached.
+    """
+    distributed = import_distributed()
+    import dask
+
+    quiet_dask_logs()
+    try:
+        if scheduler:
+            return distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
+        with dask.config.set({"distributed.scheduler.allowed-failures": int(max_retries)}):
+            cluster = distributed.LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True,
+                dashboard_address=None, silence_logs=logging.WARNING)
+        return distributed.Client(cluster), cluster
+    except OSError as exc:
+        raise RunAbortedError(f"runner.scheduler: cannot connect to {scheduler}: {exc}") \
+            from None
 
 
 def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: int = 1,
@@ -85,23 +127,8 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
         If the scheduler cannot be reached or the cluster has no worker for
         ``worker_timeout`` seconds.
     """
-    distributed = _import_distributed()
-    import dask
-
-    quiet_dask_logs()
-    cluster = None
-    try:
-        if scheduler:
-            client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-        else:
-            with dask.config.set({"distributed.scheduler.allowed-failures": int(max_retries)}):
-                cluster = distributed.LocalCluster(
-                    n_workers=workers, threads_per_worker=1, processes=True,
-                    dashboard_address=None, silence_logs=logging.WARNING)
-            client = distributed.Client(cluster)
-    except OSError as exc:
-        raise RunAbortedError(f"runner.scheduler: cannot connect to {scheduler}: {exc}") \
-            from None
+    distributed = import_distributed()
+    client, cluster = open_client(workers, scheduler, max_retries)
     futures: dict[Any, Job] = {}
     try:
         futures = {client.submit(run_job, job, pure=False, key=f"penaltyrun-{job.job_id}",
@@ -117,7 +144,7 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
                 done = set()
             for fut in done:
                 yield futures[fut], _result_or_failure(futures[fut], fut)
-            if done or _n_workers(client) > 0:
+            if done or n_workers(client) > 0:
                 lost_since = None
                 continue
             lost_since = lost_since or time.monotonic()

@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from penaltyrun.errors import ConfigError, RunInterruptedError
-from penaltyrun.runner.dask_backend import run_dask
+from penaltyrun.runner.dask_backend import import_distributed, run_dask
 from penaltyrun.runner.job import run_job
-from penaltyrun.runner.options import BACKENDS, resolve_workers
+from penaltyrun.runner.options import BACKENDS, RUNNER_OPTIONS, check_value, resolve_workers
 from penaltyrun.runner.plan import Job, order_longest_first
 from penaltyrun.runner.pool import run_pool
 from penaltyrun.runner.records import JOBS_DIR, pending_jobs, write_record
@@ -32,8 +32,20 @@ def _serial(jobs: list[Job]) -> Iterator[tuple[Job, dict[str, Any]]]:
         yield job, run_job(job)
 
 
-def check_settings(workers: Any, backend: Any) -> None:
-    """Validate ``runner.workers`` (an integer ≥ 1 or ``auto``) and ``runner.backend``.
+def _swarm_stream(todo: list[Job], workers: int, scheduler: str | None, max_retries: int,
+                  worker_timeout: float, chunks: int | str
+                  ) -> Iterator[tuple[Job, dict[str, Any]]]:
+    """:func:`~penaltyrun.runner.dask_swarm.run_swarm` (imported here: it needs dask)."""
+    import_distributed()
+    from penaltyrun.runner.dask_swarm import run_swarm
+
+    return run_swarm(todo, workers, scheduler, max_retries, worker_timeout, chunks)
+
+
+def check_settings(workers: Any, backend: Any, evaluate_on: Any = "local",
+                   chunks: Any = "auto") -> None:
+    """Validate ``runner.workers`` (an integer ≥ 1 or ``auto``), ``runner.backend``,
+    ``runner.evaluate_on`` and ``runner.chunks``.
 
     Raises
     ------
@@ -43,13 +55,18 @@ def check_settings(workers: Any, backend: Any) -> None:
     resolve_workers(workers)
     if backend not in BACKENDS:
         raise ConfigError("runner.backend", f"unknown backend {backend!r}", allowed=BACKENDS)
+    for key, value in (("evaluate_on", evaluate_on), ("chunks", chunks)):
+        check_value(key, RUNNER_OPTIONS[key][0], value, RUNNER_OPTIONS[key][1])
+    if evaluate_on == "dask" and backend != "dask":
+        raise ConfigError("runner.evaluate_on", "dask needs runner.backend=dask")
 
 
 def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
             backend: str = "local", scheduler: str | None = None, resume: bool = False,
             retry_failed: bool = False, on_record: Callable[[dict[str, Any]], None] | None = None,
             max_retries: int = 1, worker_timeout: float = 60.0,
-            expected_s: Mapping[str, float] | None = None) -> list[Path]:
+            expected_s: Mapping[str, float] | None = None, evaluate_on: str = "local",
+            chunks: int | str = "auto") -> list[Path]:
     """Run ``jobs`` and write one record file per finished job.
 
     Parameters
@@ -73,6 +90,11 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
     expected_s : mapping, optional
         ``job_id`` → expected CPU time (s): jobs are dispatched longest first (see
         :func:`~penaltyrun.runner.plan.order_longest_first`); without it, in the given order.
+    evaluate_on : {"local", "dask"}
+        dask (with ``backend="dask"``): each batch of candidates is evaluated as chunks on
+        the dask workers, several starts at once (see :mod:`penaltyrun.runner.dask_swarm`).
+    chunks : int or "auto"
+        Chunks per batch with ``evaluate_on="dask"``.
 
     Returns
     -------
@@ -87,11 +109,13 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
     RunAbortedError
         dask: the scheduler is unreachable or the cluster lost its last worker.
     """
-    check_settings(workers, backend)
+    check_settings(workers, backend, evaluate_on, chunks)
     workers = resolve_workers(workers)
     todo = order_longest_first(pending_jobs(jobs, run_dir, resume, retry_failed), expected_s)
     Path(run_dir, JOBS_DIR).mkdir(parents=True, exist_ok=True)
-    if backend == "dask":
+    if evaluate_on == "dask":
+        stream = _swarm_stream(todo, workers, scheduler, max_retries, worker_timeout, chunks)
+    elif backend == "dask":
         stream = run_dask(todo, workers, scheduler, max_retries, worker_timeout)
     elif workers == 1 or len(todo) <= 1:
         stream = _serial(todo)

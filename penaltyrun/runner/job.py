@@ -14,6 +14,7 @@ import numpy as np
 from penaltyrun import optim
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
+from penaltyrun.runner.swarm import LocalEvaluation
 
 logger = logging.getLogger(__name__)
 
@@ -89,18 +90,16 @@ class Heartbeat:
                 f"({100.0 * self.n_evals / self.total:.1f} %, ≤ {left:.0f} s left at this pace)")
 
 
-def _objective(prob: Any, layout: Any, label: str, settings: Any) -> Heartbeat:
-    """Batched objective of ``prob`` over ``layout``'s box, with progress lines counting
-    against the most evaluations ``settings`` can spend."""
-
-    def evaluate(Z: np.ndarray) -> np.ndarray:
-        mats, scalars = layout.split(Z)
-        return prob.evaluate_batch(mats, scalars or None).cost
-
-    return Heartbeat(evaluate, label, total=optim.planned_evals(settings, layout.dim))
+def _objective(evaluation: Any, job: Job, prob: Any, layout: Any, param: str,
+               settings: Any) -> Heartbeat:
+    """Batched objective of ``prob`` over ``layout``'s box (parameterization ``param``),
+    evaluated by ``evaluation``, with progress lines counting against the most evaluations
+    ``settings`` can spend."""
+    return Heartbeat(evaluation.objective(job, prob, layout, param), job.job_id,
+                     total=optim.planned_evals(settings, layout.dim))
 
 
-def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
+def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: Any
                   ) -> tuple[optim.OptimResult, dict[str, Any]]:
     """Diagonal stage, then the full search seeded with the best diagonal matrix.
 
@@ -122,8 +121,8 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
     diag_budget = max(1, int(job.warm_start_share * budget))
     dlb, dub = diag_layout.bounds()
     diag_settings = replace(settings, max_evals=diag_budget)
-    diag = optim.minimize(job.optimizer, _objective(prob, diag_layout, job.job_id,
-                                                    diag_settings), dlb, dub,
+    diag = optim.minimize(job.optimizer, _objective(evaluation, job, prob, diag_layout,
+                                                    "diagonal", diag_settings), dlb, dub,
                           diag_settings, job.seed)
     mats, scalars = diag_layout.split(diag.best_z[None, :])
     diag_mats = {k: v[0] for k, v in mats.items()}
@@ -131,7 +130,8 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
     x0 = layout.join(diag_mats, diag_scalars)
     lb, ub = layout.bounds()
     full_settings = replace(settings, max_evals=max(1, budget - diag.n_evals))
-    full = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id, full_settings),
+    full = optim.minimize(job.optimizer, _objective(evaluation, job, prob, layout, job.param,
+                                                    full_settings),
                           lb, ub, full_settings, job.seed, x0)
     trace_evals = list(diag.trace_evals) + [diag.n_evals + n for n in full.trace_evals]
     trace_best = np.minimum.accumulate(list(diag.trace_best) + list(full.trace_best))
@@ -147,8 +147,15 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
     return result, warm
 
 
-def run_job(job: Job) -> dict[str, Any]:
+def run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
     """Optimize one job and evaluate its best candidate in detail.
+
+    Parameters
+    ----------
+    job : Job
+    evaluation : LocalEvaluation or DaskEvaluation, optional
+        Where candidates are evaluated (default: in this process). The record does not
+        depend on it (costs are bitwise the same), only its timing columns do.
 
     Returns
     -------
@@ -167,6 +174,7 @@ def run_job(job: Job) -> dict[str, Any]:
         "started_at": started.isoformat(),
         **job.meta,
     }
+    evaluation = LocalEvaluation() if evaluation is None else evaluation
     try:
         prob, layout, settings = build(job.problem, job.case, job.problem_params, job.param,
                                        job.param_options, job.optimizer,
@@ -177,20 +185,17 @@ def run_job(job: Job) -> dict[str, Any]:
             eye = {name: settings.scale * np.eye(p.n) for name, p in layout.matrices}
             x0 = layout.join(eye, {name: 0.5 * (lo + hi) for name, (lo, hi) in layout.scalars})
         if job.warm_start_share:
-            result, warm = _warm_started(job, prob, layout, settings)
+            result, warm = _warm_started(job, prob, layout, settings, evaluation)
             record["warm_start"] = warm
         else:
-            result = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id,
-                                                              settings), lb, ub, settings,
-                                    job.seed, x0)
+            result = optim.minimize(job.optimizer,
+                                    _objective(evaluation, job, prob, layout, job.param,
+                                               settings), lb, ub, settings, job.seed, x0)
         mats, scalars = layout.split(result.best_z[None, :])
         best_mats = {k: v[0] for k, v in mats.items()}
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}
-        detail = prob.evaluate(best_mats, best_scalars or None)
+        detail, holdout = evaluation.best(job, prob, best_mats, best_scalars)
         converged = bool(detail.get("converged", False))
-        holdout = None
-        if job.holdout and hasattr(prob, "holdout"):
-            holdout = prob.holdout(best_mats, best_scalars or None)
         record.update({
             "status": "ok" if converged else "diverged",
             "error": "" if converged else f"best candidate did not converge "

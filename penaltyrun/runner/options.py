@@ -28,10 +28,18 @@ RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "warm_start_share": ("unit_open", "a number in (0, 1)"),
     "progress": ("progress", "auto, true or false"),
     "forecast_samples": ("nonneg_int", "a non-negative integer (0: no forecast)"),
+    "evaluate_on": ("evaluate_on", "local or dask"),
+    "chunks": ("chunks", "auto or a positive integer"),
 }
 BACKENDS = ("local", "dask")
+#: Where a job's candidates are evaluated: in the job's process, or as chunks on Dask workers.
+EVALUATE_ON = ("local", "dask")
 _ADDRESS = re.compile(r"^(?:(?P<proto>tcp|tls)://)?(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+)"
                       r":(?P<port>\d{1,5})$")
+
+
+_ALLOWED = {"choice": BACKENDS, "evaluate_on": EVALUATE_ON,
+            "progress": ("auto", "true", "false")}
 
 
 def _is_int(value: Any) -> bool:
@@ -40,7 +48,7 @@ def _is_int(value: Any) -> bool:
 
 def check_value(key: str, kind: str, value: Any, what: str) -> None:
     """Check one option ``value`` of ``kind`` (pos_int, nonneg_int, bool, pos_float,
-    unit_open, choice, address)."""
+    unit_open, choice, evaluate_on, chunks, progress, address)."""
     ok = {
         "pos_int": lambda v: _is_int(v) and v >= 1,
         "workers": lambda v: v == "auto" or (_is_int(v) and v >= 1),
@@ -51,13 +59,14 @@ def check_value(key: str, kind: str, value: Any, what: str) -> None:
         "unit_open": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
         and 0 < v < 1,
         "choice": lambda v: v in BACKENDS,
+        "evaluate_on": lambda v: v in EVALUATE_ON,
+        "chunks": lambda v: v == "auto" or (_is_int(v) and v >= 1),
         "progress": lambda v: v == "auto" or isinstance(v, bool),
         "address": lambda v: v is None or (isinstance(v, str) and bool(_ADDRESS.match(v))),
     }[kind](value)
     if not ok:
         raise ConfigError(f"runner.{key}", f"must be {what}, got {value!r}",
-                          allowed=BACKENDS if kind == "choice"
-                          else ("auto", "true", "false") if kind == "progress" else None)
+                          allowed=_ALLOWED.get(kind))
 
 
 def available_cores() -> int:
@@ -133,6 +142,9 @@ def check_runner_options(options: Mapping[str, Any], connect: bool = True) -> No
     for key, (kind, what) in RUNNER_OPTIONS.items():
         if key in options:
             check_value(key, kind, options[key], what)
+    if options.get("evaluate_on", "local") == "dask" and options.get("backend", "local") != "dask":
+        raise ConfigError("runner.evaluate_on", "dask needs runner.backend=dask (a LocalCluster "
+                          "of runner.workers processes, or runner.scheduler=tcp://host:port)")
     scheduler = options.get("scheduler")
     if scheduler is not None:
         if options.get("backend", "local") != "dask":

@@ -9,7 +9,8 @@ from penaltyrun.runner.options import check_runner_options, check_scheduler, par
 
 GOOD = {"n_starts": 2, "seed": 0, "workers": 1, "backend": "local", "scheduler": None,
         "resume": False, "retry_failed": False, "report": True, "holdout": True,
-        "max_retries": 1, "worker_timeout": 60, "warm_start": False, "warm_start_share": 0.3}
+        "max_retries": 1, "worker_timeout": 60, "warm_start": False, "warm_start_share": 0.3,
+        "evaluate_on": "local", "chunks": "auto"}
 
 
 def test_shipped_defaults_pass():
@@ -23,6 +24,9 @@ def test_shipped_defaults_pass():
     ("max_retries", -1, "non-negative"), ("worker_timeout", 0, "positive number"),
     ("worker_timeout", float("inf"), "positive number"), ("scheduler", "nope", "tcp://"),
     ("warm_start", 1, "true or false"), ("warm_start_share", 1.0, "(0, 1)"),
+    ("evaluate_on", "gpu", "allowed: local, dask"), ("evaluate_on", None, "local or dask"),
+    ("chunks", 0, "auto or a positive integer"), ("chunks", "4", "positive integer"),
+    ("chunks", True, "positive integer"), ("chunks", 2.0, "positive integer"),
 ])
 def test_bad_values_name_the_key(key, value, fragment):
     with pytest.raises(ConfigError, match=f"runner.{key}") as err:
@@ -35,6 +39,12 @@ def test_unknown_option_and_scheduler_without_dask():
         check_runner_options({**GOOD, "fast": True})
     with pytest.raises(ConfigError, match="backend=dask"):
         check_runner_options({**GOOD, "scheduler": "tcp://127.0.0.1:8786"})
+
+
+def test_swarm_level_needs_the_dask_backend():
+    with pytest.raises(ConfigError, match="runner.evaluate_on: dask needs runner.backend=dask"):
+        check_runner_options({**GOOD, "evaluate_on": "dask"})
+    check_runner_options({**GOOD, "evaluate_on": "dask", "backend": "dask", "chunks": 3})
 
 
 def test_addresses():

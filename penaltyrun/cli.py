@@ -143,7 +143,7 @@ def run_optimize(cfg: DictConfig) -> Path:
         int(rc.seed), problem_params(cfg), _plain(cfg.param),
         {k: v for k, v in _plain(cfg.optimizer).items() if k != "name"}, meta,
         holdout=bool(rc.holdout), warm_start_share=warm_share,
-        problem_module=problem_module(cfg))
+        problem_module=problem_module(cfg), cutoff=bool(rc.get("cutoff", True)))
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 cfg.param.name, cfg.optimizer.name, run_dir)
     with _progress(cfg, jobs, run_dir) as on_record:

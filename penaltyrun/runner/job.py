@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun import optim
+from penaltyrun.problems.base import CUTOFF_STATUS, accepts_thresholds
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
 
@@ -41,48 +42,70 @@ class Heartbeat:
     """Batched objective that logs a progress line at most every ``interval_s`` seconds.
 
     A low-thrust job can run for an hour between the runner's per-job lines; this says it
-    is alive, how many candidates it has evaluated and the best cost so far.
+    is alive, how many candidates it has evaluated (and how many the exact cutoff stopped
+    early) and the best cost so far.
 
     Parameters
     ----------
     func : callable
-        Batched objective Z (B, dim) → (B,).
+        Batched objective Z (B, dim) → costs (B,) or a
+        :class:`~penaltyrun.problems.base.BatchEvaluation` (whose ``cutoff`` statuses are
+        counted); called as ``func(Z, thresholds)`` when ``accepts_thresholds``.
     label : str
         Job id shown in the line.
     interval_s : float, optional
         Seconds between lines (default :data:`HEARTBEAT_S`).
+    accepts_thresholds : bool, optional
+        Hand the optimizer's thresholds to ``func`` (exact cutoff; see
+        :mod:`penaltyrun.optim.base`). Without it ``func`` always gets ``None``.
     """
 
-    def __init__(self, func: Any, label: str, interval_s: float | None = None) -> None:
+    def __init__(self, func: Any, label: str, interval_s: float | None = None,
+                 accepts_thresholds: bool = False) -> None:
         self.func = func
         self.label = label
         self.interval_s = float(HEARTBEAT_S if interval_s is None else interval_s)
+        self.accepts_thresholds = bool(accepts_thresholds)
         self.n_evals = 0
+        self.n_cutoff = 0
         self.best = float("inf")
         self.t0 = self.last = time.perf_counter()
 
-    def __call__(self, Z: np.ndarray) -> np.ndarray:
-        cost = np.asarray(self.func(Z), dtype=float)
+    def __call__(self, Z: np.ndarray, thresholds: np.ndarray | None = None) -> np.ndarray:
+        res = self.func(Z, thresholds) if self.accepts_thresholds else self.func(Z)
+        cost = np.asarray(getattr(res, "cost", res), dtype=float)
         self.n_evals += cost.size
+        status = getattr(res, "status", None)
+        if status is not None:
+            self.n_cutoff += int(np.sum(np.asarray(status) == CUTOFF_STATUS))
         finite = cost[np.isfinite(cost)]
         if finite.size:
             self.best = min(self.best, float(finite.min()))
         now = time.perf_counter()
         if now - self.last >= self.interval_s:
             self.last = now
-            logger.info("%s: running, %d evaluations in %.0f s, best cost so far %.6g",
-                        self.label, self.n_evals, now - self.t0, self.best)
+            logger.info("%s: running, %d evaluations (%d stopped early by the cutoff) in "
+                        "%.0f s, best cost so far %.6g", self.label, self.n_evals,
+                        self.n_cutoff, now - self.t0, self.best)
         return cost
 
 
-def _objective(prob: Any, layout: Any, label: str) -> Heartbeat:
-    """Batched objective of ``prob`` over ``layout``'s box, with progress lines."""
+def _objective(prob: Any, layout: Any, label: str, cutoff: bool = True) -> Heartbeat:
+    """Batched objective of ``prob`` over ``layout``'s box, with progress lines.
 
-    def evaluate(Z: np.ndarray) -> np.ndarray:
+    With ``cutoff`` and a problem whose ``evaluate_batch`` takes ``thresholds``, the
+    optimizer's thresholds reach the problem (exact cutoff); other problems are called
+    without them.
+    """
+    exact_cutoff = bool(cutoff) and accepts_thresholds(prob)
+
+    def evaluate(Z: np.ndarray, thresholds: np.ndarray | None = None) -> Any:
         mats, scalars = layout.split(Z)
-        return prob.evaluate_batch(mats, scalars or None).cost
+        if thresholds is None:
+            return prob.evaluate_batch(mats, scalars or None)
+        return prob.evaluate_batch(mats, scalars or None, thresholds=thresholds)
 
-    return Heartbeat(evaluate, label)
+    return Heartbeat(evaluate, label, accepts_thresholds=exact_cutoff)
 
 
 def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
@@ -106,14 +129,16 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any
     diag_layout = build_layout(prob, "diagonal", job.param_options)
     diag_budget = max(1, int(job.warm_start_share * budget))
     dlb, dub = diag_layout.bounds()
-    diag = optim.minimize(job.optimizer, _objective(prob, diag_layout, job.job_id), dlb, dub,
+    diag = optim.minimize(job.optimizer, _objective(prob, diag_layout, job.job_id, job.cutoff),
+                          dlb, dub,
                           replace(settings, max_evals=diag_budget), job.seed)
     mats, scalars = diag_layout.split(diag.best_z[None, :])
     diag_mats = {k: v[0] for k, v in mats.items()}
     diag_scalars = {k: float(v[0]) for k, v in scalars.items()}
     x0 = layout.join(diag_mats, diag_scalars)
     lb, ub = layout.bounds()
-    full = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id), lb, ub,
+    full = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id, job.cutoff), lb,
+                          ub,
                           replace(settings, max_evals=max(1, budget - diag.n_evals)),
                           job.seed, x0)
     trace_evals = list(diag.trace_evals) + [diag.n_evals + n for n in full.trace_evals]
@@ -163,8 +188,9 @@ def run_job(job: Job) -> dict[str, Any]:
             result, warm = _warm_started(job, prob, layout, settings)
             record["warm_start"] = warm
         else:
-            result = optim.minimize(job.optimizer, _objective(prob, layout, job.job_id), lb,
-                                    ub, settings, job.seed, x0)
+            result = optim.minimize(job.optimizer,
+                                    _objective(prob, layout, job.job_id, job.cutoff), lb, ub,
+                                    settings, job.seed, x0)
         mats, scalars = layout.split(result.best_z[None, :])
         best_mats = {k: v[0] for k, v in mats.items()}
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}

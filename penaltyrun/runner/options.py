@@ -26,6 +26,7 @@ RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "warm_start": ("bool", "true or false"),
     "warm_start_share": ("unit_open", "a number in (0, 1)"),
     "progress": ("progress", "auto, true or false"),
+    "cutoff": ("bool", "true or false"),
 }
 BACKENDS = ("local", "dask")
 _ADDRESS = re.compile(r"^(?:(?P<proto>tcp|tls)://)?(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+)"

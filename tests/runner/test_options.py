@@ -9,7 +9,8 @@ from penaltyrun.runner.options import check_runner_options, check_scheduler, par
 
 GOOD = {"n_starts": 2, "seed": 0, "workers": 1, "backend": "local", "scheduler": None,
         "resume": False, "retry_failed": False, "report": True, "holdout": True,
-        "max_retries": 1, "worker_timeout": 60, "warm_start": False, "warm_start_share": 0.3}
+        "max_retries": 1, "worker_timeout": 60, "warm_start": False, "warm_start_share": 0.3,
+        "cutoff": True}
 
 
 def test_shipped_defaults_pass():
@@ -23,6 +24,7 @@ def test_shipped_defaults_pass():
     ("max_retries", -1, "non-negative"), ("worker_timeout", 0, "positive number"),
     ("worker_timeout", float("inf"), "positive number"), ("scheduler", "nope", "tcp://"),
     ("warm_start", 1, "true or false"), ("warm_start_share", 1.0, "(0, 1)"),
+    ("cutoff", "yes", "true or false"),
 ])
 def test_bad_values_name_the_key(key, value, fragment):
     with pytest.raises(ConfigError, match=f"runner.{key}") as err:

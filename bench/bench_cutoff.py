@@ -7,12 +7,12 @@ stopped early, and whether the two runs agree bitwise (best cost, best point, an
 evaluations) — they must.
 
 Default cells: Q-law minimum time, full K (GEAGSP), cases E* and D, ``pso`` and
-``pso_matlab`` with a small swarm (8 particles, 6 iterations: 56 evaluations each).
+``pso_matlab`` with a small swarm (8 particles, 15 iterations: 120 and 128 evaluations).
 
 Usage::
 
     python bench/bench_cutoff.py [--cases Estar D] [--optimizers pso pso_matlab de]
-                                 [--swarm 8] [--iters 6] [--seed 1]
+                                 [--swarm 8] [--iters 15] [--seed 1]
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--optimizers", nargs="+", default=["pso", "pso_matlab"])
     ap.add_argument("--problem", default="qlaw")
     ap.add_argument("--swarm", type=int, default=8)
-    ap.add_argument("--iters", type=int, default=6)
+    ap.add_argument("--iters", type=int, default=15)
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
     print(f"machine: {machine()}")

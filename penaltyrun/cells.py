@@ -80,7 +80,7 @@ def cell_jobs(cfg: DictConfig, case: str, meta: dict[str, Any] | None = None) ->
         cfg.problem.name, case, cfg.param.name, cfg.optimizer.name, rc.n_starts,
         int(rc.seed), problem_params(cfg), plain(cfg.param), optimizer_options(cfg),
         meta or {}, holdout=bool(rc.holdout), warm_start_share=warm_start_share(cfg),
-        problem_module=problem_module(cfg))
+        problem_module=problem_module(cfg), cutoff=bool(rc.get("cutoff", True)))
 
 
 def local_workers(cfg: DictConfig) -> int | None:

@@ -203,7 +203,7 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=
 
 @njit(cache=True)
 def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
-                   n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
+                   n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0, cutoff=None):
     """Closed-loop runs for a batch of gains and/or initial states.
 
     Gains and initial states are paired run by run; a batch of size 1 on either side is
@@ -231,6 +231,10 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
         Step cap per run.
     w_q0, w_qv, w_w : float, optional
         Event weights (see :func:`weighted_distance`; default 1, 1, 1).
+    cutoff : ndarray, shape (R,), optional
+        Exact cutoff per run (N²·m²·s; ``inf``: none): a run stops with status
+        ``CUTOFF`` at the end of the first accepted step where J exceeds it (see
+        :mod:`penaltyrun.dynamics.integrate`); its J is then a value above the cutoff.
 
     Returns
     -------
@@ -259,8 +263,12 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
         for i in range(7):
             y[i] = y0[s, i]
         y[7] = 0.0
-        t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step,
-                              n_event_samples, max_steps)
+        if cutoff is None:
+            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, n_event_samples,
+                                      max_steps)
+        else:
+            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, n_event_samples,
+                                      max_steps, 7, cutoff[r])
         t_end[r] = t
         cost[r] = yf[7]
         dist[r] = weighted_distance(yf, p)

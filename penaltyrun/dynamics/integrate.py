@@ -13,6 +13,12 @@ Events are searched on the dense output at ``n_event_samples`` points inside eve
 accepted step (not only at step ends), so a non-monotone event function that dips below
 zero inside a step is not stepped over; the crossing is then refined by bisection on the
 interpolant.
+
+Optional exact cutoff: with ``cut_index ≥ 0`` the integration stops with status ``CUTOFF``
+at the end of the first accepted step where ``y[cut_index] > cut_value`` (after the event
+search of that step and the horizon check, so a run that ends there anyway ends as without
+the cutoff). Callers use it on a running cost that the optimizer will compare with
+``cut_value``: the returned state is then a bound, ``y[cut_index] > cut_value``.
 """
 
 from __future__ import annotations
@@ -27,7 +33,8 @@ EVENT = 0
 HORIZON = 1
 STEP_FAILURE = 2
 NONFINITE = 3
-STATUS_NAMES = ("event", "horizon", "step_failure", "nonfinite")
+CUTOFF = 4
+STATUS_NAMES = ("event", "horizon", "step_failure", "nonfinite", "cutoff")
 
 @njit(cache=True)
 def _tableau():
@@ -101,12 +108,13 @@ def make_dopri5(rhs, event):
     Returns
     -------
     numba dispatcher
-        ``integrate(y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps)``, see
-        :func:`dopri5` for the arguments and results.
+        ``integrate(y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps,
+        cut_index=-1, cut_value=inf)``, see :func:`dopri5` for the arguments and results.
     """
 
     @njit(cache=True)
-    def integrate(y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps):
+    def integrate(y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps,
+                  cut_index=-1, cut_value=np.inf):
         _A, _B, _C, _E, _P = _tableau()
         n = y0.shape[0]
         y = y0.copy()
@@ -202,6 +210,8 @@ def make_dopri5(rhs, event):
             K[0, :] = K[6, :]
             if t >= t_max:
                 return t, y, HORIZON, steps
+            if cut_index >= 0 and y[cut_index] > cut_value:
+                return t, y, CUTOFF, steps
             factor = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** -0.2)
             h = min(h * factor, max_step)
         return t, y, STEP_FAILURE, steps
@@ -214,7 +224,8 @@ def _specialized(rhs, event):
     return make_dopri5(rhs, event)
 
 
-def dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps):
+def dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, n_event_samples, max_steps,
+           cut_index=-1, cut_value=np.inf):
     """Integrate from t = 0 until the event fires or ``t_max`` is reached.
 
     Python-level convenience (not callable from ``@njit`` code): compiled callers build
@@ -239,6 +250,11 @@ def dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, n_event_samples, max_
         is always one of them).
     max_steps : int
         Cap on accepted + rejected steps.
+    cut_index : int, optional
+        Component of ``y`` watched by the cutoff (−1: no cutoff).
+    cut_value : float, optional
+        Stop with ``CUTOFF`` at the end of the first accepted step where
+        ``y[cut_index] > cut_value`` (and the run did not end in that step anyway).
 
     Returns
     -------
@@ -247,9 +263,9 @@ def dopri5(rhs, event, y0, p, t_max, rtol, atol, max_step, n_event_samples, max_
     y_end : ndarray, shape (n,)
         State at ``t_end``.
     status : int
-        ``EVENT``, ``HORIZON``, ``STEP_FAILURE`` or ``NONFINITE``.
+        ``EVENT``, ``HORIZON``, ``STEP_FAILURE``, ``NONFINITE`` or ``CUTOFF``.
     n_steps : int
         Number of steps attempted.
     """
     return _specialized(rhs, event)(y0, p, t_max, rtol, atol, max_step, n_event_samples,
-                                    max_steps)
+                                    max_steps, cut_index, cut_value)

@@ -50,7 +50,7 @@ _integrate = make_dopri5(rhs, event)
 
 
 @njit(cache=True)
-def simulate_batch(K, x0, t_max, event_radius, rtol, atol, max_step, max_steps):
+def simulate_batch(K, x0, t_max, event_radius, rtol, atol, max_step, max_steps, cutoff=None):
     """Closed-loop runs for a batch of gains.
 
     Parameters
@@ -67,6 +67,10 @@ def simulate_batch(K, x0, t_max, event_radius, rtol, atol, max_step, max_steps):
         Integrator settings.
     max_steps : int
         Step cap per run.
+    cutoff : ndarray, shape (B,), optional
+        Exact cutoff per run (``inf``: none): a run stops with status ``CUTOFF`` at the end
+        of the first accepted step where J exceeds it (see
+        :mod:`penaltyrun.dynamics.integrate`); its J is then a value above the cutoff.
 
     Returns
     -------
@@ -90,7 +94,11 @@ def simulate_batch(K, x0, t_max, event_radius, rtol, atol, max_step, max_steps):
         p[2] = K[b, 1, 0]
         p[3] = K[b, 1, 1]
         p[4] = event_radius
-        t, y, st, _ = _integrate(y0, p, t_max, rtol, atol, max_step, 1, max_steps)
+        if cutoff is None:
+            t, y, st, _ = _integrate(y0, p, t_max, rtol, atol, max_step, 1, max_steps)
+        else:
+            t, y, st, _ = _integrate(y0, p, t_max, rtol, atol, max_step, 1, max_steps, 2,
+                                     cutoff[b])
         t_end[b] = t
         cost[b] = y[2]
         dist[b] = np.sqrt(y[0] * y[0] + y[1] * y[1])

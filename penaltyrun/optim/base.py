@@ -5,6 +5,17 @@ wraps it in a :class:`CountingObjective`, which counts evaluations, enforces the
 ``max_evals`` (a batch that would cross it is cut, then :class:`BudgetExhaustedError` ends the
 search), keeps the best candidate ever evaluated and records the anytime trace (best-so-far
 cost against cumulative evaluations). Every optimizer returns an :class:`OptimResult`.
+
+Exact cutoff: an objective with the attribute ``accepts_thresholds = True`` is called as
+``func(Z, thresholds)`` when the optimizer hands thresholds (one per candidate, ``inf``: none)
+to :meth:`CountingObjective.__call__`; it may then return, for a candidate whose cost exceeds
+its threshold, any value above the threshold and not above the cost (see
+:mod:`penaltyrun.problems.base`). Optimizers pass as threshold the value a candidate must beat
+to change their state, so a run is the same with and without the cutoff: PSO (``pso``,
+``pso_matlab``) the particle's personal best, DE the cost of the member the trial would
+replace. CMA-ES and the grid rank every candidate and pass none. The best-so-far and the
+anytime trace are never touched by a cut candidate: its value is above a cost already
+evaluated.
 """
 
 from __future__ import annotations
@@ -156,7 +167,17 @@ class CountingObjective:
         """Evaluations left under the current limit (``inf`` without a cap)."""
         return float("inf") if self.limit is None else self.limit - self.n_evals
 
-    def __call__(self, Z: np.ndarray) -> np.ndarray:
+    @property
+    def cutoff(self) -> bool:
+        """Whether thresholds reach the objective (``func.accepts_thresholds``)."""
+        return bool(getattr(self.func, "accepts_thresholds", False))
+
+    def __call__(self, Z: np.ndarray, thresholds: np.ndarray | None = None) -> np.ndarray:
+        """Costs of the batch ``Z`` (B, dim), shape (B,) (fewer if the budget cuts it).
+
+        ``thresholds`` (shape (B,), optional) are passed on when the objective accepts them
+        (:attr:`cutoff`) and dropped otherwise.
+        """
         Z = np.atleast_2d(np.asarray(Z, float))
         left = self.remaining
         if left <= 0:
@@ -164,7 +185,11 @@ class CountingObjective:
         cut = Z.shape[0] > left
         if cut:
             Z = Z[:int(left)]
-        cost = np.asarray(self.func(Z), dtype=float).reshape(Z.shape[0])
+        if thresholds is not None and self.cutoff:
+            thr = np.asarray(thresholds, dtype=float).reshape(-1)[:Z.shape[0]]
+            cost = np.asarray(self.func(Z, thr), dtype=float).reshape(Z.shape[0])
+        else:
+            cost = np.asarray(self.func(Z), dtype=float).reshape(Z.shape[0])
         bad = ~np.isfinite(cost)
         if bad.any():
             self.n_nonfinite += int(bad.sum())

@@ -6,6 +6,11 @@ a fraction of every side of the box (eigenvalues and angles have different range
 population (IPOP, ``incpopsize``) and starts from a fresh uniform point, until the evaluation
 budget is spent or ``restarts`` restarts are done. cma draws from the global ``np.random``
 state, seeded per restart from the job seed, so a seed gives one run.
+
+No exact cutoff (:mod:`penaltyrun.optim.base`): CMA-ES sorts every candidate of a generation
+and its update uses the ranks of all of them (cma's default active covariance update gives
+the worst candidates negative weights), so there is no threshold below which a candidate's
+exact cost stops mattering; a bound in place of a cost would change the ranks and the run.
 """
 
 from __future__ import annotations

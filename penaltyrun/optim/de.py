@@ -4,6 +4,15 @@ Used to check that a diagonal optimum found by PSO is really the optimum (the re
 first objection), under the same batched objective and an equal evaluation budget. scipy's
 own L-BFGS-B polish does not respect an evaluation budget, so it is always off here; the
 shared ``optimizer.polish`` (run by :func:`penaltyrun.optim.minimize`) replaces it.
+
+Exact cutoff: with ``updating='deferred'`` scipy evaluates one trial per population member,
+in member order, and keeps the trial when its cost is ≤ the member's (``_accept_trial``).
+Each trial's threshold is therefore the cost of the member it would replace. scipy's public
+interface gives those costs only through the callback (``intermediate_result.
+population_energies``, after each generation), so the first generation of trials, evaluated
+before any callback, runs without thresholds; every later one gets the population's costs
+from the last callback (the population does not change between a callback and the next
+generation's trials). A batch whose size is not the population's gets no thresholds.
 """
 
 from __future__ import annotations
@@ -81,13 +90,19 @@ def run_de(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: 
     """
     counted = as_counting(objective, main_budget(settings))
     history: list[float] = []
+    members: list[np.ndarray] = []  # population costs after the last generation
 
     def batched(x: np.ndarray) -> np.ndarray:
         # scipy passes (dim, S) when vectorized.
-        return counted(np.atleast_2d(x.T))
+        Z = np.atleast_2d(x.T)
+        if members and members[-1].shape[0] == Z.shape[0]:
+            return counted(Z, members[-1])
+        return counted(Z)
 
     def record(intermediate_result: object) -> None:
         history.append(float(intermediate_result.fun))
+        if counted.cutoff:
+            members[:] = [np.array(intermediate_result.population_energies, dtype=float)]
 
     stop = "iters"
     try:

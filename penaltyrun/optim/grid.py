@@ -5,6 +5,9 @@ the two-variable diagonal and three-variable full Zermelo problems. The grid inc
 ends of every side (``points_per_dim`` points each). A grid point is a *grid minimum* when
 no neighbour (3^dim − 1 of them) is lower; the ``n_local`` best grid minima are each
 polished with a bounded ``scipy.optimize.minimize`` (``local_method``).
+
+No exact cutoff: finding grid minima compares every grid point with its neighbours, and the
+local searches need exact values.
 """
 
 from __future__ import annotations

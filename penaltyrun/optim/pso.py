@@ -8,7 +8,11 @@ Traps handled here (see the spec's ``pso.md``):
 * the whole swarm is evaluated as one batch; ``n_processes`` is never used (the runner
   already runs one job per worker);
 * pyswarms' reporter would reconfigure the root logger and write ``report.log`` in the
-  working directory: its logger set-up is disabled and its loggers quietened.
+  working directory: its logger set-up is disabled and its loggers quietened;
+* exact cutoff: each particle's threshold is its personal best before the evaluation
+  (``swarm.pbest_cost``, ``inf`` on the first iteration). pyswarms replaces a personal best
+  only by a strictly lower cost and derives everything else (global best, velocities, stall
+  rule) from personal bests, so a cut value (above the personal best) changes nothing.
 """
 
 from __future__ import annotations
@@ -166,8 +170,13 @@ def run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings:
         ftol_iter=settings.ftol_iter,
         init_pos=init_pos,
     )
+
+    def objective(positions: np.ndarray) -> np.ndarray:
+        # pbest_cost is read before pyswarms updates it with these positions' costs.
+        return counted(positions, np.array(opt.swarm.pbest_cost, dtype=float))
+
     try:
-        opt.optimize(counted, iters=settings.iters, verbose=False)
+        opt.optimize(objective, iters=settings.iters, verbose=False)
         history = [float(c) for c in opt.cost_history]
         stop = "iters" if len(history) >= settings.iters else "ftol"
     except BudgetExhaustedError:

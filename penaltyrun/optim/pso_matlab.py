@@ -16,7 +16,8 @@ particleswarm, step by step"); no MATLAB code is reproduced:
   then W doubles if c < 2 and halves if c > 5, and is clamped to the range;
 * v ← W v + y1 u1 ∘ (p_i − x) + y2 u2 ∘ (g − x), x ← x + v (u1, u2 uniform per component);
   a component that leaves the box is set to the bound and its outward velocity to 0;
-* personal bests are replaced only by strictly better costs;
+* personal bests are replaced only by strictly better costs (so each particle's personal
+  best is its exact-cutoff threshold, see :mod:`penaltyrun.optim.base`);
 * stall rule: stop when the best value changed by less than ``function_tolerance`` relative to
   max(1, |best|) over the last ``max_stall_iterations`` iterations; else at
   ``max_iterations`` (200 · nvars by default) or when ``max_evals`` is spent.
@@ -347,7 +348,7 @@ def run_pso_matlab(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
             u1, u2 = rng.random((swarm, dim)), rng.random((swarm, dim))
             v = velocity_update(v, x, pbest, pbest[g], state.inertia, y1, y2, u1, u2)
             x, v = clamp_and_zero(x + v, v, lb, ub)
-            cost = counted(x)
+            cost = counted(x, pbest_cost)
             pbest, pbest_cost = update_personal_bests(pbest, pbest_cost, x, cost)
             best = float(pbest_cost.min())
             state = adapt(state, best < bests[-1], min_size, swarm, w_range, every)

@@ -14,6 +14,13 @@ Cost of a candidate (always finite):
   more than ``failure_penalty`` and failures are ranked by how close they got;
 * non-finite results (``nonfinite``) and LQR gains whose Riccati equation has no
   stabilizing solution (``care_failure``): ``cost = 1000 · failure_penalty``.
+* exact cutoff (``evaluate_batch(..., thresholds=...)``, status ``cutoff``): the run stopped
+  at the end of the first integration step where J exceeded its threshold by the relative
+  margin :data:`CUT_MARGIN`; ``cost = J`` there, a bound above the threshold. J̇ = ½ uᵀu ≥ 0,
+  so every later cost (J at the event, or J plus the failure penalty) is at least that J up
+  to the integrator's round-off (checked in ``tests/problems/test_cutoff_problems.py``);
+  thresholds at or above ``1000 · failure_penalty`` (the flat cost of non-finite runs) cut
+  nothing.
 
 The pieces live in :mod:`~penaltyrun.problems.attitude_params` (parameters, cases),
 :mod:`~penaltyrun.problems.attitude_frames` (attitude representations, held-out states),
@@ -64,12 +71,38 @@ from penaltyrun.problems.attitude_reference import (
     reference_run,
     trajectory,
 )
+from penaltyrun.problems.attitude_scenarios import AttitudeScenarios
 from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec
 
 logger = logging.getLogger(__name__)
 
 #: Status name of an LQR candidate without a stabilizing Riccati solution.
 CARE_FAILURE = "care_failure"
+#: Relative margin by which J must exceed a threshold before a run is cut (covers the
+#: integrator's round-off in J, which never decreases in exact arithmetic).
+CUT_MARGIN = 1e-9
+
+
+def kernel_cutoffs(thresholds: np.ndarray, ok: np.ndarray, hard_cost: float) -> np.ndarray:
+    """Per-run kernel cutoffs on J from the optimizer's thresholds.
+
+    Parameters
+    ----------
+    thresholds : ndarray, shape (B,)
+        Thresholds (N²·m²·s).
+    ok : ndarray of bool, shape (B,)
+        Candidates with a gain (the others get their flat failure cost, never cut).
+    hard_cost : float
+        Flat cost of non-finite runs: a threshold at or above it cuts nothing.
+
+    Returns
+    -------
+    ndarray, shape (B,)
+        ``threshold + CUT_MARGIN · |threshold|`` where a cut is allowed, else ``inf``.
+    """
+    thr = np.asarray(thresholds, dtype=float).reshape(ok.shape)
+    allowed = ok & (thr < hard_cost)  # NaN compares False
+    return np.where(allowed, thr + CUT_MARGIN * np.abs(thr), np.inf)
 
 
 def status_strings(status: np.ndarray, ok: np.ndarray) -> np.ndarray:
@@ -85,8 +118,11 @@ def status_strings(status: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return np.asarray(names, dtype=object)
 
 
-class AttitudeProblem:
+class AttitudeProblem(AttitudeScenarios):
     """Attitude closed loop with a linear gain built from the tuned matrices.
+
+    The training scenario and the held-out set come from
+    :class:`~penaltyrun.problems.attitude_scenarios.AttitudeScenarios`.
 
     Parameters
     ----------
@@ -117,7 +153,8 @@ class AttitudeProblem:
         self.y0 = params.initial_state()
         self.d0 = float(params.event_distance(self.y0))
 
-    def run(self, G: np.ndarray, y0: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    def run(self, G: np.ndarray, y0: np.ndarray | None = None,
+            cutoff: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """Raw kernel runs (see :func:`penaltyrun.dynamics.attitude.simulate_batch`).
 
         Parameters
@@ -126,6 +163,8 @@ class AttitudeProblem:
             Gains.
         y0 : ndarray, shape (S, 7), optional
             Initial states (default: the problem's); B or S may be 1 (broadcast).
+        cutoff : ndarray, shape (max(B, S),), optional
+            Kernel cutoff on J per run (``inf``: none).
 
         Returns
         -------
@@ -137,12 +176,18 @@ class AttitudeProblem:
             np.ascontiguousarray(G, dtype=float), np.ascontiguousarray(y0, dtype=float),
             self.inertia, self.inertia_inv, float(p.t_max), float(p.tol), p.saturation(),
             float(p.rtol), float(p.atol), float(p.max_step), int(p.n_event_samples),
-            int(p.max_steps), *p.event_weights())
+            int(p.max_steps), *p.event_weights(),
+            None if cutoff is None else np.ascontiguousarray(cutoff, dtype=float))
 
     def _finish(self, G: np.ndarray, ok: np.ndarray, y0: np.ndarray | None,
-                d0: Any) -> dict[str, np.ndarray]:
+                d0: Any, thresholds: np.ndarray | None = None) -> dict[str, np.ndarray]:
         n = max(G.shape[0], 1 if y0 is None else y0.shape[0])
-        t_end, energy, dist, status = self.run(np.where(ok[:, None, None], G, 0.0), y0)
+        cutoff = None
+        if thresholds is not None:
+            cutoff = kernel_cutoffs(thresholds, ok,
+                                    HARD_FAILURE_FACTOR * self.params.failure_penalty)
+        t_end, energy, dist, status = self.run(np.where(ok[:, None, None], G, 0.0), y0,
+                                               cutoff)
         ok_full = np.broadcast_to(ok, (n,))
         cost = graded_cost(energy, dist, d0, status, self.params.failure_penalty)
         cost = np.where(ok_full, cost, HARD_FAILURE_FACTOR * self.params.failure_penalty)
@@ -151,11 +196,16 @@ class AttitudeProblem:
                 "energy": energy, "t_final": t_end, "final_distance": dist}
 
     def evaluate_batch(
-        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None,
+        thresholds: np.ndarray | None = None,
     ) -> BatchEvaluation:
-        """Costs of B candidates; ``mats[name]`` has shape (B, N, N) (not re-validated)."""
+        """Costs of B candidates; ``mats[name]`` has shape (B, N, N) (not re-validated).
+
+        ``thresholds`` (shape (B,), optional): exact cutoff per candidate (N²·m²·s,
+        ``inf``: none); see the module docstring.
+        """
         G, ok = self.gains(mats)
-        res = self._finish(G, ok, None, self.d0)
+        res = self._finish(G, ok, None, self.d0, thresholds)
         return BatchEvaluation(cost=res["cost"], converged=res["converged"],
                                status=res["status"])
 
@@ -275,94 +325,6 @@ class AttitudeProblem:
         res.update({"attitudes_deg": att, "q0": q})
         return res
 
-    def training_scenario(self) -> dict[str, Any]:
-        """The scenario the matrices are tuned on (this case's initial state), JSON-ready."""
-        return {"scenario": self.case, "q0": self.y0[:4].tolist(),
-                "omega0": self.y0[4:7].tolist()}
-
-    def scenario_key(self) -> tuple:
-        """Hashable key of the training scenario: initial (q, ω) rounded to 1e-9."""
-        return tuple(np.round(self.y0, 9).tolist())
-
-    def sample_training(self, n: int, seed: int) -> list[dict[str, Any]]:
-        """``n`` seeded training states: perturbations of this case's initial state with the
-        held-out sizes (``holdout_perturb_deg``, ``holdout_rate_rel``) and ``seed``.
-
-        Returns
-        -------
-        list of dict
-            Overrides ``{"attitude_type": "quaternion", "attitude": q, "omega0": ω}``.
-        """
-        p = self.params
-        q, w = perturbed_states(self.y0[:4], self.y0[4:7], n, p.holdout_perturb_deg,
-                                p.holdout_rate_rel, seed)
-        return [{"attitude_type": "quaternion", "attitude": tuple(qi.tolist()),
-                 "omega0": tuple(wi.tolist())} for qi, wi in zip(q, w)]
-
-    def holdout_keys(self) -> set[tuple]:
-        """Keys (as :meth:`scenario_key`) of the held-out scenarios."""
-        return {tuple(np.round(y, 9).tolist()) for y in self.holdout_scenarios()["y0"]}
-
-    def holdout_scenarios(self) -> dict[str, np.ndarray]:
-        """The held-out set, disjoint from the training scenario.
-
-        Rest-to-rest (ω0 = 0) from the attitudes of :func:`robustness_grid` (``holdout_n``,
-        ``holdout_lo_deg``, ``holdout_hi_deg``), then ``holdout_n_perturbed`` seeded
-        perturbations of this case's initial attitude and rates (see
-        :func:`~penaltyrun.problems.attitude_frames.perturbed_states`).
-
-        Returns
-        -------
-        dict
-            ``scenario`` (n,) labels (``grid:yaw,pitch,roll`` or ``perturbed:k``), ``y0``
-            (n, 7) initial states, ``attitudes_deg`` (n, 3) (NaN for perturbed states).
-        """
-        p = self.params
-        labels: list[str] = []
-        states, angles = [np.zeros((0, 7))], [np.zeros((0, 3))]
-        if p.holdout_n > 0:
-            grid = robustness_grid(p.holdout_n, p.holdout_lo_deg, p.holdout_hi_deg)
-            states.append(np.concatenate([euler_to_quaternion(grid),
-                                          np.zeros((grid.shape[0], 3))], axis=1))
-            angles.append(grid)
-            labels += [f"grid:{a:g},{b:g},{c:g}" for a, b, c in grid]
-        if p.holdout_n_perturbed > 0:
-            q, w = perturbed_states(self.y0[:4], self.y0[4:7], p.holdout_n_perturbed,
-                                    p.holdout_perturb_deg, p.holdout_rate_rel, p.holdout_seed)
-            states.append(np.concatenate([q, w], axis=1))
-            angles.append(np.full((q.shape[0], 3), np.nan))
-            labels += [f"perturbed:{k}" for k in range(q.shape[0])]
-        return {"scenario": np.asarray(labels, dtype=object),
-                "y0": np.concatenate(states), "attitudes_deg": np.concatenate(angles)}
-
-    def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
-                ) -> dict[str, np.ndarray] | None:
-        """Evaluate one candidate on the held-out set (runner hook, see
-        :meth:`holdout_scenarios`); inertia, horizon, event and tolerances are this
-        problem's.
-
-        Returns
-        -------
-        dict of ndarray or None
-            Per scenario: ``scenario``, ``cost``, ``converged``, ``status``, ``energy``,
-            ``t_final``, ``final_distance``, ``initial_distance``, ``attitudes_deg`` (NaN
-            rows for perturbed states), ``q_init`` (n, 4), ``omega_init`` (n, 3). ``None``
-            if the set is empty or the candidate has no gain (LQR without a stabilizing
-            Riccati solution).
-        """
-        sc = self.holdout_scenarios()
-        if not len(sc["scenario"]):
-            return None
-        try:
-            res = self.evaluate_states(mats, sc["y0"])
-        except ConfigError as exc:
-            logger.warning("no held-out evaluation: %s", exc)
-            return None
-        y0 = res.pop("y0")
-        res.update({"scenario": sc["scenario"], "attitudes_deg": sc["attitudes_deg"],
-                    "q_init": y0[:, :4], "omega_init": y0[:, 4:7]})
-        return res
-
 
 def evaluate_grid(problem: Any, mats: Mapping[str, Any], attitudes_deg: Any,
                   params: Mapping[str, Any] | None = None) -> dict[str, np.ndarray]:
@@ -402,6 +364,7 @@ __all__ = [
     "CARE_FAILURE",
     "CASES",
     "CASE_PARAMS",
+    "CUT_MARGIN",
     "DEFAULT_CASE",
     "HARD_FAILURE_FACTOR",
     "VARIANT_IGNORE",
@@ -413,6 +376,7 @@ __all__ = [
     "euler_to_quaternion",
     "evaluate_grid",
     "graded_cost",
+    "kernel_cutoffs",
     "mrp_to_quaternion",
     "normalize_quaternion",
     "perturbed_states",

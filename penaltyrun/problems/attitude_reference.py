@@ -42,7 +42,7 @@ def graded_cost(energy: np.ndarray, dist: np.ndarray, d0: Any, status: np.ndarra
     d0 = np.maximum(np.asarray(d0, dtype=float), 1e-300)
     with np.errstate(invalid="ignore", over="ignore"):
         failed = energy + failure_penalty * (1.0 + dist / d0)
-    cost = np.where(status == integrate.EVENT, energy, failed)
+    cost = np.where((status == integrate.EVENT) | (status == integrate.CUTOFF), energy, failed)
     hard = (~np.isfinite(cost)) | (status == integrate.NONFINITE)
     return np.where(hard, HARD_FAILURE_FACTOR * failure_penalty, cost)
 

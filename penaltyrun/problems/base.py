@@ -17,12 +17,22 @@ A problem module (``penaltyrun/problems/<name>.py``) exposes
   tuning (:mod:`penaltyrun.problems.multiscenario`) ``scenario_key()``, ``holdout_keys()``
   and ``sample_training(n, seed)``, with ``Params`` deriving from ``TrainingParams``.
 
+Exact cutoff (optional): a problem whose ``evaluate_batch`` takes a ``thresholds`` keyword
+(one value per candidate, ``inf``: none) may stop a candidate as soon as the part of its cost
+accumulated so far exceeds its threshold, and return status :data:`CUTOFF_STATUS` with a cost
+``c`` such that threshold < c ≤ the uncut cost; a candidate it does not cut must get exactly
+its uncut cost. An optimizer passes as threshold the value a candidate must beat to change
+its state (PSO: the particle's personal best), so its path is the same with and without the
+cutoff. A problem may ignore thresholds; problems without the keyword (user problems) are
+called without them (:func:`accepts_thresholds`).
+
 The layer below (``penaltyrun.dynamics``) holds the compiled kernels; this layer wraps them
 into objects that know the problem's matrices, bounds and cost. Hydra and pandas stay out.
 """
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Any, Protocol, runtime_checkable
@@ -30,6 +40,9 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+
+#: Status of a candidate stopped by the exact cutoff (its cost is a bound above its threshold).
+CUTOFF_STATUS = "cutoff"
 
 
 @dataclass(frozen=True)
@@ -90,7 +103,8 @@ class Problem(Protocol):
     def evaluate_batch(
         self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None
     ) -> BatchEvaluation:
-        """Evaluate B candidates; ``mats[name]`` has shape (B, N, N)."""
+        """Evaluate B candidates; ``mats[name]`` has shape (B, N, N). Optionally a third
+        keyword ``thresholds`` (shape (B,)) for the exact cutoff (module docstring)."""
         ...
 
     def evaluate(
@@ -167,17 +181,33 @@ def check_spd(name: str, matrix: Any, size: int) -> np.ndarray:
     return arr
 
 
+def accepts_thresholds(problem: Any) -> bool:
+    """Whether ``problem.evaluate_batch`` takes the ``thresholds`` keyword (exact cutoff)."""
+    method = getattr(problem, "evaluate_batch", None)
+    if method is None:
+        return False
+    try:
+        params = inspect.signature(method).parameters
+    except (TypeError, ValueError):
+        return False
+    param = params.get("thresholds")
+    return param is not None and param.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                                                inspect.Parameter.KEYWORD_ONLY)
+
+
 def status_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
     """Map integer kernel status codes to their names (array of str)."""
     return np.asarray([names[int(c)] for c in codes], dtype=object)
 
 
 __all__ = [
+    "CUTOFF_STATUS",
     "BatchEvaluation",
     "MatrixSpec",
     "ParamsMixin",
     "Problem",
     "ScalarSpec",
+    "accepts_thresholds",
     "check_spd",
     "status_names",
 ]

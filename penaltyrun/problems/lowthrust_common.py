@@ -16,6 +16,12 @@ Not converged (any failure status): a graded penalty
 with base = ``tof_cap_days`` (min_time) or ``m0_kg`` (min_fuel), so every failure costs more
 than every converged transfer; scale = (a_T, 1, π, π, π) for (a, e, i, Ω, ω) and
 ``fail_weight`` defaults to ``base``. The cost is always finite.
+
+Exact cutoff (``evaluate_batch(..., thresholds=...)``): a candidate stops as soon as its
+elapsed time (min_time, days) or propellant used (min_fuel, kg) exceeds its threshold, with
+status ``cutoff`` and that accumulated cost as its value, a bound above the threshold and never
+above the uncut cost (see :mod:`penaltyrun.dynamics.lowthrust.loop`; the failure base is the
+kernel's cap). Off when ``fail_weight`` < 0 (failures could then cost less than the base).
 """
 
 from __future__ import annotations
@@ -122,7 +128,7 @@ class LowThrustProblem:
                             self._sel, self._tol, np.ascontiguousarray(K), prm, hist, every)
 
     def _cost(self, status: int, t: float, mass: float, y: np.ndarray) -> float:
-        if status == lt.ST_CONVERGED:
+        if status == lt.ST_CONVERGED or status == lt.ST_CUTOFF:
             return t / 86400.0 if self.objective == "min_time" else self.params.m0_kg - mass
         err = self._errors(y)
         with np.errstate(invalid="ignore"):
@@ -146,11 +152,31 @@ class LowThrustProblem:
             raise ConfigError("matrices.K", f"expected shape (B, 5, 5), got {arr.shape}")
         return np.stack([check_spd("matrices.K", arr[b], 5) for b in range(arr.shape[0])])
 
+    def _with_cutoff(self, prm: np.ndarray, threshold: float) -> np.ndarray:
+        """``prm`` with the exact cutoff at ``threshold`` (unchanged when it cannot cut)."""
+        if not threshold < self._base or self._fail_weight < 0.0:  # also NaN
+            return prm
+        prm = prm.copy()
+        prm[lt.I_CUTKIND] = lt.CUT_TIME if self.objective == "min_time" else lt.CUT_PROPELLANT
+        prm[lt.I_CUTOFF] = threshold
+        prm[lt.I_CUTCAP] = self._base
+        return prm
+
     # -- Problem protocol ----------------------------------------------------------------
     def evaluate_batch(
-        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None,
+        thresholds: np.ndarray | None = None,
     ) -> BatchEvaluation:
         """Evaluate B candidates serially; ``mats["K"]`` has shape (B, 5, 5).
+
+        Parameters
+        ----------
+        mats, scalars
+            Candidates (``K`` of shape (B, 5, 5); ``eta_cut`` of shape (B,) in min-fuel).
+        thresholds : ndarray, shape (B,), optional
+            Exact cutoff per candidate (days or kg; ``inf``: none): a candidate whose
+            accumulated cost exceeds it stops early with status ``cutoff`` and a cost above
+            its threshold (see the module docstring).
 
         Returns
         -------
@@ -162,8 +188,12 @@ class LowThrustProblem:
         cost = np.empty(nb)
         codes = np.empty(nb, dtype=np.int64)
         empty = np.zeros((0, lt.N_HIST))
+        cut = None if thresholds is None else np.asarray(thresholds, dtype=float).reshape(nb)
         for b in range(nb):
-            st, t, y, _, _, _, _ = self._run(Ks[b], self._prm_for(scalars, b), empty, 0)
+            prm = self._prm_for(scalars, b)
+            if cut is not None:
+                prm = self._with_cutoff(prm, float(cut[b]))
+            st, t, y, _, _, _, _ = self._run(Ks[b], prm, empty, 0)
             codes[b] = st
             cost[b] = self._cost(st, t, y[6], y)
         return BatchEvaluation(cost=cost, converged=codes == lt.ST_CONVERGED,

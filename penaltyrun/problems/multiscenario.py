@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.base import BatchEvaluation
+from penaltyrun.problems.base import BatchEvaluation, accepts_thresholds
 
 AGGREGATES = ("mean", "max")
 KEYS = ("train_scenarios", "train_aggregate", "train_sample", "train_seed")
@@ -104,9 +104,19 @@ class MultiScenarioProblem:
         return getattr(self.base, name)
 
     def evaluate_batch(self, mats: Mapping[str, np.ndarray],
-                       scalars: Mapping[str, np.ndarray] | None = None) -> BatchEvaluation:
-        """Aggregated costs of B candidates over the training scenarios."""
-        evals = [p.evaluate_batch(mats, scalars) for p in self.scenarios]
+                       scalars: Mapping[str, np.ndarray] | None = None,
+                       thresholds: np.ndarray | None = None) -> BatchEvaluation:
+        """Aggregated costs of B candidates over the training scenarios.
+
+        ``thresholds`` (exact cutoff, shape (B,)) are passed to every scenario that takes
+        them when the aggregate is ``max`` (a scenario's bound above the threshold puts the
+        max above it too); the ``mean`` ignores them (one scenario's cost says nothing of
+        the mean without bounds on the others').
+        """
+        cut = thresholds if self.aggregate == "max" else None
+        evals = [p.evaluate_batch(mats, scalars, thresholds=cut)
+                 if cut is not None and accepts_thresholds(p) else p.evaluate_batch(mats, scalars)
+                 for p in self.scenarios]
         cost = _aggregate(np.stack([e.cost for e in evals]), self.aggregate)
         conv = np.stack([e.converged for e in evals])
         status = []

@@ -5,6 +5,12 @@ is Ẋ = −KᵀX and V = ½XᵀX decreases for every PD K. Cost J = ∫½UᵀU 
 ‖X‖ = ``event_radius``; a run whose event does not fire before ``t_max`` fails and gets
 the graded penalty ``J(t_max) + failure_penalty · (1 + ‖X(t_max)‖ / ‖X0‖)``.
 
+Exact cutoff (``evaluate_batch(..., thresholds=...)``, status ``cutoff``): a run stops at the
+end of the first integration step where J exceeds its threshold by the relative margin
+:data:`CUT_MARGIN` and costs that J, a bound above the threshold (J̇ = ½UᵀU ≥ 0, so J at the
+event, or J plus the failure penalty, is never below it up to the integrator's round-off).
+Thresholds at or above ``10 · failure_penalty`` (the flat cost of non-finite runs) cut nothing.
+
 Training scenario: the start ``x0``. Held-out set: starts on circles around the origin
 (``holdout_radii`` × ``holdout_n_angles`` equally spaced angles), any start equal to ``x0``
 left out.
@@ -39,6 +45,11 @@ DEFAULT_CASE = "default"
 CASE_PARAMS: dict[str, dict[str, Any]] = {"default": {}}
 #: Parameters that do not change a run's result (reports do not split cells by them).
 VARIANT_IGNORE = ("holdout_radii", "holdout_n_angles", "holdout_angle_offset_deg")
+
+#: Relative margin by which J must exceed a threshold before a run is cut.
+CUT_MARGIN = 1e-9
+#: Cost multiple of ``failure_penalty`` for runs whose graded cost is not finite.
+HARD_FAILURE_FACTOR = 10.0
 
 #: The paper's best matrices (diagonal K1, full K2).
 PAPER_K_DIAGONAL = np.diag([0.8094, 0.1611])
@@ -103,7 +114,8 @@ class Zermelo:
         self.matrices = (MatrixSpec("K", 2, tuple(float(b) for b in params.eig_bounds)),)
         self.scalars: tuple[ScalarSpec, ...] = ()
 
-    def _run(self, K: np.ndarray, x0: Any = None) -> tuple[np.ndarray, ...]:
+    def _run(self, K: np.ndarray, x0: Any = None, cutoff: np.ndarray | None = None
+             ) -> tuple[np.ndarray, ...]:
         p = self.params
         return simulate_batch(
             np.ascontiguousarray(K, dtype=float),
@@ -114,20 +126,33 @@ class Zermelo:
             float(p.atol),
             float(p.max_step),
             int(p.max_steps),
+            cutoff,
         )
 
     def evaluate_batch(
-        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None,
+        thresholds: np.ndarray | None = None,
     ) -> BatchEvaluation:
-        """Costs of a batch of gains ``mats["K"]``, shape (B, 2, 2)."""
-        return self._graded(*self._run(mats["K"]), float(np.hypot(*self.params.x0)))
+        """Costs of a batch of gains ``mats["K"]``, shape (B, 2, 2).
+
+        ``thresholds`` (shape (B,), optional): exact cutoff per candidate (``inf``: none);
+        see the module docstring.
+        """
+        K = mats["K"]
+        cutoff = None
+        if thresholds is not None:
+            thr = np.asarray(thresholds, dtype=float).reshape(np.shape(K)[0])
+            allowed = thr < HARD_FAILURE_FACTOR * self.params.failure_penalty  # NaN: False
+            cutoff = np.where(allowed, thr + CUT_MARGIN * np.abs(thr), np.inf)
+        return self._graded(*self._run(K, None, cutoff), float(np.hypot(*self.params.x0)))
 
     def _graded(self, t_end: np.ndarray, cost: np.ndarray, dist: np.ndarray,
                 status: np.ndarray, d0: float) -> BatchEvaluation:
         converged = status == integrate.EVENT
         penalty = cost + self.params.failure_penalty * (1.0 + dist / d0)
-        graded = np.where(converged, cost, penalty)
-        graded = np.where(np.isfinite(graded), graded, 10.0 * self.params.failure_penalty)
+        graded = np.where(converged | (status == integrate.CUTOFF), cost, penalty)
+        graded = np.where(np.isfinite(graded), graded,
+                          HARD_FAILURE_FACTOR * self.params.failure_penalty)
         names = np.asarray(["converged" if c else integrate.STATUS_NAMES[int(s)]
                             for c, s in zip(converged, status)], dtype=object)
         return BatchEvaluation(cost=graded, converged=converged, status=names)

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun import optim
+from penaltyrun.problems.base import CUTOFF_STATUS
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
 from penaltyrun.runner.swarm import LocalEvaluation
@@ -42,13 +43,16 @@ class Heartbeat:
     """Batched objective that logs a progress line at most every ``interval_s`` seconds.
 
     A low-thrust job can run for an hour between the runner's per-job lines; this says it
-    is alive, how many candidates it has evaluated out of how many at most, the best cost
-    so far and, at the pace so far, the time left if the whole budget is spent.
+    is alive, how many candidates it has evaluated out of how many at most (and how many
+    the exact cutoff stopped early), the best cost so far and, at the pace so far, the time
+    left if the whole budget is spent.
 
     Parameters
     ----------
     func : callable
-        Batched objective Z (B, dim) → (B,).
+        Batched objective Z (B, dim) → costs (B,) or a
+        :class:`~penaltyrun.problems.base.BatchEvaluation` (whose ``cutoff`` statuses are
+        counted); called as ``func(Z, thresholds)`` when ``accepts_thresholds``.
     label : str
         Job id shown in the line.
     interval_s : float, optional
@@ -56,29 +60,39 @@ class Heartbeat:
     total : int, optional
         Most evaluations the job can spend (:func:`penaltyrun.optim.planned_evals`);
         ``None``: no bound known.
+    accepts_thresholds : bool, optional
+        Hand the optimizer's thresholds to ``func`` (exact cutoff; see
+        :mod:`penaltyrun.optim.base`). Without it ``func`` always gets ``None``.
     """
 
     def __init__(self, func: Any, label: str, interval_s: float | None = None,
-                 total: int | None = None) -> None:
+                 total: int | None = None, accepts_thresholds: bool = False) -> None:
         self.func = func
         self.label = label
         self.total = total
         self.interval_s = float(HEARTBEAT_S if interval_s is None else interval_s)
+        self.accepts_thresholds = bool(accepts_thresholds)
         self.n_evals = 0
+        self.n_cutoff = 0
         self.best = float("inf")
         self.t0 = self.last = time.perf_counter()
 
-    def __call__(self, Z: np.ndarray) -> np.ndarray:
-        cost = np.asarray(self.func(Z), dtype=float)
+    def __call__(self, Z: np.ndarray, thresholds: np.ndarray | None = None) -> np.ndarray:
+        res = self.func(Z, thresholds) if self.accepts_thresholds else self.func(Z)
+        cost = np.asarray(getattr(res, "cost", res), dtype=float)
         self.n_evals += cost.size
+        status = getattr(res, "status", None)
+        if status is not None:
+            self.n_cutoff += int(np.sum(np.asarray(status) == CUTOFF_STATUS))
         finite = cost[np.isfinite(cost)]
         if finite.size:
             self.best = min(self.best, float(finite.min()))
         now = time.perf_counter()
         if now - self.last >= self.interval_s:
             self.last = now
-            logger.info("%s: running, %s in %.0f s, best cost so far %.6g", self.label,
-                        self.progress(now - self.t0), now - self.t0, self.best)
+            logger.info("%s: running, %s (%d stopped early by the cutoff) in %.0f s, best "
+                        "cost so far %.6g", self.label, self.progress(now - self.t0),
+                        self.n_cutoff, now - self.t0, self.best)
         return cost
 
     def progress(self, elapsed_s: float) -> str:
@@ -94,9 +108,11 @@ def _objective(evaluation: Any, job: Job, prob: Any, layout: Any, param: str,
                settings: Any) -> Heartbeat:
     """Batched objective of ``prob`` over ``layout``'s box (parameterization ``param``),
     evaluated by ``evaluation``, with progress lines counting against the most evaluations
-    ``settings`` can spend."""
-    return Heartbeat(evaluation.objective(job, prob, layout, param), job.job_id,
-                     total=optim.planned_evals(settings, layout.dim))
+    ``settings`` can spend. The optimizer's thresholds reach the problem when the
+    evaluation's objective takes them (``accepts_thresholds``: exact cutoff)."""
+    func = evaluation.objective(job, prob, layout, param)
+    return Heartbeat(func, job.job_id, total=optim.planned_evals(settings, layout.dim),
+                     accepts_thresholds=bool(getattr(func, "accepts_thresholds", False)))
 
 
 def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: Any

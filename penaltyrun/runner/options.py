@@ -30,6 +30,7 @@ RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "forecast_samples": ("nonneg_int", "a non-negative integer (0: no forecast)"),
     "evaluate_on": ("evaluate_on", "local or dask"),
     "chunks": ("chunks", "auto or a positive integer"),
+    "cutoff": ("bool", "true or false"),
 }
 BACKENDS = ("local", "dask")
 #: Where a job's candidates are evaluated: in the job's process, or as chunks on Dask workers.

@@ -44,6 +44,9 @@ class Job:
         diagonal map, whose best matrix then seeds the full search.
     problem_module : str
         Module of a problem outside penaltyrun (a problem config's ``module:``), or "".
+    cutoff : bool
+        Exact cutoff (``runner.cutoff``): optimizers hand thresholds to problems that take
+        them. Not part of :attr:`settings_hash`: the result is the same either way.
     """
 
     problem: str
@@ -59,6 +62,7 @@ class Job:
     holdout: bool = True
     warm_start_share: float = 0.0
     problem_module: str = ""
+    cutoff: bool = True
 
     @property
     def settings_hash(self) -> str:
@@ -101,7 +105,7 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
               optimizer_options: dict[str, Any] | None = None,
               meta: dict[str, Any] | None = None, holdout: bool = True,
               warm_start_share: float = 0.0,
-              problem_module: str | None = None) -> list[Job]:
+              problem_module: str | None = None, cutoff: bool = True) -> list[Job]:
     """One job per start of a single (problem, case, param, optimizer) cell.
 
     ``warm_start_share`` applies to full maps only (a diagonal job has nothing to warm).
@@ -120,7 +124,7 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
                         dict(problem_params or {}), dict(param_options or {}),
                         dict(optimizer_options or {}), dict(meta or {}), bool(holdout),
                         0.0 if param == "diagonal" else float(warm_start_share),
-                        str(problem_module or "")))
+                        str(problem_module or ""), bool(cutoff)))
     return jobs
 
 

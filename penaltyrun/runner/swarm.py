@@ -26,7 +26,7 @@ import numpy as np
 
 from penaltyrun import __version__, problems
 from penaltyrun.penalty.layout import DecisionLayout
-from penaltyrun.problems.base import Problem
+from penaltyrun.problems.base import Problem, accepts_thresholds
 from penaltyrun.runner.plan import Job, config_hash
 from penaltyrun.runner.setup import build_layout
 
@@ -98,12 +98,22 @@ class LocalEvaluation:
 
     def objective(self, job: Job, prob: Problem, layout: DecisionLayout, param: str
                   ) -> BatchFunc:
-        """Batched objective Z (B, dim) → costs (B,) of ``prob`` over ``layout``."""
+        """Batched objective Z (B, dim) → costs (B,) of ``prob`` over ``layout``.
 
-        def evaluate(Z: np.ndarray) -> np.ndarray:
+        With ``job.cutoff`` and a problem whose ``evaluate_batch`` takes ``thresholds``, the
+        objective is marked ``accepts_thresholds`` and, called with thresholds, returns the
+        problem's :class:`~penaltyrun.problems.base.BatchEvaluation` (statuses included, so
+        cut candidates can be counted) instead of the bare costs.
+        """
+
+        def evaluate(Z: np.ndarray, thresholds: np.ndarray | None = None) -> Any:
             mats, scalars = layout.split(Z)
-            return prob.evaluate_batch(mats, scalars or None).cost
+            if thresholds is None:
+                return prob.evaluate_batch(mats, scalars or None).cost
+            return prob.evaluate_batch(mats, scalars or None, thresholds=thresholds)
 
+        evaluate.accepts_thresholds = bool(getattr(job, "cutoff", True)) and \
+            accepts_thresholds(prob)
         return evaluate
 
     def best(self, job: Job, prob: Problem, mats: Mapping[str, np.ndarray],

@@ -83,3 +83,32 @@ def test_event_already_true_at_start():
     t, _, status, steps = run(decay_rhs, decay_event, np.array([1e-4, 0.0]),
                               np.array([1.0, 1e-3]), 10.0, 1e-10, np.inf, 1)
     assert (t, status, steps) == (0.0, integrate.EVENT, 0)
+
+
+def test_cutoff_stops_after_the_running_cost_exceeds_the_threshold():
+    # ẋ = −a x, J̇ = x²/2: J(t) = x0²/(4a) (1 − e^{−2at}) rises to the event at x = level.
+    y0, p = np.array([3.0, 0.0]), np.array([0.7, 1e-3])
+    t_full, y_full, st_full, n_full = run(decay_rhs, decay_event, y0, p, 1000.0, 1e-11,
+                                          np.inf, 1)
+    for frac in (0.0, 0.1, 0.5, 0.9, 0.999999):
+        thr = frac * y_full[1]
+        t, y, st, n = integrate.dopri5(decay_rhs, decay_event, y0, p, 1000.0, 1e-11, 1e-11,
+                                       np.inf, 1, 100000, 1, thr)
+        assert st == integrate.CUTOFF and integrate.STATUS_NAMES[st] == "cutoff"
+        assert thr < y[1] <= y_full[1] and t < t_full and n < n_full
+    for thr in (y_full[1], 2.0 * y_full[1], np.inf):  # never exceeded: the uncut run, bitwise
+        t, y, st, n = integrate.dopri5(decay_rhs, decay_event, y0, p, 1000.0, 1e-11, 1e-11,
+                                       np.inf, 1, 100000, 1, thr)
+        assert (t, st, n) == (t_full, st_full, n_full) and np.array_equal(y, y_full)
+
+
+def test_cutoff_never_replaces_the_horizon_status():
+    # J first exceeds the threshold in the step that reaches t_max: that step ends the run
+    # as without the cutoff.
+    y0, p = np.array([3.0, 0.0]), np.array([0.7, 1e-3])
+    t_h, y_h, st_h, _ = integrate.dopri5(decay_rhs, decay_event, y0, p, 0.5, 1e-11, 1e-11,
+                                         0.5, 1, 100000)
+    assert st_h == integrate.HORIZON
+    t, y, st, _ = integrate.dopri5(decay_rhs, decay_event, y0, p, 0.5, 1e-11, 1e-11, 0.5, 1,
+                                   100000, 1, y_h[1] * (1.0 - 1e-12))
+    assert st == integrate.HORIZON and t == t_h and np.array_equal(y, y_h)

@@ -60,3 +60,48 @@ def test_holdout_hook_stores_every_problems_held_out_results():
         assert len(held["converged"]) == len(held["scenario"])
     off = run_job(_baseline_job("zermelo", "default", {}, holdout=False))
     assert off["holdout"] is None
+
+
+# ------------------------------------------------------------------ exact cutoff
+
+
+def test_run_job_records_the_same_result_with_and_without_cutoff():
+    from dataclasses import replace
+
+    from penaltyrun.runner.job import run_job
+    from penaltyrun.runner.plan import plan_jobs
+
+    job = plan_jobs("zermelo", "default", "full", "pso", 1, 5, {}, {},
+                    {"n_particles": 10, "iters": 15, "max_evals": 150}, {},
+                    holdout=False)[0]
+    off = replace(job, cutoff=False)
+    assert job.cutoff and job.job_id == off.job_id  # not part of the job's identity
+    on_rec, off_rec = run_job(job), run_job(off)
+    for key in ("status", "best_cost", "best_z", "history", "trace_evals", "trace_best",
+                "n_evals", "n_iters", "stop_reason", "n_nonfinite", "metrics"):
+        assert on_rec[key] == off_rec[key], key
+
+
+def test_objective_without_threshold_support_runs_every_candidate():
+    from penaltyrun import optim
+    from penaltyrun.problems.base import BatchEvaluation, MatrixSpec
+    from penaltyrun.runner.job import _objective
+    from penaltyrun.runner.setup import build_layout
+
+    class UserProblem:  # a user problem of the old protocol: no thresholds keyword
+        name, case, scalars = "user", "default", ()
+        matrices = (MatrixSpec("K", 2, (0.1, 10.0)),)
+
+        def evaluate_batch(self, mats, scalars=None):
+            cost = np.trace(mats["K"], axis1=1, axis2=2)
+            return BatchEvaluation(cost=cost, converged=np.ones(cost.size, bool),
+                                   status=np.array(["converged"] * cost.size, dtype=object))
+
+    prob = UserProblem()
+    layout = build_layout(prob, "full", {})
+    beat = _objective(prob, layout, "user", cutoff=True)
+    assert not beat.accepts_thresholds
+    lb, ub = layout.bounds()
+    res = optim.minimize("pso", beat, lb, ub,
+                         optim.make_settings("pso", {"n_particles": 5, "iters": 3}), 1)
+    assert res.n_evals == 15 and beat.n_cutoff == 0

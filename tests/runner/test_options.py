@@ -10,7 +10,8 @@ from penaltyrun.runner.options import check_runner_options, check_scheduler, par
 GOOD = {"n_starts": 2, "seed": 0, "workers": 1, "backend": "local", "scheduler": None,
         "resume": False, "retry_failed": False, "report": True, "holdout": True,
         "max_retries": 1, "worker_timeout": 60, "warm_start": False, "warm_start_share": 0.3,
-        "evaluate_on": "local", "chunks": "auto"}
+        "evaluate_on": "local", "chunks": "auto",
+        "cutoff": True}
 
 
 def test_shipped_defaults_pass():
@@ -27,6 +28,7 @@ def test_shipped_defaults_pass():
     ("evaluate_on", "gpu", "allowed: local, dask"), ("evaluate_on", None, "local or dask"),
     ("chunks", 0, "auto or a positive integer"), ("chunks", "4", "positive integer"),
     ("chunks", True, "positive integer"), ("chunks", 2.0, "positive integer"),
+    ("cutoff", "yes", "true or false"),
 ])
 def test_bad_values_name_the_key(key, value, fragment):
     with pytest.raises(ConfigError, match=f"runner.{key}") as err:

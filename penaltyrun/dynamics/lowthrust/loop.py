@@ -5,8 +5,18 @@ computed at the start of each fixed control step ``dt`` and held (zero-order hol
 step the dynamics, including the mass flow and F = T/m, are integrated with ``nsub`` classical
 RK4 substeps. Stop rules, each a distinct status: convergence, escape (non-finite state, e ≥ 1
 or a ≤ 0), impact, propellant floor, time-of-flight cap, revolution cap, step cap and stall
-(``stall``), and no progress (``no_progress``: the best Q, or V, has not fallen by the fraction
-``prm[I_NPFRAC]`` over ``prm[I_NPREVS]`` revolutions).
+(``stall``), no progress (``no_progress``: the best Q, or V, has not fallen by the fraction
+``prm[I_NPFRAC]`` over ``prm[I_NPREVS]`` revolutions) and the exact cutoff (``cutoff``).
+
+Exact cutoff: with ``prm[I_CUTKIND]`` = ``CUT_TIME`` (elapsed time t/86400, days) or
+``CUT_PROPELLANT`` (m0 − m, kg) the transfer stops as soon as that accumulated cost exceeds
+``prm[I_CUTOFF]`` while it is still ≤ ``prm[I_CUTCAP]``. It is checked after every other stop
+rule of the step, so a transfer that ends there anyway ends as without the cutoff. Both
+accumulated costs never decrease along a transfer (t grows by dt per step, the mass never
+grows), so a converged transfer's final cost is at least the accumulated one; a failed
+transfer costs at least the failure penalty's base, which the caller passes as the cap. The
+cut transfer's accumulated cost is therefore a bound: above the cutoff and never above the
+cost of the uncut transfer.
 """
 
 from __future__ import annotations
@@ -22,7 +32,12 @@ from penaltyrun.dynamics.lowthrust.elements import (
 )
 from penaltyrun.dynamics.lowthrust.qlaw import N_WORK, selector_matrix
 from penaltyrun.dynamics.lowthrust.settings import (
+    CUT_NONE,
+    CUT_TIME,
     G0,
+    I_CUTCAP,
+    I_CUTKIND,
+    I_CUTOFF,
     I_DT,
     I_ISP,
     I_MAXSTEPS,
@@ -38,6 +53,7 @@ from penaltyrun.dynamics.lowthrust.settings import (
     I_THRUST,
     I_TMAX,
     ST_CONVERGED,
+    ST_CUTOFF,
     ST_ESCAPE,
     ST_IMPACT,
     ST_NO_PROGRESS,
@@ -131,6 +147,9 @@ def propagate(oe0, m0, oeT, sel, tol, K, prm, hist, record_every):
     np_keep = 1.0 - prm[I_NPFRAC]
     np_ref = np.inf
     np_next = np_win
+    cut_kind = int(prm[I_CUTKIND])
+    cut_value = prm[I_CUTOFF]
+    cut_cap = prm[I_CUTCAP]
     status = -1
     while True:
         a, e, inc, raan, argp, nu = mee2kep(y[0], y[1], y[2], y[3], y[4], y[5])
@@ -167,6 +186,10 @@ def propagate(oe0, m0, oeT, sel, tol, K, prm, hist, record_every):
             status = ST_REV
         elif step >= max_steps:
             status = ST_STALL
+        elif cut_kind != CUT_NONE:
+            spent = t / 86400.0 if cut_kind == CUT_TIME else m0 - y[6]
+            if spent > cut_value and spent <= cut_cap:
+                status = ST_CUTOFF
         on = False
         if status < 0:
             F = thrust / (1000.0 * y[6])

@@ -46,7 +46,10 @@ I_RIMPACT = 25  # impact radius (periapsis floor), km
 I_GRAD = 26  # GRAD_ANALYTIC (production) or GRAD_COMPLEX (complex-step reference law)
 I_NPREVS = 27  # no-progress window, revolutions (0 disables the rule)
 I_NPFRAC = 28  # fraction by which min(Q) must fall per no-progress window
-N_PRM = 29
+I_CUTKIND = 29  # CUT_NONE, CUT_TIME (elapsed days) or CUT_PROPELLANT (propellant used, kg)
+I_CUTOFF = 30  # exact cutoff: stop once the accumulated cost exceeds this value
+I_CUTCAP = 31  # cut only while the accumulated cost is ≤ this (the failure penalty's base)
+N_PRM = 32
 
 LAW_QLAW = 0
 LAW_GENERIC = 1
@@ -55,6 +58,9 @@ COAST_ETA_A = 1
 COAST_ETA_R = 2
 GRAD_ANALYTIC = 0
 GRAD_COMPLEX = 1
+CUT_NONE = 0
+CUT_TIME = 1
+CUT_PROPELLANT = 2
 
 ST_CONVERGED = 0
 ST_TOF = 1
@@ -64,8 +70,9 @@ ST_PROPELLANT = 4
 ST_STALL = 5
 ST_ESCAPE = 6
 ST_NO_PROGRESS = 7
+ST_CUTOFF = 8
 STATUS_NAMES = ("converged", "tof_cap", "rev_cap", "impact", "propellant", "stall", "escape",
-                "no_progress")
+                "no_progress", "cutoff")
 """Kernel status code → name."""
 
 HIST_COLS = ("t", "a", "e", "i", "Omega", "omega", "mass", "thrust_on", "x", "y", "z", "Q")

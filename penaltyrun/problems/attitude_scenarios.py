@@ -1,0 +1,124 @@
+"""Training scenario and held-out set of the attitude problems (a mixin of
+:class:`~penaltyrun.problems.attitude_common.AttitudeProblem`).
+
+The training scenario is the case's initial state; the held-out set is rest-to-rest starts
+from a grid of attitudes plus seeded perturbations of the training state (see
+:meth:`AttitudeScenarios.holdout_scenarios`). The mixin needs ``params``, ``case``, ``y0``
+and ``evaluate_states`` from the problem.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from penaltyrun.errors import ConfigError
+from penaltyrun.problems.attitude_frames import (
+    euler_to_quaternion,
+    perturbed_states,
+    robustness_grid,
+)
+
+logger = logging.getLogger(__name__)
+
+
+class AttitudeScenarios:
+    """Training-scenario and held-out methods shared by the attitude problems."""
+
+    params: Any
+    case: str
+    y0: np.ndarray
+
+    def training_scenario(self) -> dict[str, Any]:
+        """The scenario the matrices are tuned on (this case's initial state), JSON-ready."""
+        return {"scenario": self.case, "q0": self.y0[:4].tolist(),
+                "omega0": self.y0[4:7].tolist()}
+
+    def scenario_key(self) -> tuple:
+        """Hashable key of the training scenario: initial (q, ω) rounded to 1e-9."""
+        return tuple(np.round(self.y0, 9).tolist())
+
+    def sample_training(self, n: int, seed: int) -> list[dict[str, Any]]:
+        """``n`` seeded training states: perturbations of this case's initial state with the
+        held-out sizes (``holdout_perturb_deg``, ``holdout_rate_rel``) and ``seed``.
+
+        Returns
+        -------
+        list of dict
+            Overrides ``{"attitude_type": "quaternion", "attitude": q, "omega0": ω}``.
+        """
+        p = self.params
+        q, w = perturbed_states(self.y0[:4], self.y0[4:7], n, p.holdout_perturb_deg,
+                                p.holdout_rate_rel, seed)
+        return [{"attitude_type": "quaternion", "attitude": tuple(qi.tolist()),
+                 "omega0": tuple(wi.tolist())} for qi, wi in zip(q, w)]
+
+    def holdout_keys(self) -> set[tuple]:
+        """Keys (as :meth:`scenario_key`) of the held-out scenarios."""
+        return {tuple(np.round(y, 9).tolist()) for y in self.holdout_scenarios()["y0"]}
+
+    def holdout_scenarios(self) -> dict[str, np.ndarray]:
+        """The held-out set, disjoint from the training scenario.
+
+        Rest-to-rest (ω0 = 0) from the attitudes of :func:`robustness_grid` (``holdout_n``,
+        ``holdout_lo_deg``, ``holdout_hi_deg``), then ``holdout_n_perturbed`` seeded
+        perturbations of this case's initial attitude and rates (see
+        :func:`~penaltyrun.problems.attitude_frames.perturbed_states`).
+
+        Returns
+        -------
+        dict
+            ``scenario`` (n,) labels (``grid:yaw,pitch,roll`` or ``perturbed:k``), ``y0``
+            (n, 7) initial states, ``attitudes_deg`` (n, 3) (NaN for perturbed states).
+        """
+        p = self.params
+        labels: list[str] = []
+        states, angles = [np.zeros((0, 7))], [np.zeros((0, 3))]
+        if p.holdout_n > 0:
+            grid = robustness_grid(p.holdout_n, p.holdout_lo_deg, p.holdout_hi_deg)
+            states.append(np.concatenate([euler_to_quaternion(grid),
+                                          np.zeros((grid.shape[0], 3))], axis=1))
+            angles.append(grid)
+            labels += [f"grid:{a:g},{b:g},{c:g}" for a, b, c in grid]
+        if p.holdout_n_perturbed > 0:
+            q, w = perturbed_states(self.y0[:4], self.y0[4:7], p.holdout_n_perturbed,
+                                    p.holdout_perturb_deg, p.holdout_rate_rel, p.holdout_seed)
+            states.append(np.concatenate([q, w], axis=1))
+            angles.append(np.full((q.shape[0], 3), np.nan))
+            labels += [f"perturbed:{k}" for k in range(q.shape[0])]
+        return {"scenario": np.asarray(labels, dtype=object),
+                "y0": np.concatenate(states), "attitudes_deg": np.concatenate(angles)}
+
+    def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                ) -> dict[str, np.ndarray] | None:
+        """Evaluate one candidate on the held-out set (runner hook, see
+        :meth:`holdout_scenarios`); inertia, horizon, event and tolerances are this
+        problem's.
+
+        Returns
+        -------
+        dict of ndarray or None
+            Per scenario: ``scenario``, ``cost``, ``converged``, ``status``, ``energy``,
+            ``t_final``, ``final_distance``, ``initial_distance``, ``attitudes_deg`` (NaN
+            rows for perturbed states), ``q_init`` (n, 4), ``omega_init`` (n, 3). ``None``
+            if the set is empty or the candidate has no gain (LQR without a stabilizing
+            Riccati solution).
+        """
+        sc = self.holdout_scenarios()
+        if not len(sc["scenario"]):
+            return None
+        try:
+            res = self.evaluate_states(mats, sc["y0"])
+        except ConfigError as exc:
+            logger.warning("no held-out evaluation: %s", exc)
+            return None
+        y0 = res.pop("y0")
+        res.update({"scenario": sc["scenario"], "attitudes_deg": sc["attitudes_deg"],
+                    "q_init": y0[:, :4], "omega_init": y0[:, 4:7]})
+        return res
+
+
+__all__ = ["AttitudeScenarios"]

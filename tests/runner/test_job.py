@@ -97,11 +97,16 @@ def test_objective_without_threshold_support_runs_every_candidate():
             return BatchEvaluation(cost=cost, converged=np.ones(cost.size, bool),
                                    status=np.array(["converged"] * cost.size, dtype=object))
 
+    from types import SimpleNamespace
+
+    from penaltyrun.runner.swarm import LocalEvaluation
+
     prob = UserProblem()
     layout = build_layout(prob, "full", {})
-    beat = _objective(prob, layout, "user", cutoff=True)
+    settings = optim.make_settings("pso", {"n_particles": 5, "iters": 3})
+    job = SimpleNamespace(job_id="user", cutoff=True)
+    beat = _objective(LocalEvaluation(), job, prob, layout, "full", settings)
     assert not beat.accepts_thresholds
     lb, ub = layout.bounds()
-    res = optim.minimize("pso", beat, lb, ub,
-                         optim.make_settings("pso", {"n_particles": 5, "iters": 3}), 1)
+    res = optim.minimize("pso", beat, lb, ub, settings, 1)
     assert res.n_evals == 15 and beat.n_cutoff == 0

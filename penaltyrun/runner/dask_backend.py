@@ -64,6 +64,41 @@ def n_workers(client: Any) -> int:
         return 0
 
 
+class WorkerWatchdog:
+    """Stop a run that has had no dask worker for ``timeout`` seconds.
+
+    Parameters
+    ----------
+    client : distributed.Client
+        The run's client.
+    timeout : float
+        Seconds without any worker (and without progress) before giving up (s).
+    """
+
+    def __init__(self, client: Any, timeout: float) -> None:
+        self.client = client
+        self.timeout = float(timeout)
+        self.lost_since: float | None = None
+
+    def check(self, progressed: bool, jobs_left: int) -> None:
+        """Call once per poll; ``progressed``: a job finished since the last call.
+
+        Raises
+        ------
+        RunAbortedError
+            No worker and no progress for ``timeout`` seconds.
+        """
+        if progressed or n_workers(self.client) > 0:
+            self.lost_since = None
+            return
+        self.lost_since = self.lost_since or time.monotonic()
+        if time.monotonic() - self.lost_since > self.timeout:
+            raise RunAbortedError(
+                f"no dask worker for {self.timeout:g} s (runner.worker_timeout) with "
+                f"{jobs_left} jobs left; start workers and rerun with runner.resume=true "
+                f"(finished jobs are kept)")
+
+
 def open_client(workers: int, scheduler: str | None, max_retries: int = 1
                 ) -> tuple[Any, Any]:
     """A client of the scheduler at ``scheduler``, or of a new LocalCluster.
@@ -135,7 +170,7 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
                                  priority=len(jobs) - i): job  # in the given order
                    for i, job in enumerate(jobs)}
         pending = set(futures)
-        lost_since: float | None = None
+        watchdog = WorkerWatchdog(client, worker_timeout)
         while pending:
             try:
                 done, pending = distributed.wait(pending, timeout=POLL_S,
@@ -144,15 +179,7 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
                 done = set()
             for fut in done:
                 yield futures[fut], _result_or_failure(futures[fut], fut)
-            if done or n_workers(client) > 0:
-                lost_since = None
-                continue
-            lost_since = lost_since or time.monotonic()
-            if time.monotonic() - lost_since > worker_timeout:
-                raise RunAbortedError(
-                    f"no dask worker for {worker_timeout:g} s (runner.worker_timeout) with "
-                    f"{len(pending)} jobs left; start workers and rerun with "
-                    f"runner.resume=true (finished jobs are kept)")
+            watchdog.check(bool(done), len(pending))
     finally:
         for fut in futures:
             fut.cancel()

@@ -36,7 +36,7 @@ import numpy as np
 
 from penaltyrun.errors import RunAbortedError
 from penaltyrun.runner import swarm
-from penaltyrun.runner.dask_backend import POLL_S, n_workers, open_client
+from penaltyrun.runner.dask_backend import POLL_S, WorkerWatchdog, open_client
 from penaltyrun.runner.job import run_job
 from penaltyrun.runner.plan import Job
 
@@ -356,20 +356,12 @@ def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries:
         pool = cf.ThreadPoolExecutor(max_workers=starts, thread_name_prefix="penaltyrun-start")
         futures = {pool.submit(evaluation.run_job, job): job for job in jobs}
         pending = set(futures)
-        lost_since: float | None = None
+        watchdog = WorkerWatchdog(client, worker_timeout)
         while pending:
             done, pending = cf.wait(pending, timeout=POLL_S, return_when=cf.FIRST_COMPLETED)
             for fut in done:
                 yield futures[fut], fut.result()
-            if done or n_workers(client) > 0:
-                lost_since = None
-                continue
-            lost_since = lost_since or time.monotonic()
-            if time.monotonic() - lost_since > worker_timeout:
-                raise RunAbortedError(
-                    f"no dask worker for {worker_timeout:g} s (runner.worker_timeout) with "
-                    f"{len(pending)} jobs left; start workers and rerun with "
-                    f"runner.resume=true (finished jobs are kept)")
+            watchdog.check(bool(done), len(pending))
     finally:
         if evaluation is not None:
             evaluation.stop.set()

@@ -3,6 +3,8 @@ objective, on an attitude and a low-thrust problem; and it does cut."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,7 @@ from penaltyrun import optim, problems
 from penaltyrun.optim.base import CountingObjective
 from penaltyrun.runner.job import _objective
 from penaltyrun.runner.setup import build_layout
+from penaltyrun.runner.swarm import LocalEvaluation
 
 CELLS = {
     "attitude": ("attitude_lyapunov", "detumble", {}),
@@ -27,8 +30,9 @@ def _run(cell, name, cutoff, seed=123):
     prob = problems.make(problem, case, params)
     layout = build_layout(prob, "full", {})
     lb, ub = layout.bounds()
-    objective = _objective(prob, layout, "test", cutoff)
     settings = optim.make_settings(name, OPTIMIZERS[name])
+    job = SimpleNamespace(job_id="test", cutoff=cutoff)
+    objective = _objective(LocalEvaluation(), job, prob, layout, "full", settings)
     return optim.minimize(name, objective, lb, ub, settings, seed), objective
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from lowthrust_reference import mee_rhs
 from scipy.integrate import solve_ivp
 
 from penaltyrun.dynamics import lowthrust as lt
@@ -163,26 +164,6 @@ def test_thrust_off_elements_constant_over_100_revolutions() -> None:
 
 
 # -- independent reference: scipy solve_ivp (DOP853, rtol 1e-11) within each held step ----
-def _mee_rhs_numpy(_t: float, y: np.ndarray, u: np.ndarray, thrust: float, mdot: float
-                   ) -> np.ndarray:
-    p, f, g, h, k, L, m = y
-    acc = thrust / (1000.0 * m) * u
-    cl, sl = np.cos(L), np.sin(L)
-    w = 1.0 + f * cl + g * sl
-    s2 = 1.0 + h * h + k * k
-    sig = h * sl - k * cl
-    psi = np.sqrt(p / lt.MU)
-    return np.array([
-        2.0 * p * psi / w * acc[1],
-        psi * (sl * acc[0] + ((w + 1) * cl + f) / w * acc[1] - g * sig / w * acc[2]),
-        psi * (-cl * acc[0] + ((w + 1) * sl + g) / w * acc[1] + f * sig / w * acc[2]),
-        psi * s2 * cl / (2 * w) * acc[2],
-        psi * s2 * sl / (2 * w) * acc[2],
-        np.sqrt(lt.MU * p) * (w / p) ** 2 + psi * sig / w * acc[2],
-        -mdot if thrust > 0 else 0.0,
-    ])
-
-
 def _reference_transfer(prob) -> tuple[float, float]:
     """ToF (s) and final mass (kg) with scipy integrating each zero-order-hold step."""
     pr = prob.params
@@ -201,7 +182,7 @@ def _reference_transfer(prob) -> tuple[float, float]:
         F = pr.thrust_newton / (1000.0 * y[6])
         ur, ut, un, on, _, _ = lt.law_eval(oe6, F, prob._oeT, prob._sel, np.eye(5), prm,
                                            grad, B)
-        sol = solve_ivp(_mee_rhs_numpy, (0.0, pr.control_step_s), y, method="DOP853",
+        sol = solve_ivp(mee_rhs, (0.0, pr.control_step_s), y, method="DOP853",
                         rtol=1e-11, atol=1e-12,
                         args=(np.array([ur, ut, un]), pr.thrust_newton if on else 0.0, mdot))
         y = sol.y[:, -1]

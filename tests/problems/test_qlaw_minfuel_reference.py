@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from lowthrust_reference import mee_rhs
 from scipy.integrate import solve_ivp
 
 from penaltyrun.dynamics import lowthrust as lt
@@ -55,26 +56,6 @@ def effectivity(oe6: np.ndarray, grad: np.ndarray, prm: np.ndarray, mode: str) -
     if mode == "eta_a":
         return now / gmax
     return (now - gmin) / (gmax - gmin) if gmax > gmin else 1.0
-
-
-def mee_rhs(_t: float, y: np.ndarray, u: np.ndarray, thrust: float, mdot: float) -> np.ndarray:
-    """Gauss variational equations in MEE plus mass (spec), thrust ``thrust`` N along ``u``."""
-    p, f, g, h, k, L, m = y
-    acc = thrust / (1000.0 * m) * u
-    cl, sl = np.cos(L), np.sin(L)
-    w = 1.0 + f * cl + g * sl
-    s2 = 1.0 + h * h + k * k
-    sig = h * sl - k * cl
-    psi = np.sqrt(p / lt.MU)
-    return np.array([
-        2.0 * p * psi / w * acc[1],
-        psi * (sl * acc[0] + ((w + 1) * cl + f) / w * acc[1] - g * sig / w * acc[2]),
-        psi * (-cl * acc[0] + ((w + 1) * sl + g) / w * acc[1] + f * sig / w * acc[2]),
-        psi * s2 * cl / (2 * w) * acc[2],
-        psi * s2 * sl / (2 * w) * acc[2],
-        np.sqrt(lt.MU * p) * (w / p) ** 2 + psi * sig / w * acc[2],
-        -mdot if thrust > 0 else 0.0,
-    ])
 
 
 def reference_min_fuel(prob, K: np.ndarray, eta_cut: float) -> tuple[float, float]:

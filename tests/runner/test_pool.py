@@ -69,7 +69,7 @@ SCRIPT = textwrap.dedent("""
     from penaltyrun.runner.pool import run_pool
 
     def sleeper(job):
-        print(os.getpid(), flush=True)
+        os.write(1, f"{os.getpid()}\\n".encode())  # one write: atomic on a pipe
         time.sleep(120)
         return {}
 

@@ -10,12 +10,14 @@ from hypothesis.extra.numpy import arrays
 
 from penaltyrun.optim import make_settings, minimize
 from penaltyrun.optim.pso_matlab import (
+    STALL_TESTS,
     Adaptive,
     PSOMatlabSettings,
     adapt,
     best_neighbours,
     clamp_and_zero,
     initial_velocities,
+    max_neighbourhood_size,
     min_neighbourhood_size,
     random_neighbours,
     run_pso_matlab,
@@ -96,6 +98,33 @@ def test_random_neighbours_uniform():
     assert counts[~off].sum() == 0
 
 
+def test_random_neighbours_with_self_put_the_particle_first():
+    rng = np.random.default_rng(3)
+    for size in (1, 2, 5, 10):
+        nb = random_neighbours(rng, 10, size, with_self=True)
+        assert nb.shape == (10, size)
+        np.testing.assert_array_equal(nb[:, 0], np.arange(10))
+        for i, row in enumerate(nb):
+            assert len(set(row)) == size and i not in row[1:]
+    full = random_neighbours(rng, 10, 10, with_self=True)
+    assert all(set(row) == set(range(10)) for row in full)
+    with pytest.raises(ValueError):
+        random_neighbours(rng, 10, 11, with_self=True)
+
+
+def test_with_self_the_particle_is_its_own_guide_when_best_in_its_neighbourhood():
+    # as particleswarm.m: ties go to the first column, the particle itself
+    pbest_cost = np.array([0.5, 1.0, 3.0, 0.5])
+    nb = np.array([[0, 1], [1, 2], [2, 0], [3, 0]])
+    np.testing.assert_array_equal(best_neighbours(nb, pbest_cost), [0, 1, 0, 3])
+
+
+@pytest.mark.parametrize(("swarm", "fraction", "expected"),
+                         [(60, 0.25, 15), (2, 0.25, 2), (100, 1.0, 100), (3, 0.1, 2)])
+def test_min_neighbourhood_size_with_self(swarm, fraction, expected):
+    assert min_neighbourhood_size(swarm, fraction, with_self=True) == expected
+
+
 def test_best_neighbours_on_hand_made_swarm():
     pbest_cost = np.array([5.0, 1.0, 3.0, 0.5, 4.0])
     nb = np.array([[1, 2], [0, 4], [3, 4], [0, 2], [2, 1]])
@@ -105,14 +134,21 @@ def test_best_neighbours_on_hand_made_swarm():
 def test_neighbourhood_grows_without_improvement_and_resets_on_improvement():
     state = Adaptive(counter=0, size=15, inertia=1.1)
     sizes = []
-    for _ in range(4):
-        state = adapt(state, False, 15, 60, RANGE)
+    for _ in range(4):  # S = 60, neighbourhood of others: at most S − 1
+        state = adapt(state, False, 15, max_neighbourhood_size(60, False), RANGE)
         sizes.append(state.size)
     assert sizes == [30, 45, 59, 59]  # capped at S − 1 (all the other particles)
     assert state.counter == 4
-    state = adapt(state, True, 15, 60, RANGE)
+    state = adapt(state, True, 15, 59, RANGE)
     assert state.size == 15
     assert state.counter == 3
+
+
+def test_neighbourhood_with_self_grows_to_the_whole_swarm():
+    state = Adaptive(counter=0, size=15, inertia=1.1)
+    for _ in range(4):
+        state = adapt(state, False, 15, max_neighbourhood_size(60, True), RANGE)
+    assert state.size == 60
 
 
 # --- inertia and the stall counter ---------------------------------------------------------
@@ -185,6 +221,21 @@ def test_stall_rule_on_hand_made_histories():
     small = [1e-3 + 2e-6] + [1e-3] * 20  # |best| < 1: absolute change 2e-6 ≥ 1e-6
     assert not stalled(small, 20, 1e-6)
     assert not stalled(flat, 20, 0.0)  # tolerance 0 turns the rule off
+
+
+def test_stall_rule_as_particleswarm_m_runs_it():
+    # the last W stored bests (iterations k − W + 1 … k), from iteration W + 1, ≤ tol
+    flat = [10.0] + [1.0] * 21  # iterations 1..21 at 1
+    assert stalled(flat, 20, 1e-6, "code")
+    assert stalled(flat[:-1], 20, 1e-6, "code") is False  # iteration 20: not > W yet
+    late = [10.0, 10.0] + [1.0] * 20  # best 1 from iteration 2: window 2..21 is flat
+    assert stalled(late, 20, 1e-6, "code")
+    assert not stalled(late, 20, 1e-6, "page")  # the page's window still holds 10
+    step = [10.0, 10.0, 10.0] + [1.0] * 19  # iteration 2 at 10 is inside the window
+    assert not stalled(step, 20, 1e-6, "code")
+    assert stalled([1.0] * 22, 20, 0.0, "code")  # ≤: an exactly flat window stops
+    big = [1000.0] * 2 + [1000.0 - 1e-3] * 20  # relative 1e-6 exactly: ≤ stops
+    assert stalled(big, 20, 1e-6, "code")
 
 
 # --- velocity, bounds, personal bests ------------------------------------------------------
@@ -353,3 +404,23 @@ def test_nonfinite_costs_are_counted_not_passed_on():
     res = run_pso_matlab(half_nan, LB, UB, PSOMatlabSettings(swarm_size=20), seed=9)
     assert res.n_nonfinite > 0
     assert np.isfinite(res.best_cost) and res.best_cost < 1e-6
+
+
+@pytest.mark.parametrize(("neighbourhood", "stall_test"),
+                         [("with_self", "code"), ("others", "page"), ("others", "code")])
+def test_each_reading_is_deterministic_and_wired_in(neighbourhood, stall_test):
+    s = PSOMatlabSettings(swarm_size=12, neighbourhood=neighbourhood, stall_test=stall_test)
+    a = run_pso_matlab(sphere, LB, UB, s, seed=11)
+    b = run_pso_matlab(sphere, LB, UB, s, seed=11)
+    assert a.history == b.history and a.stop_reason == b.stop_reason == "ftol"
+    default = run_pso_matlab(sphere, LB, UB, PSOMatlabSettings(swarm_size=12), seed=11)
+    assert (a.history == default.history) == (neighbourhood == "with_self"
+                                              and stall_test == "code")
+
+
+def test_code_stall_test_first_fires_at_iteration_w_plus_one():
+    flat = lambda Z: np.zeros(len(Z))  # noqa: E731  the best never improves after the start
+    runs = {t: run_pso_matlab(flat, LB, UB, PSOMatlabSettings(swarm_size=5, stall_test=t),
+                              seed=0) for t in STALL_TESTS}
+    assert runs["page"].n_iters == 20  # best_20 vs best_0
+    assert runs["code"].n_iters == 21  # from iteration W + 1 = 21 on

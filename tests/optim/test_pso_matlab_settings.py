@@ -64,6 +64,8 @@ def test_yaml_documents_every_key_with_the_defaults():
     ({"initial_swarm_span": 0.0}, "optimizer.initial_swarm_span"),
     ({"self_adjustment_weight": -1.0}, "optimizer.self_adjustment_weight"),
     ({"inertia_update": "sometimes"}, "optimizer.inertia_update"),
+    ({"neighbourhood": "ring"}, "optimizer.neighbourhood"),
+    ({"stall_test": "matlab"}, "optimizer.stall_test"),
     ({"max_evals": 0}, "optimizer.max_evals"),
     ({"n_particles": 30}, "optimizer.n_particles"),
 ])

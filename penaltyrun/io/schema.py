@@ -204,12 +204,34 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
         for name in TIMESTAMP_COLUMNS:  # schema <= 3 stored ISO text
             if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
                 frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
+        frame["optimizer_settings"] = [
+            _upgrade_settings(opt, settings)
+            for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
         frames.append(frame[list(COLUMNS)])
     if not frames:
         raise ResultsUnreadableError(
             f"no readable results under {path}: {len(unreadable)} unreadable file(s) "
             f"({', '.join(str(p) for p in unreadable[:3])}{' ...' if len(unreadable) > 3 else ''})")
     return pd.concat(frames, ignore_index=True)
+
+
+#: Settings that older records lack, with the behaviour the code had before they existed.
+SETTINGS_BEFORE_THEY_EXISTED: dict[str, dict[str, Any]] = {
+    # pso_matlab followed MathWorks' algorithm page until these settings were added
+    "pso_matlab": {"neighbourhood": "others", "stall_test": "page"},
+}
+
+
+def _upgrade_settings(optimizer: Any, settings_json: Any) -> Any:
+    """Optimizer settings JSON with the keys an older record lacks filled in as the code
+    then behaved (:data:`SETTINGS_BEFORE_THEY_EXISTED`); anything else unchanged."""
+    missing = SETTINGS_BEFORE_THEY_EXISTED.get(optimizer)
+    if not missing or not isinstance(settings_json, str) or not settings_json:
+        return settings_json
+    settings = json.loads(settings_json)
+    if all(key in settings for key in missing):
+        return settings_json
+    return json.dumps({**missing, **settings})
 
 
 def decode_json(value: str | None) -> Any:

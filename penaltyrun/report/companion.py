@@ -109,11 +109,14 @@ def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
             "ω0 = (0.70, 0.20, −0.15) rad/s, t_f = 350 s, event ‖(10·q_v, ω)‖ ≤ 1e-3; "
             "`schaub_detumble_sat`: |u_i| ≤ 1 N·m. Ours: J over the converged starts of each "
             "cell. Theirs: MATLAB particleswarm (swarm min(100, 10·nvars), default stall "
-            "rule; their evaluation counts are not published); GEAGSP was not in their study. "
+            "rule; about 5 000–85 000 evaluations per run over the whole study, per cell not "
+            "published); GEAGSP was not in their study. "
             "p: Mood's median test of our converged starts against their median (their 20 "
             "runs split 10/10 by definition, Fisher's exact test, two-sided), Holm-corrected "
             "over this table. Optimizer implementation and budget differ unless the optimizer "
-            "is `pso_matlab` (MATLAB's particleswarm as spec pso.md describes it).", "",
+            "is `pso_matlab` (MATLAB's particleswarm re-implemented; a variant "
+            "`neighbourhood=others,stall_test=page` is the algorithm page's reading instead "
+            "of the shipped code's).", "",
             markdown(table), ""]
 
 

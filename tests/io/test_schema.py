@@ -215,3 +215,17 @@ def test_schema_2_files_with_text_times_are_read_as_timestamps(tmp_path):
     assert df.loc[0, "started_at"] == pd.Timestamp("2025-12-31T23:59:59", tz="UTC")
     assert df.loc[0, "finished_at"] == pd.Timestamp("2026-01-01T00:00:01", tz="UTC")
     assert df.loc[1, "started_at"] == pd.Timestamp("2026-01-01T00:00:00", tz="UTC")
+
+
+def test_pso_matlab_records_from_before_the_reading_settings_say_page(tmp_path):
+    old = {"swarm_size": None, "inertia_update": "every_iteration"}
+    new = {**old, "neighbourhood": "with_self", "stall_test": "code"}
+    write_run(tmp_path / "r", [
+        record(0, optimizer="pso_matlab", optimizer_settings=old),
+        record(1, optimizer="pso_matlab", optimizer_settings=new),
+        record(2, optimizer="pso", optimizer_settings={"n_particles": 30})])
+    settings = [decode_json(s) for s in read_results(tmp_path / "r")
+                .sort_values("start")["optimizer_settings"]]
+    assert settings[0] == {**old, "neighbourhood": "others", "stall_test": "page"}
+    assert settings[1] == new
+    assert settings[2] == {"n_particles": 30}

@@ -1,8 +1,10 @@
-"""pso_matlab: when the inertia rule runs (``inertia_update``), on standard test functions.
+"""pso_matlab: the algorithm page's reading against the shipped particleswarm.m's, on
+standard test functions.
 
-Prints, per function and rule, the median best cost and the min / median / max evaluations
-of 10 seeded runs with MATLAB's default options (swarm min(100, 10·nvars), ≤ 200·nvars
-iterations, stall 1e-6 over 20). Numbers quoted in penaltyrun/optim/pso_matlab.py.
+Prints, per function and reading (``neighbourhood`` / ``stall_test`` / ``inertia_update``),
+the median best cost and the min / median / max evaluations of 10 seeded runs with MATLAB's
+default options (swarm min(100, 10·nvars), ≤ 200·nvars iterations, stall 1e-6 over 20).
+Numbers quoted in penaltyrun/optim/pso_matlab.py.
 
     python bench/pso_matlab_inertia.py
 """
@@ -23,17 +25,25 @@ FUNCTIONS = {
                                   + (1 - Z[:, :-1]) ** 2).sum(1), -2 * np.ones(6), 2 * np.ones(6)),
 }
 
+#: (neighbourhood, stall_test, inertia_update): the page read literally, the page with the
+#: inertia rule after every iteration (the default before 2026-11-30), the shipped code.
+READINGS = (("others", "page", "on_improvement"), ("others", "page", "every_iteration"),
+            ("with_self", "code", "every_iteration"))
+
 
 def main() -> None:
     """Print the comparison table (markdown)."""
-    print("| function | inertia_update | median best | evaluations min / median / max |")
+    print("| function | neighbourhood / stall_test / inertia_update | median best | "
+          "evaluations min / median / max |")
     print("|---|---|---|---|")
     for name, (func, lb, ub) in FUNCTIONS.items():
-        for rule in ("on_improvement", "every_iteration"):
-            settings = PSOMatlabSettings(inertia_update=rule)
+        for reading in READINGS:
+            settings = PSOMatlabSettings(**dict(zip(("neighbourhood", "stall_test",
+                                                     "inertia_update"), reading)))
             runs = [run_pso_matlab(func, lb, ub, settings, seed) for seed in range(10)]
             evals = [r.n_evals for r in runs]
-            print(f"| {name} | {rule} | {np.median([r.best_cost for r in runs]):.2g} | "
+            print(f"| {name} | {' / '.join(reading)} | "
+                  f"{np.median([r.best_cost for r in runs]):.2g} | "
                   f"{min(evals)} / {int(np.median(evals))} / {max(evals)} |")
 
 

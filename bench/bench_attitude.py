@@ -29,7 +29,8 @@ from machine import machine
 from penaltyrun import problems
 from penaltyrun.penalty import make as make_param
 from penaltyrun.penalty.layout import build_layout
-from penaltyrun.problems import attitude_lqr, attitude_lyapunov
+from penaltyrun.problems.attitude import lqr as attitude_lqr
+from penaltyrun.problems.attitude import lyapunov as attitude_lyapunov
 
 REFERENCE = {"attitude_lyapunov": attitude_lyapunov.reference_cost,
              "attitude_lqr": attitude_lqr.reference_cost}

@@ -38,7 +38,7 @@ from scipy.integrate import solve_ivp
 
 from penaltyrun.dynamics import lowthrust as lt
 from penaltyrun.penalty import maps
-from penaltyrun.problems import qlaw
+from penaltyrun.problems.lowthrust import qlaw
 
 EYE = {"K": np.eye(5)}
 #: Target wall time of one Case A minimum-time evaluation (s, one core, after warm-up).

@@ -31,10 +31,10 @@ from penaltyrun.problems.base import Problem
 
 REGISTRY: dict[str, str] = {
     "zermelo": "penaltyrun.problems.zermelo",
-    "attitude_lyapunov": "penaltyrun.problems.attitude_lyapunov",
-    "attitude_lqr": "penaltyrun.problems.attitude_lqr",
-    "lyapunov_transfer": "penaltyrun.problems.lyapunov_transfer",
-    "qlaw": "penaltyrun.problems.qlaw",
+    "attitude_lyapunov": "penaltyrun.problems.attitude.lyapunov",
+    "attitude_lqr": "penaltyrun.problems.attitude.lqr",
+    "lyapunov_transfer": "penaltyrun.problems.lowthrust.lyapunov_transfer",
+    "qlaw": "penaltyrun.problems.lowthrust.qlaw",
 }
 ENTRY_POINT_GROUP = "penaltyrun.problems"
 #: What a problem module must define (see :mod:`penaltyrun.problems.base`).

@@ -7,7 +7,7 @@ import pytest
 
 from penaltyrun.dynamics import attitude as at
 from penaltyrun.dynamics import integrate
-from penaltyrun.problems.attitude_common import Params, _rhs_numpy, reference_run
+from penaltyrun.problems.attitude.common import Params, _rhs_numpy, reference_run
 
 I_DIAG = np.diag([10.0, 15.0, 20.0])
 I_FULL = np.array([[10.0, 1.0, 0.5], [1.0, 15.0, -0.7], [0.5, -0.7, 20.0]])

@@ -9,7 +9,7 @@ from lowthrust_reference import mee_rhs
 from scipy.integrate import solve_ivp
 
 from penaltyrun.dynamics import lowthrust as lt
-from penaltyrun.problems import lyapunov_transfer, qlaw
+from penaltyrun.problems.lowthrust import lyapunov_transfer, qlaw
 
 DEG = np.pi / 180.0
 

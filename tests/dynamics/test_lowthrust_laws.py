@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from penaltyrun.dynamics import lowthrust as lt
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import lyapunov_transfer, qlaw
+from penaltyrun.problems.lowthrust import lyapunov_transfer, qlaw
 
 CASES = qlaw.CASES
 

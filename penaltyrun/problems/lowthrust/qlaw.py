@@ -6,7 +6,7 @@ time of flight (days); ``objective: min_fuel`` coasts when the effectivity (η_a
 below η_cut and costs the propellant (kg). In min-fuel mode η_cut is also an extra decision
 variable (``scalars``), its config value is the default when no scalar is given.
 
-Cost of failures: see :mod:`penaltyrun.problems.lowthrust_common`.
+Cost of failures: see :mod:`penaltyrun.problems.lowthrust.common`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 from penaltyrun.dynamics import lowthrust as lt
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import ScalarSpec
-from penaltyrun.problems.lowthrust_common import (
+from penaltyrun.problems.lowthrust.common import (
     CASE_PARAMS,
     CASES,
     DEFAULT_CASE,
@@ -32,7 +32,7 @@ from penaltyrun.problems.lowthrust_common import (
     plot_thrust,
     plot_trajectory,
 )
-from penaltyrun.problems.lowthrust_progress import NoProgressParams
+from penaltyrun.problems.lowthrust.progress import NoProgressParams
 
 logger = logging.getLogger(__name__)
 
@@ -43,7 +43,7 @@ COAST_MODES = ("eta_a", "eta_r")
 @dataclass(frozen=True)
 class Params(LowThrustParams, NoProgressParams):
     """Q-law parameters: the shared ones (:class:`LowThrustParams`), the no-progress rule
-    (:class:`~penaltyrun.problems.lowthrust_progress.NoProgressParams`) plus
+    (:class:`~penaltyrun.problems.lowthrust.progress.NoProgressParams`) plus
 
     Attributes
     ----------

@@ -1,5 +1,5 @@
 """Training scenario and held-out set of the attitude problems (a mixin of
-:class:`~penaltyrun.problems.attitude_common.AttitudeProblem`).
+:class:`~penaltyrun.problems.attitude.common.AttitudeProblem`).
 
 The training scenario is the case's initial state; the held-out set is rest-to-rest starts
 from a grid of attitudes plus seeded perturbations of the training state (see
@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.attitude_frames import (
+from penaltyrun.problems.attitude.frames import (
     euler_to_quaternion,
     perturbed_states,
     robustness_grid,
@@ -66,7 +66,7 @@ class AttitudeScenarios:
         Rest-to-rest (ω0 = 0) from the attitudes of :func:`robustness_grid` (``holdout_n``,
         ``holdout_lo_deg``, ``holdout_hi_deg``), then ``holdout_n_perturbed`` seeded
         perturbations of this case's initial attitude and rates (see
-        :func:`~penaltyrun.problems.attitude_frames.perturbed_states`).
+        :func:`~penaltyrun.problems.attitude.frames.perturbed_states`).
 
         Returns
         -------

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.dynamics import lowthrust as lt
-from penaltyrun.problems.lowthrust_params import DEG
+from penaltyrun.problems.lowthrust.params import DEG
 
 
 def _figure_axes(ax: Any, projection: str | None = None, nrows: int = 1) -> tuple[Any, Any]:

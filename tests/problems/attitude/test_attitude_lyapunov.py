@@ -19,11 +19,11 @@ import pytest
 import yaml
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import attitude_common as ac
-from penaltyrun.problems import attitude_lyapunov as lyap
 from penaltyrun.problems import make
+from penaltyrun.problems.attitude import common as ac
+from penaltyrun.problems.attitude import lyapunov as lyap
 
-CONF = Path(__file__).resolve().parents[2] / "penaltyrun" / "conf" / "problem"
+CONF = Path(__file__).resolve().parents[3] / "penaltyrun" / "conf" / "problem"
 Q_EXPECTED = np.array([0.413836, -0.610042, 0.290580, 0.610042])
 I_FULL = ((10.0, 1.0, 0.5), (1.0, 15.0, -0.7), (0.5, -0.7, 20.0))
 GOOD = {"Kp": 3.0 * np.eye(3), "Kd": 6.0 * np.eye(3)}

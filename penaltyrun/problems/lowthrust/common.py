@@ -2,9 +2,9 @@
 
 Holds the problem object that wraps :func:`penaltyrun.dynamics.lowthrust.propagate` and
 re-exports the pieces it is built from: the case table and parameters
-(:mod:`~penaltyrun.problems.lowthrust_params`), the held-out scenarios
-(:mod:`~penaltyrun.problems.lowthrust_holdout`) and the plots
-(:mod:`~penaltyrun.problems.lowthrust_plots`).
+(:mod:`~penaltyrun.problems.lowthrust.params`), the held-out scenarios
+(:mod:`~penaltyrun.problems.lowthrust.holdout`) and the plots
+(:mod:`~penaltyrun.problems.lowthrust.plots`).
 
 Cost of a candidate
 -------------------
@@ -35,7 +35,6 @@ import numpy as np
 
 from penaltyrun.dynamics import lowthrust as lt
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import lowthrust_holdout as holdout_set
 from penaltyrun.problems.base import (
     BatchEvaluation,
     MatrixSpec,
@@ -43,7 +42,8 @@ from penaltyrun.problems.base import (
     check_spd,
     status_names,
 )
-from penaltyrun.problems.lowthrust_params import (
+from penaltyrun.problems.lowthrust import holdout as holdout_set
+from penaltyrun.problems.lowthrust.params import (
     CASE_PARAMS,
     CASES,
     DEFAULT_CASE,
@@ -56,7 +56,7 @@ from penaltyrun.problems.lowthrust_params import (
     build_params,
     params_dict,
 )
-from penaltyrun.problems.lowthrust_plots import (
+from penaltyrun.problems.lowthrust.plots import (
     ANGLE_KEYS,
     plot_elements,
     plot_thrust,
@@ -290,7 +290,7 @@ class LowThrustProblem:
                 for s in self._holdout}
 
     def holdout_scenarios(self) -> list[holdout_set.Scenario]:
-        """The held-out set (see :mod:`penaltyrun.problems.lowthrust_holdout`)."""
+        """The held-out set (see :mod:`penaltyrun.problems.lowthrust.holdout`)."""
         return list(self._holdout)
 
     def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None

@@ -5,7 +5,7 @@ B = [[0], [I⁻¹]]. The tuned penalties Q (6×6) and R (3×3) give P from the c
 algebraic Riccati equation AᵀP + PA − PBR⁻¹BᵀP + Q = 0 and the gain K = R⁻¹BᵀP, applied as
 u = −K x to the NONLINEAR rigid body. The objective is the nonlinear closed-loop
 J = ∫ ½ uᵀu dt (not the LQR quadratic cost); failures are penalized as described in
-:mod:`penaltyrun.problems.attitude_common`. (αQ, αR) gives the same gain for every α > 0.
+:mod:`penaltyrun.problems.attitude.common`. (αQ, αR) gives the same gain for every α > 0.
 
 The batch path solves the Riccati equations exactly by the stable invariant subspace of the
 Hamiltonian matrix (batched eigen-decomposition); candidates whose residual is not small
@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from penaltyrun.problems.attitude_common import (
+from penaltyrun.problems.attitude.common import (
     CASE_PARAMS,
     CASES,
     DEFAULT_CASE,
@@ -189,7 +189,7 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> AttitudeProblem:
 def reference_cost(mats: Mapping[str, Any], params: Params | None = None) -> dict[str, Any]:
     """Independent scipy evaluation of one (Q, R): gain by
     :func:`scipy.linalg.solve_continuous_are`, closed loop by ``solve_ivp``; keys as in
-    :func:`penaltyrun.problems.attitude_common.reference_run` plus ``gain`` (3, 6)."""
+    :func:`penaltyrun.problems.attitude.common.reference_run` plus ``gain`` (3, 6)."""
     from scipy.linalg import solve_continuous_are
 
     p = params or Params()

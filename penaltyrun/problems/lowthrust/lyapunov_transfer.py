@@ -4,7 +4,7 @@ V = ½ (S W D)ᵀ K (S W D), W = diag(1/a_T, 1, 1, 1, 1), û = −Bᵀ∇V/‖B�
 cost = time of flight (days). No rate scaling, S_a or periapsis penalty: a transfer whose
 periapsis falls below ``impact_radius_km`` fails with status ``impact``.
 
-Cost of failures: see :mod:`penaltyrun.problems.lowthrust_common`.
+Cost of failures: see :mod:`penaltyrun.problems.lowthrust.common`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from penaltyrun.dynamics import lowthrust as lt
-from penaltyrun.problems.lowthrust_common import (
+from penaltyrun.problems.lowthrust.common import (
     CASE_PARAMS,
     CASES,
     DEFAULT_CASE,
@@ -28,7 +28,7 @@ from penaltyrun.problems.lowthrust_common import (
     plot_thrust,
     plot_trajectory,
 )
-from penaltyrun.problems.lowthrust_progress import NoProgressParams
+from penaltyrun.problems.lowthrust.progress import NoProgressParams
 
 logger = logging.getLogger(__name__)
 
@@ -36,7 +36,7 @@ logger = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class Params(LowThrustParams, NoProgressParams):
     """Generic-law parameters: :class:`LowThrustParams` and the no-progress rule
-    (:class:`~penaltyrun.problems.lowthrust_progress.NoProgressParams`); minimum time only."""
+    (:class:`~penaltyrun.problems.lowthrust.progress.NoProgressParams`); minimum time only."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

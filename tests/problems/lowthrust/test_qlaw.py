@@ -1,4 +1,4 @@
-"""Problem-level tests of the Q-law transfers (penaltyrun.problems.qlaw)."""
+"""Problem-level tests of the Q-law transfers (penaltyrun.problems.lowthrust.qlaw)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import make, qlaw
+from penaltyrun.problems import make
 from penaltyrun.problems.base import Problem
+from penaltyrun.problems.lowthrust import qlaw
 
 matplotlib.use("Agg")
 

@@ -13,9 +13,9 @@ import pytest
 
 from penaltyrun.dynamics import attitude as at
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import attitude_common as ac
-from penaltyrun.problems import attitude_lyapunov as lyap
 from penaltyrun.problems import make
+from penaltyrun.problems.attitude import common as ac
+from penaltyrun.problems.attitude import lyapunov as lyap
 
 #: Best published unconstrained runs (PSO): gains, J, event time (s).
 DIAGONAL_RUN = ({"Kp": np.diag([0.26617752, 0.34685239, 0.20612607]),

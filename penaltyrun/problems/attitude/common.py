@@ -22,10 +22,10 @@ Cost of a candidate (always finite):
   thresholds at or above ``1000 · failure_penalty`` (the flat cost of non-finite runs) cut
   nothing.
 
-The pieces live in :mod:`~penaltyrun.problems.attitude_params` (parameters, cases),
-:mod:`~penaltyrun.problems.attitude_frames` (attitude representations, held-out states),
-:mod:`~penaltyrun.problems.attitude_reference` (scipy references) and
-:mod:`~penaltyrun.problems.attitude_plots`; this module holds the problem object and
+The pieces live in :mod:`~penaltyrun.problems.attitude.params` (parameters, cases),
+:mod:`~penaltyrun.problems.attitude.frames` (attitude representations, held-out states),
+:mod:`~penaltyrun.problems.attitude.reference` (scipy references) and
+:mod:`~penaltyrun.problems.attitude.plots`; this module holds the problem object and
 re-exports their public names.
 """
 
@@ -40,7 +40,7 @@ import numpy as np
 from penaltyrun.dynamics import attitude as kernel
 from penaltyrun.dynamics import integrate
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.attitude_frames import (
+from penaltyrun.problems.attitude.frames import (
     ATTITUDE_TYPES,
     attitude_to_quaternion,
     euler_to_quaternion,
@@ -49,7 +49,7 @@ from penaltyrun.problems.attitude_frames import (
     perturbed_states,
     robustness_grid,
 )
-from penaltyrun.problems.attitude_params import (
+from penaltyrun.problems.attitude.params import (
     CASE_PARAMS,
     CASES,
     DEFAULT_CASE,
@@ -58,20 +58,20 @@ from penaltyrun.problems.attitude_params import (
     build_params,
     validate,
 )
-from penaltyrun.problems.attitude_plots import (
+from penaltyrun.problems.attitude.plots import (
     plot_histories,
     plot_quaternions,
     plot_rates,
     plot_torques,
 )
-from penaltyrun.problems.attitude_reference import (
+from penaltyrun.problems.attitude.reference import (
     HARD_FAILURE_FACTOR,
     _rhs_numpy,
     graded_cost,
     reference_run,
     trajectory,
 )
-from penaltyrun.problems.attitude_scenarios import AttitudeScenarios
+from penaltyrun.problems.attitude.scenarios import AttitudeScenarios
 from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec
 
 logger = logging.getLogger(__name__)
@@ -122,7 +122,7 @@ class AttitudeProblem(AttitudeScenarios):
     """Attitude closed loop with a linear gain built from the tuned matrices.
 
     The training scenario and the held-out set come from
-    :class:`~penaltyrun.problems.attitude_scenarios.AttitudeScenarios`.
+    :class:`~penaltyrun.problems.attitude.scenarios.AttitudeScenarios`.
 
     Parameters
     ----------

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.dynamics import integrate
-from penaltyrun.problems.attitude_params import Params
+from penaltyrun.problems.attitude.params import Params
 
 #: Cost multiple of ``failure_penalty`` for non-finite runs and Riccati failures.
 HARD_FAILURE_FACTOR = 1000.0
@@ -21,7 +21,7 @@ HARD_FAILURE_FACTOR = 1000.0
 def graded_cost(energy: np.ndarray, dist: np.ndarray, d0: Any, status: np.ndarray,
                 failure_penalty: float) -> np.ndarray:
     """Objective from raw run results, always finite (see
-    :mod:`penaltyrun.problems.attitude_common`).
+    :mod:`penaltyrun.problems.attitude.common`).
 
     Parameters
     ----------

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import lowthrust_holdout as lh
 from penaltyrun.problems import make
-from penaltyrun.problems.lowthrust_params import DEG
+from penaltyrun.problems.lowthrust import holdout as lh
+from penaltyrun.problems.lowthrust.params import DEG
 
 SMALL = {"holdout_n_perturbed": 2, "holdout_control_steps": (60.0,), "holdout_substeps": (2,)}
 

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.attitude_frames import ATTITUDE_TYPES, attitude_to_quaternion
+from penaltyrun.problems.attitude.frames import ATTITUDE_TYPES, attitude_to_quaternion
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.multiscenario import TrainingParams
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from penaltyrun.dynamics import lowthrust as lt
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.lowthrust_params import DEG, LowThrustParams
+from penaltyrun.problems.lowthrust.params import DEG, LowThrustParams
 
 #: Scenario kinds, in the order they are listed.
 KINDS = ("departure", "control_step", "substeps")

@@ -1,4 +1,4 @@
-"""Problem-level tests of the generic Lyapunov law (penaltyrun.problems.lyapunov_transfer)."""
+"""Problem-level tests of the generic Lyapunov law (problems.lowthrust.lyapunov_transfer)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import lyapunov_transfer as lyap
 from penaltyrun.problems import make
+from penaltyrun.problems.lowthrust import lyapunov_transfer as lyap
 
 matplotlib.use("Agg")
 

@@ -16,8 +16,8 @@ import pytest
 from scipy.linalg import solve_continuous_are
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import attitude_lqr as lqr
 from penaltyrun.problems import make
+from penaltyrun.problems.attitude import lqr as lqr
 
 I_DIAG = (10.0, 15.0, 20.0)
 I_FULL = ((10.0, 1.0, 0.5), (1.0, 15.0, -0.7), (0.5, -0.7, 20.0))
@@ -88,7 +88,7 @@ def test_event_first_dip_not_stepped_over():
     # the distance really is non-monotone: it is above tol again at 65–70 s
     prob = make("attitude_lqr", "detumble", {"tol": 1e-12})
     sim_G = np.asarray(prob.evaluate(EXAMPLE)["gain"])
-    from penaltyrun.problems.attitude_common import trajectory
+    from penaltyrun.problems.attitude.common import trajectory
 
     traj = trajectory(sim_G, prob.params, 72.0, n_points=721)
     d = traj["dist"]

@@ -19,7 +19,7 @@ from lowthrust_reference import mee_rhs
 from scipy.integrate import solve_ivp
 
 from penaltyrun.dynamics import lowthrust as lt
-from penaltyrun.problems import qlaw
+from penaltyrun.problems.lowthrust import qlaw
 
 #: True-anomaly grid of the brute-force effectivity search.
 N_NU = 7200

@@ -3,7 +3,7 @@
 u = −K_p q_v − K_d ω with K_p, K_d 3×3 symmetric positive definite (no gyroscopic term),
 applied to the nonlinear rigid body (quaternion kinematics, Euler's equation). Cost
 J = ∫ ½ uᵀu dt to the first time ‖(q0 − 1, q_v, ω)‖ ≤ tol; failures are penalized as
-described in :mod:`penaltyrun.problems.attitude_common`.
+described in :mod:`penaltyrun.problems.attitude.common`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from penaltyrun.problems.attitude_common import (
+from penaltyrun.problems.attitude.common import (
     CASE_PARAMS,
     CASES,
     DEFAULT_CASE,
@@ -74,7 +74,7 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> AttitudeProblem:
 
 def reference_cost(mats: Mapping[str, Any], params: Params | None = None) -> dict[str, Any]:
     """Independent scipy ``solve_ivp`` evaluation of one (K_p, K_d); see
-    :func:`penaltyrun.problems.attitude_common.reference_run` for the returned keys."""
+    :func:`penaltyrun.problems.attitude.common.reference_run` for the returned keys."""
     G, _ = pd_gains({k: np.asarray(mats[k], dtype=float)[None] for k in ("Kp", "Kd")})
     return reference_run(G[0], params or Params())
 

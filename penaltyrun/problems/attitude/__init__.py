@@ -1,0 +1,1 @@
+"""Spacecraft attitude control: Lyapunov PD and LQR (quaternion kinematics, rigid body)."""

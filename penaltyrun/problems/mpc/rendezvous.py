@@ -45,6 +45,7 @@ from penaltyrun.problems.mpc.params import (
     Params,
     build_params,
 )
+from penaltyrun.problems.mpc.plots import plot_inputs, plot_trajectory
 
 logger = logging.getLogger(__name__)
 
@@ -334,4 +335,4 @@ def with_params(problem: RendezvousMPC, **changes: Any) -> RendezvousMPC:
 
 __all__ = ["CASES", "CASE_PARAMS", "COST_UNIT", "CUT_MARGIN", "DARE_FAILURE", "DEFAULT_CASE",
            "HARD_FAILURE_FACTOR", "NAME", "VARIANT_IGNORE", "Params", "RendezvousMPC",
-           "make_problem", "with_params"]
+           "make_problem", "plot_inputs", "plot_trajectory", "with_params"]

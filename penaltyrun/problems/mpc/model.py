@@ -8,7 +8,7 @@ zero-order hold (matrix exponential of the augmented matrix [[A, B], [0, 0]]).
 
 The terminal weight P solves the discrete algebraic Riccati equation (DARE)
 P = AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q for a batch of (Q, R) at once, by the structured
-doubling algorithm (SDA; Chu, Fan & Lin 2005), which converges quadratically for a
+doubling algorithm (SDA; Chu, Fan, Lin & Wang 2004), which converges quadratically for a
 stabilizable (A, B) and PD Q; candidates whose relative residual is not small are re-solved
 with :func:`scipy.linalg.solve_discrete_are`, and those still without a stabilizing
 solution are reported as failed.

@@ -56,6 +56,8 @@ HARD_FAILURE_FACTOR = 10.0
 #: Relative margin by which Δv must exceed a threshold before a run is cut.
 CUT_MARGIN = 1e-9
 COST_UNIT = "m/s"
+#: Label of a converged start's cost (axis labels, tables).
+COST_LABEL = "Δv = Σ Tₛ‖u_k‖₂ (m/s)"
 
 
 class RendezvousMPC:
@@ -333,6 +335,6 @@ def with_params(problem: RendezvousMPC, **changes: Any) -> RendezvousMPC:
     return RendezvousMPC(problem.case, validate(replace(problem.params, **changes)))
 
 
-__all__ = ["CASES", "CASE_PARAMS", "COST_UNIT", "CUT_MARGIN", "DARE_FAILURE", "DEFAULT_CASE",
-           "HARD_FAILURE_FACTOR", "NAME", "VARIANT_IGNORE", "Params", "RendezvousMPC",
-           "make_problem", "plot_inputs", "plot_trajectory", "with_params"]
+__all__ = ["CASES", "CASE_PARAMS", "COST_LABEL", "COST_UNIT", "CUT_MARGIN", "DARE_FAILURE",
+           "DEFAULT_CASE", "HARD_FAILURE_FACTOR", "NAME", "VARIANT_IGNORE", "Params",
+           "RendezvousMPC", "make_problem", "plot_inputs", "plot_trajectory", "with_params"]

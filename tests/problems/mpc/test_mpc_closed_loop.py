@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from penaltyrun.problems.mpc import rendezvous as rz
 from penaltyrun.problems.mpc.reference import reference_run
@@ -156,3 +158,22 @@ def test_simulate_histories_are_consistent(prob):
     assert sim["t"][-1] == out["t_final"]
     assert sim["delta_v"][-1] == pytest.approx(out["delta_v"], rel=1e-12)
     assert np.all(np.abs(sim["u"]) <= prob.params.u_max)
+
+
+def test_qp_failure_is_a_recorded_status():
+    capped = rz.make_problem("default", {"qp_iter_limit": 1})
+    out = capped.evaluate({"Q": Q_REF, "R": R_REF})
+    assert out["status"] == "qp_failure" and not out["converged"]
+    assert out["cost"] == rz.HARD_FAILURE_FACTOR * capped.params.failure_penalty
+
+
+@settings(max_examples=10)
+@given(st.floats(-6.0, 6.0), st.integers(0, 2**16))
+def test_scaling_invariance_property(log_c, seed):
+    prob = rz.make_problem("default", {"holdout_n_sphere": 0})
+    rng = np.random.default_rng(seed)
+    Q, R = spd(rng, 6, 1e-4, 1e2), spd(rng, 3, 1e2, 1e4)
+    c = 10.0 ** log_c
+    a = prob.evaluate_batch({"Q": np.stack([Q, c * Q]), "R": np.stack([R, c * R])})
+    assert a.status[0] == a.status[1]
+    assert a.cost[1] == pytest.approx(a.cost[0], rel=1e-8)

@@ -27,7 +27,6 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -328,13 +327,6 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> RendezvousMPC:
     return RendezvousMPC(case, params)
 
 
-def with_params(problem: RendezvousMPC, **changes: Any) -> RendezvousMPC:
-    """A copy of ``problem`` with some parameters changed (validated)."""
-    from penaltyrun.problems.mpc.params import validate
-
-    return RendezvousMPC(problem.case, validate(replace(problem.params, **changes)))
-
-
 __all__ = ["CASES", "CASE_PARAMS", "COST_LABEL", "COST_UNIT", "CUT_MARGIN", "DARE_FAILURE",
            "DEFAULT_CASE", "HARD_FAILURE_FACTOR", "NAME", "VARIANT_IGNORE", "Params",
-           "RendezvousMPC", "make_problem", "plot_inputs", "plot_trajectory", "with_params"]
+           "RendezvousMPC", "make_problem", "plot_inputs", "plot_trajectory"]

@@ -1,0 +1,1 @@
+"""Rendezvous MPC problem family (Clohessy–Wiltshire plant, DAQP-solved condensed QP)."""

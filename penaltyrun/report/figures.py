@@ -22,8 +22,10 @@ from penaltyrun.report.anytime import (  # noqa: E402
     hitting_evals,
 )
 from penaltyrun.report.bestknown import family, reference, with_problem_variant  # noqa: E402
-from penaltyrun.report.compare import map_order  # noqa: E402
-from penaltyrun.report.compare import MAP_ORDER  # noqa: E402
+from penaltyrun.report.compare import (
+    MAP_ORDER,  # noqa: E402
+    map_order,  # noqa: E402
+)
 from penaltyrun.report.stats import converged, paper_value  # noqa: E402
 from penaltyrun.report.tables import save_figure  # noqa: E402
 

@@ -35,7 +35,7 @@ from scipy import stats  # noqa: E402
 
 from penaltyrun.io import decode_json  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
-from penaltyrun.report.bestknown import best_rows  # noqa: E402
+from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
 from penaltyrun.report.stats import holm  # noqa: E402
 from penaltyrun.report.tables import markdown, save_figure  # noqa: E402
 
@@ -151,6 +151,9 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
     """
     if "holdout" not in df or df.empty:
         return pd.DataFrame(), {}
+    df = with_problem_variant(df)
+    if "variant" not in df:
+        df = df.assign(variant=df["problem_variant"])
     rows = []
     for (problem, case, variant, optimizer), g in df.groupby(
             ["problem", "case", "variant", "optimizer"], sort=True):

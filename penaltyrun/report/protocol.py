@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import logging
-from functools import lru_cache
+from functools import cache
 from types import ModuleType
 from typing import Any
 
@@ -42,7 +42,7 @@ def warn(text: str) -> None:
         logger.warning(text)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _module(problem: str) -> ModuleType | None:
     try:
         return problems.module(problem)
@@ -63,7 +63,7 @@ def params_of(value: Any) -> dict[str, Any]:
     return dict(data) if isinstance(data, dict) else {}
 
 
-@lru_cache(maxsize=None)
+@cache
 def _info(problem: str, case: str, params_json: str) -> ReportInfo:
     mod = module(problem)
     if mod is None:

@@ -59,7 +59,6 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     from dataclasses import asdict
 
     from penaltyrun import problems
-
     from penaltyrun.report import protocol
 
     register_user_problems(df)

@@ -10,7 +10,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-
 #: Most columns of a Markdown table in the report (CSV files keep every column).
 MAX_COLUMNS = 10
 
@@ -29,7 +28,7 @@ def fmt(value: object, digits: int = 5) -> str:
             return "—"
         if math.isinf(value):
             return "∞" if value > 0 else "−∞"
-        if value == int(value) and abs(value) < 1e9:
+        if value == int(value) and abs(value) < 1e6:
             return str(int(value))
         mag = abs(value)
         if 1e-3 <= mag < 1e6:

@@ -184,8 +184,8 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
         return table, imps
     for _, r in table.iterrows():
         if r["improvements"].size:
-            label = f"{r['problem']} / {r['case']}{' [' + r['variant'] + ']' if r['variant'] else ''}" \
-                    f" / {r['optimizer']} / {r['full_map']}"
+            variant = f" [{r['variant']}]" if r["variant"] else ""
+            label = f"{r['problem']} / {r['case']}{variant} / {r['optimizer']} / {r['full_map']}"
             imps[label] = r["improvements"]
     table = table.drop(columns="improvements")
     table.insert(table.columns.get_loc("wilcoxon_p") + 1, "p_holm",

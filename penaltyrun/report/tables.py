@@ -47,8 +47,15 @@ def with_unit(value: float, unit: str, digits: int = 5) -> str:
 
 
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
-    """Save with ``bbox_inches="tight"`` (no title or label is clipped) and close."""
+    """Lay out (no panel title over the panel above), save with ``bbox_inches="tight"``
+    (no title or label is clipped) and close."""
+    import warnings
+
     import matplotlib.pyplot as plt
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # 3-D axes: tight_layout approximates
+        fig.tight_layout()
 
     fig.savefig(path, dpi=dpi, bbox_inches="tight", pad_inches=0.15)
     plt.close(fig)

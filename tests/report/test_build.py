@@ -47,7 +47,7 @@ def test_attitude_tables_figures_and_studies(attitude_report):
     assert lqr.set_index("param").loc["diagonal", "paper_mean"] == pytest.approx(0.423)
     for name in ("attitude_lqr_detumble_histories.png",):
         assert (attitude_report / name).stat().st_size > 0
-    assert list(attitude_report.glob("attitude_lqr_section*_horizon_study.png"))
+    assert list(attitude_report.glob("attitude_lyapunov_section*_horizon_study.png"))
 
 
 def test_lowthrust_tables_and_case_e(tmp_path):

@@ -97,6 +97,8 @@ def pairwise(df: pd.DataFrame) -> pd.DataFrame:
                 notes.append("fewer than 2 converged starts in a group: no test")
             rows.append({
                 **dict(zip(GROUP, key)), "map_a": a, "map_b": b,
+                "problem_variant": str(g["problem_variant"].iloc[0])
+                if "problem_variant" in g else key[GROUP.index("variant")],
                 "n_a": int(xa.size), "n_b": int(xb.size), "jobs_a": na, "jobs_b": nb,
                 "max_evals_a": ba[0], "max_evals_b": bb[0], "evals_a": ba[1],
                 "evals_b": bb[1], "equal_budget": equal,

@@ -22,7 +22,13 @@ from penaltyrun.problems.base import ReportSection  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, family  # noqa: E402
 from penaltyrun.report.stats import converged, holm, paper_value  # noqa: E402
-from penaltyrun.report.tables import fmt, markdown, save_figure, with_unit  # noqa: E402
+from penaltyrun.report.tables import (  # noqa: E402
+    fmt,
+    markdown,
+    markdown_split,
+    save_figure,
+    with_unit,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -211,7 +217,7 @@ def render(section: ReportSection, out: Path, stem: str, level: str = "##") -> l
         if caption:
             lines += [caption, ""]
         if rows:
-            lines += [markdown(pd.DataFrame(rows)), ""]
+            lines += [markdown_split(pd.DataFrame(rows)), ""]
     for k, (caption, fig) in enumerate(section.figures):
         name = f"{stem}_{k}_{_slug(caption)}.png"
         save_figure(fig, out / name)
@@ -234,7 +240,11 @@ def contributed(df: pd.DataFrame, out: Path) -> list[str]:
             lines += [f"({problem}: its report sections failed: {exc!r})", ""]
             continue
         for k, section in enumerate(found):
-            lines += render(section, out, f"{_slug(str(problem))}_section{k}")
+            try:
+                lines += render(section, out, f"{_slug(str(problem))}_section{k}")
+            except Exception as exc:  # a malformed section costs one line
+                logger.warning("section %r of %s failed: %s", section.title, problem, exc)
+                lines += [f"({problem}: section {section.title!r} failed: {exc!r})", ""]
     return lines
 
 

@@ -76,6 +76,17 @@ def markdown(df: pd.DataFrame, columns: Sequence[str] | None = None,
     return "\n".join(lines)
 
 
+def markdown_split(df: pd.DataFrame, digits: int = 5) -> str:
+    """:func:`markdown` of a table of any width: wider than :data:`MAX_COLUMNS`, it is cut
+    into tables of the first column plus the next ``MAX_COLUMNS − 1`` columns."""
+    cols = list(df.columns)
+    if len(cols) <= MAX_COLUMNS:
+        return markdown(df, digits=digits)
+    step = MAX_COLUMNS - 1
+    return "\n\n".join(markdown(df, [cols[0], *cols[k:k + step]], digits=digits)
+                       for k in range(1, len(cols), step))
+
+
 def write_table(df: pd.DataFrame, out_dir: Path, stem: str,
                 columns: Sequence[str] | None = None,
                 headers: Sequence[str] | None = None) -> str:

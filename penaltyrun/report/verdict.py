@@ -45,9 +45,7 @@ def _equal_budget(comp: pd.DataFrame, problem: str, case: str, pvar: str) -> lis
     if comp.empty:
         return []
     sel = comp[(comp["problem"] == problem) & (comp["case"] == case)
-               & (comp["map_a"] == "diagonal")
-               & comp["variant"].map(lambda v: v == pvar or v.startswith(pvar + ",")
-                                     if pvar else True)]
+               & (comp["map_a"] == "diagonal") & (comp["problem_variant"] == pvar)]
     return [r.to_dict() for _, r in sel.iterrows()]
 
 
@@ -133,7 +131,7 @@ def _evidence_words(d: Any, f: Any) -> str:
     levels = (d["level"], f["level"])
     if levels == ("certified", "certified"):
         return "both certified"
-    return f"diagonal {d['evidence']}, full {f['evidence']}"
+    return f"diagonal value: {d['evidence']}; full value: {f['evidence']}"
 
 
 def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,

@@ -89,9 +89,10 @@ def _evidence(agree: list[str], n_at: int) -> tuple[str, str]:
     converged starts within :data:`CERTIFY_RTOL`)."""
     if EXHAUSTIVE in agree:
         return "certified", "certified (grid + local search)"
+    starts = f"{n_at} start" + ("s" if n_at != 1 else "")
     if len(agree) >= 2:
-        return "agreement", f"agreement ({len(agree)} optimizers, {n_at} starts)"
-    return "single optimizer", f"single optimizer ({agree[0]}, {n_at} starts)"
+        return "agreement", f"agreement ({len(agree)} optimizers, {starts})"
+    return "single optimizer", f"single optimizer ({agree[0]}, {starts})"
 
 
 def best_rows(df: pd.DataFrame) -> dict[str, pd.Series]:

@@ -202,7 +202,10 @@ def active_bounds(g: pd.DataFrame) -> list[str]:
             for b, side in zip(bounds[name], ("lower", "upper")):
                 hit = np.abs(values - b) <= BOUND_RTOL * max(abs(b), 1e-300)
                 for v in values[hit]:
-                    lines.append(f"- best {fam} {name} ({row['optimizer']}/{row['param']}): "
+                    where = f"{row['problem']} / {row['case']}" + (
+                        f" [{row['problem_variant']}]" if row.get("problem_variant") else "")
+                    lines.append(f"- {where}: best {fam} {name} "
+                                 f"({row['optimizer']}/{row['param']}): "
                                  f"{what} {v:.6g} at its {side} bound {b:g} — the box may be "
                                  "too small.")
     return lines

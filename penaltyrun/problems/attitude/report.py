@@ -78,8 +78,16 @@ def hooks(law: str) -> tuple[Callable[..., ReportInfo], Callable[..., dict[str, 
 
     def report_plots(sims: Mapping[str, Mapping[str, np.ndarray]], case: str,
                      params: Mapping[str, Any]) -> dict[str, Any]:
-        fig = plot_histories({k: v for k, v in sims.items() if not k.startswith("paper")})
-        fig.suptitle(f"{law} / {case}: quaternion, rate and torque histories")
+        own = {k: v for k, v in sims.items() if not k.startswith("paper")}
+        short = {" ".join(k.split()[:2]): v for k, v in own.items()}  # "best diagonal"
+        fig = plot_histories(short)
+        for ax in fig.axes:
+            legend = ax.get_legend()
+            if legend is not None:
+                for text in legend.get_texts():
+                    text.set_fontsize(9)
+        fig.suptitle(f"{law} / {case}: quaternion, rate and torque histories\n"
+                     + "; ".join(own))
         return {"histories": fig}
 
     def report_sections(jobs: Sequence[Mapping[str, Any]]) -> list[ReportSection]:

@@ -27,8 +27,10 @@ def test_active_bounds_nonfinite_and_unknown_status():
     ])
     lines = checks(df)
     text = "\n".join(lines)
-    assert "zermelo / default: best diagonal K (pso/diagonal): diagonal entry 10 at its upper bound 10" in text
-    assert "zermelo / default: best full K (pso/full): eigenvalue 1e-08 at its lower bound 1e-08" in text
+    assert ("zermelo / default: best diagonal K (pso/diagonal): diagonal entry 10 at its "
+            "upper bound 10") in text
+    assert ("zermelo / default: best full K (pso/full): eigenvalue 1e-08 at its lower "
+            "bound 1e-08") in text
     assert text.count("the box may be too small") == 2
     assert "9 of 100 evaluations were non-finite" in text
     assert "1 job(s) with status 'mystery', unknown to this report" in text

@@ -155,8 +155,8 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
     if "variant" not in df:
         df = df.assign(variant=df["problem_variant"])
     rows = []
-    for (problem, case, variant, optimizer), g in df.groupby(
-            ["problem", "case", "variant", "optimizer"], sort=True):
+    for (problem, case, pvar, variant, optimizer), g in df.groupby(
+            ["problem", "case", "problem_variant", "variant", "optimizer"], sort=True):
         drop = protocol.info_of(g).discretization_kinds
         dg = g[g["param"] == "diagonal"]
         drow = best_start(dg)
@@ -167,7 +167,8 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
             res = None if frow is None else _row(problem, case, variant, optimizer, param,
                                                  drow, frow, drop)
             if res is not None:
-                rows.append({**res, "diag_conv_all_starts": _rate_all(dg, drop),
+                rows.append({**res, "problem_variant": pvar,
+                             "diag_conv_all_starts": _rate_all(dg, drop),
                              "full_conv_all_starts": _rate_all(fg, drop)})
     for (problem, case, pvar), g in df.groupby(["problem", "case", "problem_variant"],
                                                sort=True):
@@ -177,7 +178,7 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
             res = _row(problem, case, pvar, BEST_KNOWN, best["full"]["param"],
                        best["diagonal"], best["full"], drop)
             if res is not None:
-                rows.append(res)
+                rows.append({**res, "problem_variant": pvar})
     table = pd.DataFrame(rows)
     imps: dict[str, np.ndarray] = {}
     if table.empty:
@@ -187,6 +188,9 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
             variant = f" [{r['variant']}]" if r["variant"] else ""
             label = f"{r['problem']} / {r['case']}{variant} / {r['optimizer']} / {r['full_map']}"
             imps[label] = r["improvements"]
+    table["label"] = [f"{r['problem']} / {r['case']}"
+                      f"{' [' + r['variant'] + ']' if r['variant'] else ''} / "
+                      f"{r['optimizer']} / {r['full_map']}" for _, r in table.iterrows()]
     table = table.drop(columns="improvements")
     table.insert(table.columns.get_loc("wilcoxon_p") + 1, "p_holm",
                  holm(table["wilcoxon_p"].to_numpy(float)))
@@ -272,8 +276,10 @@ HEADERS = ["optimizer", "full map", "pairs (both conv.)", "scenarios", "diag con
 def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.ndarray],
                     out: Path) -> list[str]:
     """Markdown lines of one problem case's held-out section (empty without data)."""
+    df = with_problem_variant(df)
     first = df.iloc[0]
-    sel = table[(table["problem"] == first["problem"]) & (table["case"] == first["case"])] \
+    sel = table[(table["problem"] == first["problem"]) & (table["case"] == first["case"])
+                & (table["problem_variant"] == first["problem_variant"])] \
         if not table.empty else table
     if sel.empty:
         return []
@@ -288,11 +294,10 @@ def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.nd
         if variant:
             lines += [f"Variant `{variant}`:", ""]
         lines += [markdown(g, COLUMNS, HEADERS), ""]
-    mine = {k: v for k, v in imps.items()
-            if k.startswith(f"{first['problem']} / {first['case']}")}
+    mine = {k: imps[k] for k in sel["label"] if k in imps}
     if mine:
         slug = "".join(ch if ch.isalnum() else "_" for ch in f"{first['problem']}_"
-                       f"{first['case']}")
+                       f"{first['case']}_{first['problem_variant']}").rstrip("_")
         name = f"holdout_{slug}.png"
         figure(mine, out / name, f"{first['problem']} / {first['case']}: held-out scenarios")
         lines += [f"![held-out {first['problem']} / {first['case']}]({name})", ""]

@@ -145,7 +145,11 @@ def _paired(g: pd.DataFrame, full_map: str) -> dict[str, Any] | None:
     frow = holdout.best_start(g[g["param"] == full_map])
     if drow is None or frow is None:
         return None
-    dtab, ftab = holdout.scenario_table(drow["holdout"]), holdout.scenario_table(frow["holdout"])
+    from penaltyrun.report import protocol
+
+    drop = protocol.info_of(g).discretization_kinds
+    dtab = holdout.scenario_table(drow["holdout"], drop)
+    ftab = holdout.scenario_table(frow["holdout"], drop)
     if dtab is None or ftab is None:
         return None
     return holdout.paired(dtab, ftab)

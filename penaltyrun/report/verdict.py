@@ -186,8 +186,9 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         parts.append("the diagonal value rests on a single optimizer: run `optimizer=grid` "
                      "or a second optimizer before calling the gain a property of the map")
     if disc is not None and disc["verdict"] == "within discretization noise":
+        spread = np.nanmax([disc["diag_spread"], disc["full_spread"]])
         parts.append(f"the saving is within discretization noise (spread "
-                     f"{fmt(max(disc['diag_spread'], disc['full_spread']), 3)})")
+                     f"{with_unit(spread, row['unit'], 3)})")
     return f"**{label}**: " + "; ".join(parts) + "."
 
 
@@ -222,8 +223,10 @@ def stop_advice(rows: pd.DataFrame) -> str:
     if rows.empty or "stop_reason" not in rows:
         return "stop reasons not recorded"
     parts = []
-    total = len(rows)
+    rows = rows[rows["optimizer"] != "baseline"]
+    totals = rows["optimizer"].value_counts()
     for (opt, reason), g in rows.groupby(["optimizer", rows["stop_reason"].fillna("?")]):
+        total = int(totals[opt])
         settings = protocol.params_of(g["optimizer_settings"].iloc[0]) \
             if "optimizer_settings" in g else {}
         parts.append(f"{opt}: {stop_setting(reason, settings)} in {len(g)} of {total} starts")

@@ -161,6 +161,8 @@ def test_zermelo_held_out_section(tmp_path):
     out = build_report(tmp_path / "run", tmp_path / "report")
     text = (out / "report.md").read_text(encoding="utf-8")
     assert "### Held-out scenarios" in text and "16 starts on circles of radius 2, 5" in text
+    head = "\n".join(text.splitlines()[:12])  # the answer is on the first screen
+    assert "## Verdict" in head and "zermelo / default" in head and "held-out" in head
     held = pd.read_csv(out / "holdout.csv")
     assert list(held["scenarios"]) == [16, 16]  # the pso cell and the best-known pair
     assert (out / "holdout_zermelo_default.png").stat().st_size > 0

@@ -24,13 +24,19 @@ from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
 from penaltyrun.report.stats import MIN_N_TEST, add_variant, cell_summary
-from penaltyrun.report.tables import fmt, markdown, write_table
+from penaltyrun.report.tables import fmt, markdown, markdown_split, write_table
 from penaltyrun.report.verdict import COLUMNS as VERDICT_COLUMNS
 from penaltyrun.report.verdict import verdict_rows
 
 logger = logging.getLogger(__name__)
 
 KNOWN_STATUSES = ("ok", "diverged", "failed")
+#: Columns of ``summary.md`` / ``comparison.md`` (every column is in the CSV files).
+SUMMARY_MD = ["problem", "case", "variant", "optimizer", "param", "max_evals", "mean_evals",
+              "n_jobs", "n_converged", "best", "median", "mean", "worst", "std", "ci_note"]
+COMPARISON_MD = ["problem", "case", "variant", "optimizer", "map_a", "map_b", "n_a", "n_b",
+                 "equal_budget", "median_a", "median_b", "a12_b_beats_a", "p_mwu", "p_holm",
+                 "note"]
 CELL_COLUMNS = ["optimizer", "param", "budget", "converged", "best", "median", "median 95 % CI",
                 "mean", "worst", "paper mean"]
 COMPARISON_COLUMNS = ["optimizer", "map_a", "map_b", "n", "budgets (max_evals; spent)",
@@ -206,9 +212,13 @@ def _write_report(src: Path, df: pd.DataFrame, out: Path, paper: bool) -> None:
     """Write every file of the report into ``out`` (see :func:`build_report`)."""
     summary = cell_summary(df)
     summary.to_csv(out / "summary.csv", index=False, encoding="utf-8")
+    (out / "summary.md").write_text(markdown_split(summary[SUMMARY_MD]) + "\n",
+                                    encoding="utf-8")
     comp = pairwise(df)
     if not comp.empty:
         comp.to_csv(out / "comparison.csv", index=False, encoding="utf-8")
+        (out / "comparison.md").write_text(markdown_split(comp[COMPARISON_MD]) + "\n",
+                                           encoding="utf-8")
     bk = best_known(df)
     held, imps = holdout.holdout_rows(df)
     if not held.empty:

@@ -104,7 +104,7 @@ def paper_matrices(g: pd.DataFrame) -> list[str]:
                        for k, v in ref.items())
         rows.append({"map": name, "our best": float(best["best_cost"]),
                      "by": f"{best['optimizer']}/{best['param']}",
-                     "paper matrix, our cost": float(prob.evaluate(dict(ref))["cost"]),
+                     f"paper {', '.join(ref)}: our cost": float(prob.evaluate(dict(ref))["cost"]),
                      "deviation of our best": f"{100 * best_dev:.3g} %",
                      f"starts within {100 * MATCH_TOL:g} %": f"{sum(d <= MATCH_TOL for d in devs)}"
                                                              f"/{len(devs)}"})

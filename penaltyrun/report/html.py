@@ -42,10 +42,11 @@ _IMAGE = re.compile(r"^!\[([^\]]*)\]\(([^)]+)\)$")
 
 
 def inline(text: str) -> str:
-    """Escape ``text`` and render ``**bold**`` and ```code```."""
+    """Escape ``text`` and render ``**bold**``, ``*italic*`` and ```code```."""
     out = html.escape(text, quote=False)
     out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
-    return re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", out)
+    out = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", out)
+    return re.sub(r"(?<![*\w])\*([^*\s][^*]*?[^*\s])\*(?![*\w])", r"<i>\1</i>", out)
 
 
 def _cells(line: str) -> list[str]:

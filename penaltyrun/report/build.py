@@ -98,13 +98,31 @@ def _cells(summary: pd.DataFrame, g: pd.DataFrame, paper: bool) -> pd.DataFrame:
     first = g.iloc[0]
     sel = summary[(summary["problem"] == first["problem"]) & (summary["case"] == first["case"])
                   & (summary["variant"] == first["variant"])].copy()
-    sel["budget"] = [f"{fmt(m) if np.isfinite(m) else 'none'}; {fmt(e, 4)}"
-                     for m, e in zip(sel["max_evals"], sel["mean_evals"])]
+    limits = {key: _own_limit(c) for key, c in g.groupby(["optimizer", "param"])}
+    sel["budget"] = [f"{fmt(m) if np.isfinite(m) else limits.get((o, p), 'none')}; "
+                     f"spent {fmt(e, 4)}" for m, e, o, p in
+                     zip(sel["max_evals"], sel["mean_evals"], sel["optimizer"], sel["param"])]
     sel["converged"] = [f"{c}/{n}" for c, n in zip(sel["n_converged"], sel["n_jobs"])]
-    sel["median 95 % CI"] = [note or f"{fmt(lo, 4)} – {fmt(hi, 4)}" for lo, hi, note in
+    sel["median 95 % CI"] = [note or f"{fmt(lo, 6)} – {fmt(hi, 6)}" for lo, hi, note in
                              zip(sel["median_ci95_lo"], sel["median_ci95_hi"], sel["ci_note"])]
     sel["paper mean"] = sel["paper_mean"] if paper else np.nan
     return sel
+
+
+#: Population-size and iteration-limit settings (first present is shown).
+SIZE_KEYS = ("n_particles", "swarm_size", "popsize")
+ITER_KEYS = ("iters", "max_iterations")
+
+
+def _own_limit(cell: pd.DataFrame) -> str:
+    """An optimizer's own limit when it has no ``max_evals``: e.g. ``30 × 100 iters``."""
+    settings = protocol.params_of(cell["optimizer_settings"].iloc[0]) \
+        if "optimizer_settings" in cell else {}
+    size = next((settings[k] for k in SIZE_KEYS if settings.get(k)), None)
+    iters = next((f"{settings[k]} {k}" for k in ITER_KEYS if settings.get(k)), None)
+    if size and iters:
+        return f"{size} × {iters}"
+    return iters or "none"
 
 
 def _comparisons(comp: pd.DataFrame, g: pd.DataFrame) -> pd.DataFrame:
@@ -131,8 +149,9 @@ def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]
     stem = f"{first['problem']}_{first['case']}" + (f"_{slug}" if variant else "")
     title = f"{first['problem']} / {first['case']}" + (f" [{variant}]" if variant else "")
     info = protocol.info_of(g)
-    lines = [f"## {title}", "", f"Cost: {info.cost_label}. Budget: `max_evals` (none: the "
-             "optimizer's own limits); mean evaluations spent per start.", "",
+    lines = [f"## {title}", "", f"Cost: {info.cost_label}. Budget: `max_evals`, or the "
+             "optimizer's own limit (population × iterations); then the mean evaluations "
+             "spent per start.", "",
              markdown(_cells(ctx["summary"], g, paper), CELL_COLUMNS), ""]
     comp = _comparisons(ctx["comp"], g)
     if not comp.empty:

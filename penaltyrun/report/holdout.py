@@ -270,7 +270,7 @@ def figure(imps: dict[str, np.ndarray], path: Path, title: str) -> Path:
 COLUMNS = ["optimizer", "full_map", "pairs", "scenarios", "diag_conv", "full_conv",
            "full_better_share", "median_imp_pct", "wilcoxon_p", "p_holm"]
 HEADERS = ["optimizer", "full map", "pairs (both conv.)", "scenarios", "diag conv.",
-           "full conv.", "full better", "median change %", "Wilcoxon p", "Holm p"]
+           "full conv.", "full better (of pairs)", "median change %", "Wilcoxon p", "Holm p"]
 
 
 def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.ndarray],
@@ -290,7 +290,10 @@ def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.nd
              "by scenario; change = (J_diag − J_full)/J_diag over the scenarios where both "
              "converge (positive: full is lower). Wilcoxon signed-rank, two-sided; Holm p "
              f"over {FAMILY}.", ""]
-    for variant, g in sel.groupby("variant", sort=True):
+    shown = sel.assign(full_better_share=[
+        "—" if not p else f"{int(round(s * p))}/{p}"
+        for s, p in zip(sel["full_better_share"], sel["pairs"])])
+    for variant, g in shown.groupby("variant", sort=True):
         if variant:
             lines += [f"Variant `{variant}`:", ""]
         lines += [markdown(g, COLUMNS, HEADERS), ""]

@@ -10,7 +10,9 @@ A problem module may define, at module level:
 * ``report_sections(jobs: Sequence[Mapping[str, Any]]) -> list[ReportSection]`` — extra
   sections from the problem's jobs as plain dicts (:func:`job_keys` lists their keys).
 
-Without them the report uses :data:`DEFAULT_INFO` (cost "cost", unit not declared), plots
+A module without ``report_info`` may still declare ``COST_NAME`` (or ``COST_LABEL``) and
+``COST_UNIT`` as constants. Without any of them the report uses :data:`DEFAULT_INFO`
+(cost "cost", unit not declared), plots
 every time history ``simulate`` returns (:func:`default_plots`) and adds no section. Only
 numpy and (lazily) matplotlib are used here: no pandas, no Hydra.
 """
@@ -44,11 +46,26 @@ def job_keys() -> tuple[str, ...]:
             "scalars", "metrics", "holdout", "problem_params", "optimizer_settings")
 
 
+def declared_info(mod: ModuleType | None) -> ReportInfo:
+    """:class:`ReportInfo` from module constants, for a module without ``report_info``:
+    ``COST_NAME`` (or ``COST_LABEL``, its trailing ``(<COST_UNIT>)`` removed) and
+    ``COST_UNIT``; :data:`DEFAULT_INFO` without them."""
+    unit = getattr(mod, "COST_UNIT", None)
+    name = getattr(mod, "COST_NAME", None) or getattr(mod, "COST_LABEL", None)
+    if not isinstance(name, str) and not isinstance(unit, str):
+        return DEFAULT_INFO
+    name = name if isinstance(name, str) else DEFAULT_INFO.cost_name
+    unit = unit if isinstance(unit, str) else ""
+    if unit and name.endswith(f"({unit})"):
+        name = name[: -len(unit) - 2].rstrip()
+    return ReportInfo(cost_name=name, cost_unit=unit)
+
+
 def info(mod: ModuleType | None, case: str, params: Mapping[str, Any]) -> ReportInfo:
-    """``mod.report_info(case, params)``, or :data:`DEFAULT_INFO` without the hook."""
+    """``mod.report_info(case, params)``, or :func:`declared_info` without the hook."""
     hook = getattr(mod, "report_info", None)
     if hook is None:
-        return DEFAULT_INFO
+        return declared_info(mod)
     result = hook(case, dict(params))
     if not isinstance(result, ReportInfo):
         raise TypeError(f"report_info returned {type(result).__name__}, not ReportInfo")
@@ -124,4 +141,5 @@ def default_plots(sims: Mapping[str, Mapping[str, np.ndarray]]) -> dict[str, Any
     return {"time histories": fig}
 
 
-__all__ = ["DEFAULT_INFO", "default_plots", "info", "job_keys", "plots", "sections"]
+__all__ = ["DEFAULT_INFO", "declared_info", "default_plots", "info", "job_keys", "plots",
+           "sections"]

@@ -131,3 +131,14 @@ def test_paper_tables_list_every_optimizer():
     titles = [s.title for s in paper_tables("attitude_lqr", jobs)]
     assert titles == ["Table 1 — attitude LQR layout (pso)",
                       "Table 1 — attitude LQR layout (pso_matlab)"]
+
+
+def test_cost_constants_are_enough_to_declare_a_unit():
+    import types
+
+    from penaltyrun.problems.report_hooks import info
+
+    mod = types.SimpleNamespace(COST_LABEL="Δv = Σ Tₛ‖u_k‖₂ (m/s)", COST_UNIT="m/s")
+    assert info(mod, "c", {}).cost_label == "Δv = Σ Tₛ‖u_k‖₂ (m/s)"
+    assert info(mod, "c", {}).cost_unit == "m/s"
+    assert info(types.SimpleNamespace(), "c", {}).cost_label == "cost (unit not declared)"

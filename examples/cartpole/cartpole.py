@@ -41,6 +41,7 @@ from penaltyrun.problems.base import (
     BatchEvaluation,
     MatrixSpec,
     ParamsMixin,
+    ReportInfo,
     ScalarSpec,
     check_spd,
 )
@@ -316,3 +317,19 @@ def plot_response(paths: Mapping[str, Mapping[str, np.ndarray]], ax: Any = None)
     ax.set_ylabel("θ (deg)")
     ax.legend(fontsize=8)
     return ax
+
+
+def report_info(case: str, params: Mapping[str, Any]) -> ReportInfo:
+    """Report hook: what the cost is, with its unit (SI; x in m, θ in rad, F in N)."""
+    return ReportInfo(cost_name="J = ∫(x² + θ² + ρF²) dt", cost_unit="SI: m²·s, rad²·s")
+
+
+def report_plots(sims: Mapping[str, Mapping[str, np.ndarray]], case: str,
+                 params: Mapping[str, Any]) -> dict[str, Any]:
+    """Report hook: the pole angle of the best diagonal and best full (Q, R)."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    plot_response(sims, ax=ax)
+    ax.set_title(f"cart-pole / {case}: pole angle of the best starts")
+    return {"pole angle": fig}

@@ -26,6 +26,14 @@ its state (PSO: the particle's personal best), so its path is the same with and 
 cutoff. A problem may ignore thresholds; problems without the keyword (user problems) are
 called without them (:func:`accepts_thresholds`).
 
+Report hooks (optional, module level; :mod:`penaltyrun.problems.report_hooks` has their
+defaults): ``report_info(case, params) -> ReportInfo`` (cost name and unit, what the
+held-out set is, the paper's values), ``report_plots(sims, case, params) -> {caption:
+Figure}`` (figures from ``simulate`` dicts) and ``report_sections(jobs) -> [ReportSection]``
+(extra sections from plain job dicts). They take plain Python / numpy data and return
+Markdown text, declarative tables or matplotlib figures, so a user problem describes itself
+to the report exactly as a built-in one does.
+
 The layer below (``penaltyrun.dynamics``) holds the compiled kernels; this layer wraps them
 into objects that know the problem's matrices, bounds and cost. Hydra and pandas stay out.
 """
@@ -34,7 +42,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -121,6 +129,97 @@ class Problem(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class PaperValues:
+    """Published numbers of one problem case, for the report to set beside its own.
+
+    Keys of the mappings are map names: ``"diagonal"``, ``"full"`` (any orthogonal map) or
+    a specific map (``"givens"``, ...), which takes precedence over ``"full"``.
+
+    Attributes
+    ----------
+    source : str
+        Where the numbers come from (e.g. ``"paper, Table 1"``).
+    mean_cost, median_cost : mapping map → float
+        Published mean / median cost (the problem's cost unit).
+    summaries : mapping map → (best, median, mean, worst)
+        Published four-number summaries.
+    runs : int or None
+        Number of runs behind the published numbers (a median test needs it).
+    matrices : mapping map → {matrix name: ndarray}
+        Published best matrices (the report evaluates them and measures the distance).
+    claim : str
+        A published statement without numbers per case (e.g. "full better in all cases").
+    """
+
+    source: str = "paper"
+    mean_cost: Mapping[str, float] = field(default_factory=dict)
+    median_cost: Mapping[str, float] = field(default_factory=dict)
+    summaries: Mapping[str, tuple[float, float, float, float]] = field(default_factory=dict)
+    runs: int | None = None
+    matrices: Mapping[str, Mapping[str, np.ndarray]] = field(default_factory=dict)
+    claim: str = ""
+
+
+@dataclass(frozen=True)
+class ReportInfo:
+    """How one problem case describes itself to the report (all fields optional).
+
+    Attributes
+    ----------
+    cost_name : str
+        What a converged start's cost is, e.g. ``"J = ∫½‖u‖² dt"`` or ``"time of flight"``.
+    cost_unit : str
+        Its unit, e.g. ``"N²·m²·s"``, ``"days"``; ``"1"`` for a nondimensional cost; ``""``
+        when the problem does not say.
+    holdout_description : str
+        What the held-out scenarios are (one sentence), shown beside the held-out results.
+    discretization_kinds : tuple of str
+        Held-out scenario ``kind`` values that re-run the training scenario at another
+        discretization (not a new scenario): they give the discretization check and are
+        left out of the held-out comparison.
+    paper : PaperValues or None
+        Published values of this case.
+    """
+
+    cost_name: str = "cost"
+    cost_unit: str = ""
+    holdout_description: str = ""
+    discretization_kinds: tuple[str, ...] = ()
+    paper: PaperValues | None = None
+
+    @property
+    def cost_label(self) -> str:
+        """``"<name> (<unit>)"``, the unit ``nondimensional`` for ``"1"``, or ``"<name>
+        (unit not declared)"``."""
+        unit = {"": "unit not declared", "1": "nondimensional"}.get(self.cost_unit,
+                                                                     self.cost_unit)
+        return f"{self.cost_name} ({unit})"
+
+
+@dataclass
+class ReportSection:
+    """An extra report section contributed by a problem (:func:`report_sections` hook).
+
+    Attributes
+    ----------
+    title : str
+        Heading of the section.
+    text : str
+        Markdown paragraphs shown under the heading.
+    tables : list of (caption, rows)
+        Tables as lists of dicts (one dict per row, equal keys; at most 10 keys); the
+        report formats them.
+    figures : list of (caption, matplotlib Figure)
+        Figures the report saves (and closes) under the tables.
+    """
+
+    title: str
+    text: str = ""
+    tables: list[tuple[str, list[dict[str, Any]]]] = field(default_factory=list)
+    figures: list[tuple[str, Any]] = field(default_factory=list)
+
+
 class ParamsMixin:
     """Helpers for problem parameter dataclasses built from config mappings (plain mixin,
     usable by frozen dataclasses)."""
@@ -205,7 +304,10 @@ __all__ = [
     "BatchEvaluation",
     "MatrixSpec",
     "ParamsMixin",
+    "PaperValues",
     "Problem",
+    "ReportInfo",
+    "ReportSection",
     "ScalarSpec",
     "accepts_thresholds",
     "check_spd",

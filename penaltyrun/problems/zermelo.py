@@ -32,7 +32,9 @@ from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import (
     BatchEvaluation,
     MatrixSpec,
+    PaperValues,
     ParamsMixin,
+    ReportInfo,
     ScalarSpec,
     check_spd,
 )
@@ -344,9 +346,10 @@ def plot_phase_plane(paths: Mapping[str, Mapping[str, np.ndarray]], ax: Any = No
     dx, dy = drift(X.ravel(), Y.ravel())
     ax.quiver(X, Y, dx.reshape(X.shape), dy.reshape(X.shape), color="0.7", angles="xy",
               label="current d(X)")
-    for label, path in paths.items():
+    for k, (label, path) in enumerate(paths.items()):
         style = "--" if label.startswith("paper") else "-"
-        ax.plot(path["x"], path["y"], style, lw=2, label=label)
+        color = "C0" if "diagonal" in label else "C1" if "full" in label else f"C{k + 2}"
+        ax.plot(path["x"], path["y"], style, lw=2, color=color, label=label)
     x0 = next(iter(paths.values())) if paths else None
     if x0 is not None:
         ax.plot(x0["x"][0], x0["y"][0], "ko", label="start")
@@ -356,5 +359,32 @@ def plot_phase_plane(paths: Mapping[str, Mapping[str, np.ndarray]], ax: Any = No
     ax.set_xlabel("x")
     ax.set_ylabel("y")
     ax.set_aspect("equal")
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="upper right", fontsize=9)
     return ax
+
+
+def report_info(case: str, params: Mapping[str, Any]) -> ReportInfo:
+    """Report hook (:mod:`penaltyrun.problems.report_hooks`): cost, held-out set, paper K."""
+    p = Params.from_mapping({**CASE_PARAMS.get(case, {}), **dict(params)})
+    radii = ", ".join(f"{r:g}" for r in p.holdout_radii)
+    holdout = (f"{len(p.holdout_radii) * p.holdout_n_angles} starts on circles of radius "
+               f"{radii} around the origin, {p.holdout_n_angles} per circle at "
+               f"{p.holdout_angle_offset_deg:g}° + k·{360 / max(p.holdout_n_angles, 1):g}° "
+               f"(the training start x0 = ({p.x0[0]:g}, {p.x0[1]:g}) left out)"
+               if p.holdout_radii else "")
+    return ReportInfo(
+        cost_name="J = ∫½‖u‖² dt", cost_unit="1", holdout_description=holdout,
+        paper=PaperValues(source="paper (single run per map)",
+                          matrices={"diagonal": {"K": PAPER_K_DIAGONAL},
+                                    "full": {"K": PAPER_K_FULL}}))
+
+
+def report_plots(sims: Mapping[str, Mapping[str, np.ndarray]], case: str,
+                 params: Mapping[str, Any]) -> dict[str, Any]:
+    """Report hook: the phase plane with every simulated path over the current."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 7))
+    plot_phase_plane(sims, ax=ax)
+    ax.set_title("Zermelo: closed-loop paths over the current d(X)")
+    return {"phase plane": fig}

@@ -5,8 +5,10 @@ A map family is ``diagonal`` or ``full`` (every orthogonal map — full/geagsp, 
 cayley, cayley_tan — spans the same set of positive-definite matrices). Best-known values are taken
 over every converged start of every optimizer, budget and warm-start variant that solved
 the same problem (equal ``problem_variant``); the baseline (K = I) is not a search and does
-not enter. A best-known value is *certified* when the grid optimizer (exhaustive + local
-polish), or two different optimizers, reached it within :data:`CERTIFY_RTOL` relative.
+not enter. Evidence for a best-known value (:data:`LEVELS`): *certified* when the grid
+optimizer (exhaustive grid + local search) reached it within :data:`CERTIFY_RTOL` relative;
+*agreement (k optimizers, n starts)* when k ≥ 2 different optimizers did; otherwise *single
+optimizer*.
 """
 
 from __future__ import annotations
@@ -22,6 +24,10 @@ from penaltyrun.report.stats import converged
 #: Relative tolerance within which two optimizers "agree" on a best-known value.
 CERTIFY_RTOL = 1e-4
 KEY = ["problem", "case", "problem_variant"]
+#: Evidence levels, strongest first.
+LEVELS = ("certified", "agreement", "single optimizer")
+#: Optimizer whose best is exhaustive (grid + local search).
+EXHAUSTIVE = "grid"
 FAMILIES = ("diagonal", "full")
 
 
@@ -62,18 +68,41 @@ def best_known(df: pd.DataFrame) -> pd.DataFrame:
         ref = float(top["best_cost"])
         per_opt = g.groupby("optimizer")["best_cost"].min().astype(float)
         agree = [o for o, v in per_opt.items() if within(v, ref)]
-        certified = "grid" in agree or len(agree) >= 2
+        n_at = int(sum(within(float(v), ref) for v in g["best_cost"].astype(float)))
+        level, evidence = _evidence(agree, n_at)
+        certified = level == "certified"
         rows.append({
             **dict(zip(KEY + ["family"], key)), "best_known": ref,
             "optimizer": top["optimizer"], "param": top["param"], "job_id": top["job_id"],
-            "certified": certified,
+            "certified": certified, "level": level, "evidence": evidence,
             "certified_by": (", ".join(agree) + f" (within {CERTIFY_RTOL:g} rel.)")
-            if certified else "—",
+            if level != "single optimizer" else "—", "n_at_best": n_at,
             "n_converged": len(g),
             **{f"best_{o}": v for o, v in per_opt.items()},
             "matrices": _matrices_text(top["matrices"]),
         })
     return pd.DataFrame(rows)
+
+
+def _evidence(agree: list[str], n_at: int) -> tuple[str, str]:
+    """(level, text) of a best-known value reached by the optimizers ``agree`` (``n_at``
+    converged starts within :data:`CERTIFY_RTOL`)."""
+    if EXHAUSTIVE in agree:
+        return "certified", "certified (grid + local search)"
+    starts = f"{n_at} start" + ("s" if n_at != 1 else "")
+    if len(agree) >= 2:
+        return "agreement", f"agreement ({len(agree)} optimizers, {starts})"
+    return "single optimizer", f"single optimizer ({agree[0]}, {starts})"
+
+
+def best_rows(df: pd.DataFrame) -> dict[str, pd.Series]:
+    """The converged start with the lowest cost of each map family, over every optimizer
+    (the baseline excluded): ``{"diagonal": row, "full": row}`` where present."""
+    ok = df[converged(df) & (df["optimizer"] != "baseline")]
+    out = {}
+    for fam, g in ok.groupby(ok["param"].map(family)):
+        out[str(fam)] = g.loc[g["best_cost"].astype(float).idxmin()]
+    return out
 
 
 def reference(bk: pd.DataFrame, problem: str, case: str, problem_variant: str,
@@ -102,9 +131,10 @@ def improvement(bk: pd.DataFrame) -> pd.DataFrame:
         d, f = fams["diagonal"], fams["full"]
         rows.append({**dict(zip(KEY, key)),
                      "diagonal_best_known": d["best_known"], "diagonal_by": d["optimizer"],
-                     "diagonal_certified": d["certified"],
+                     "diagonal_certified": d["certified"], "diagonal_evidence": d["evidence"],
                      "full_best_known": f["best_known"], "full_by": f"{f['optimizer']} / "
                      f"{f['param']}", "full_certified": f["certified"],
+                     "full_evidence": f["evidence"],
                      "improvement_pct": 100.0 * (d["best_known"] - f["best_known"])
                      / d["best_known"]})
     return pd.DataFrame(rows)

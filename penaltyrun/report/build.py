@@ -1,4 +1,11 @@
-"""Build the report (tables + figures + report.md) from Parquet results only."""
+"""Build the report (report.md, report.html, tables, figures) from Parquet results only.
+
+Layout: the verdict first (one row and one sentence per problem × case × problem variant),
+then checks (warnings, unknown statuses, non-finite evaluations, active bounds), one section
+per problem case (cells, equal-budget comparisons, figures, the problem's own plots, paper
+values, held-out results), the sections problems contribute, the statistics (best-known
+optima, shortfall, fixed targets), and methods and conventions at the end.
+"""
 
 from __future__ import annotations
 
@@ -12,107 +19,170 @@ import numpy as np
 import pandas as pd
 
 from penaltyrun.io import read_results
-from penaltyrun.report import figures, sections
+from penaltyrun.report import figures, holdout, html, protocol, sections, tuning
 from penaltyrun.report.anytime import target_table
-from penaltyrun.report.bestknown import CERTIFY_RTOL, best_known, improvement, shortfall
-from penaltyrun.report.compare import FAMILY, full_worse_rows, pairwise
-from penaltyrun.report.paper import MEAN_COST
+from penaltyrun.report.bestknown import CERTIFY_RTOL, best_known, shortfall
+from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
 from penaltyrun.report.stats import MIN_N_TEST, add_variant, cell_summary
-from penaltyrun.report.tables import write_table
-from penaltyrun.report.units import cost_label
+from penaltyrun.report.tables import fmt, markdown, markdown_split, write_table
+from penaltyrun.report.verdict import COLUMNS as VERDICT_COLUMNS
+from penaltyrun.report.verdict import verdict_rows
 
 logger = logging.getLogger(__name__)
 
-SUMMARY_COLUMNS = [
-    "problem", "case", "variant", "optimizer", "param", "max_evals", "n_jobs", "n_converged",
-    "success_rate", "best", "median", "median_ci95_lo", "median_ci95_hi", "mean",
-    "mean_ci95_lo", "mean_ci95_hi", "worst", "std", "ci_note", "mean_evals", "paper_mean",
-]
-COMPARISON_COLUMNS = [
-    "problem", "case", "variant", "optimizer", "map_a", "map_b", "n_a", "n_b", "success_a",
-    "success_b", "median_a", "median_b", "median_change_pct", "a12_b_beats_a",
-    "a12_magnitude", "p_mwu", "p_holm", "note",
-]
+KNOWN_STATUSES = ("ok", "diverged", "failed")
+#: Columns of ``summary.md`` / ``comparison.md`` (every column is in the CSV files).
+SUMMARY_MD = ["problem", "case", "variant", "optimizer", "param", "max_evals", "mean_evals",
+              "n_jobs", "n_converged", "best", "median", "mean", "worst", "std", "ci_note"]
+COMPARISON_MD = ["problem", "case", "variant", "optimizer", "map_a", "map_b", "n_a", "n_b",
+                 "equal_budget", "median_a", "median_b", "a12_b_beats_a", "p_mwu", "p_holm",
+                 "note"]
+CELL_COLUMNS = ["optimizer", "param", "budget", "converged", "best", "median", "median 95 % CI",
+                "mean", "worst", "paper mean"]
+COMPARISON_COLUMNS = ["optimizer", "map_a", "map_b", "n", "budgets (max_evals; spent)",
+                      "median_a", "median_b", "A12 (b beats a)", "Holm p", "note"]
 BEST_KNOWN_COLUMNS = ["problem", "case", "problem_variant", "family", "best_known",
-                      "optimizer", "param", "job_id", "certified", "certified_by",
-                      "n_converged", "matrices"]
+                      "optimizer", "param", "evidence", "n_converged"]
 SHORTFALL_COLUMNS = ["problem", "case", "variant", "optimizer", "param", "n_converged",
-                     "n_jobs", "best_known", "best", "median", "gap_best_pct",
-                     "gap_median_pct"]
-TARGET_COLUMNS = ["problem", "case", "variant", "optimizer", "param", "epsilon", "target",
-                  "n_starts", "n_reached", "share_reached", "ert_evals",
-                  "median_evals_to_target"]
-
-METHODS = (
-    "Conventions (spec/statistics.md). A cell is problem × case × variant × optimizer × map; "
-    "a variant is a set of problem parameters, a warm start or an optimizer budget of its "
-    "own, and cells are never pooled across optimizers, budgets or variants. Cost "
-    "statistics use **converged starts only** (a diverged start carries a graded penalty, "
-    "which is a search aid, not a cost); the success rate stands beside them. Intervals: "
-    "95 % BCa bootstrap (scipy.stats.bootstrap, 9999 resamples, seeded) of the median and "
-    "the mean; none for n < 3 or constant samples. Tests: two-sided Mann–Whitney U between "
-    "two maps of the same optimizer and budget; effect size Vargha–Delaney A12 = P(a start "
-    f"of map b beats a start of map a) + ½ P(tie), magnitude by |A12 − 0.5| ≥ 0.06 / 0.14 "
-    f"/ 0.21 (small / medium / large); p-values Holm-corrected over {FAMILY}. Below "
-    f"n = {MIN_N_TEST} converged starts per group a test is underpowered, and the table "
-    "says so.")
+                     "best_known", "best", "gap_best_pct", "gap_median_pct"]
+TARGET_COLUMNS = ["problem", "case", "variant", "optimizer", "param", "epsilon", "n_reached",
+                  "n_starts", "ert_evals", "median_evals_to_target"]
 
 
-def why_full_worse(df: pd.DataFrame, row: pd.Series) -> str:
-    """Explain a cell where the best full start is worse than the best diagonal start."""
-    sel = df[(df["problem"] == row["problem"]) & (df["case"] == row["case"])
-             & (df["variant"] == row["variant"]) & (df["optimizer"] == row["optimizer"])
-             & (df["param"] == row["full_map"])]
-    stops = sel["stop_reason"].value_counts().to_dict()
-    variant = f" [{row['variant']}]" if row["variant"] else ""
-    return (f"- **{row['problem']} / {row['case']}{variant} / {row['optimizer']} / "
-            f"{row['full_map']}**: best full "
-            f"{row['full_best']:.6g} > best diagonal {row['diag_best']:.6g}. The diagonal set "
-            f"is contained in the full set, so this is an optimizer shortfall, not a property "
-            f"of the parameterization: stop reasons of the full starts {stops}, mean "
-            f"evaluations {sel['n_evals'].mean():.0f} for {sel['best_z'].dropna().map(len).max()} "
-            f"variables. A larger budget (optimizer.max_evals) is needed.")
+def methods() -> str:
+    """The conventions paragraph (at the end of the report)."""
+    return (
+        "A cell is problem × case × variant × optimizer × map; a variant is a set of problem "
+        "parameters, a warm start or an optimizer budget of its own, and cells are never "
+        "pooled across optimizers, budgets or variants. Cost statistics use **converged "
+        "starts only** (a diverged start carries a graded penalty, a search aid, not a "
+        "cost); the success rate stands beside them. Budget = `max_evals` (none: the "
+        "optimizer's own limits) and the mean evaluations spent. Intervals: 95 % BCa "
+        "bootstrap (scipy.stats.bootstrap, 9999 resamples, seeded) of the median; none for "
+        "n < 3 or a constant sample. Best-known evidence: *certified* = reached by the grid "
+        f"optimizer (grid + local search) within {CERTIFY_RTOL:g} relative; *agreement* = "
+        f"k ≥ 2 different optimizers within {CERTIFY_RTOL:g}; else *single optimizer*. "
+        "Equal budget: equal `max_evals` and mean evaluations spent within "
+        f"{100 * SPENT_RTOL:g} %; otherwise \"{NO_TEST}\". Tests: two-sided Mann–Whitney U "
+        "between two maps of one optimizer and budget; Vargha–Delaney A12 = P(a start of "
+        "map b beats a start of map a) + ½ P(tie), magnitude |A12 − 0.5| ≥ 0.06 / 0.14 / "
+        f"0.21 (small / medium / large); below n = {MIN_N_TEST} converged starts per group a "
+        "test is underpowered. Held-out: two-sided Wilcoxon signed-rank on the scenarios "
+        "where both matrices converge. A non-significant result is no evidence of a "
+        "difference at that n, not evidence of equality.")
 
 
-_why_full_worse = why_full_worse  # the name before the report used pairwise comparisons
+def checks(df: pd.DataFrame) -> list[str]:
+    """Warning lines: unimportable modules, unknown statuses, non-finite evaluations,
+    active bounds."""
+    lines = [f"- {w}" for w in protocol.WARNINGS]
+    unknown = df[~df["status"].isin(KNOWN_STATUSES)]
+    for status, g in unknown.groupby("status"):
+        lines.append(f"- {len(g)} job(s) with status {status!r}, unknown to this report: "
+                     "listed, never counted as converged.")
+    if "n_nonfinite" in df:
+        nf = pd.to_numeric(df["n_nonfinite"], errors="coerce").fillna(0)
+        for (problem, case, variant, opt, param), g in df[nf > 0].groupby(
+                ["problem", "case", "variant", "optimizer", "param"], sort=True):
+            total = pd.to_numeric(g["n_evals"], errors="coerce").sum()
+            lines.append(f"- {problem} / {case}{' [' + variant + ']' if variant else ''} / "
+                         f"{opt} / {param}: {int(nf[g.index].sum())} of {int(total)} "
+                         "evaluations were non-finite (replaced by a penalty) in "
+                         f"{len(g)} start(s).")
+    for _, g in df.groupby(["problem", "case", "problem_variant"], sort=True):
+        lines += sections.active_bounds(g)
+    return lines
 
 
-def _best_known_lines(bk: pd.DataFrame, out: Path, df: pd.DataFrame) -> list[str]:
-    if bk.empty:
-        return []
-    imp = improvement(bk)
-    lines = ["## Best-known optima", "",
-             "Lowest converged cost per problem × case × problem variant and map family "
-             "(diagonal; full = any orthogonal map), over every optimizer, budget and warm "
-             f"start. *Certified*: reached by the grid optimizer, or by two different "
-             f"optimizers within {CERTIFY_RTOL:g} relative.", "",
-             write_table(bk, out, "best_known", BEST_KNOWN_COLUMNS), ""]
-    if not imp.empty:
-        lines += ["### Improvement: best-known full vs best-known diagonal", "",
-                  "A claim about the maps holds only as far as the diagonal value is certified; "
-                  "per-optimizer distributions at equal budget are in the map-vs-map table.",
-                  "", write_table(imp, out, "best_known_improvement"), ""]
-    gaps = shortfall(df, bk)
-    if not gaps.empty:
-        lines += ["### Optimizer shortfall against the best-known value of the map family", "",
-                  "gap = (cell best or median − best-known)/best-known over converged starts. "
-                  "For a diagonal cell the gap is the optimizer's failure to reach the "
-                  "diagonal optimum, not a gain of any full map.", "",
-                  write_table(gaps, out, "shortfall", SHORTFALL_COLUMNS), ""]
+def _cells(summary: pd.DataFrame, g: pd.DataFrame, paper: bool) -> pd.DataFrame:
+    first = g.iloc[0]
+    sel = summary[(summary["problem"] == first["problem"]) & (summary["case"] == first["case"])
+                  & (summary["variant"] == first["variant"])].copy()
+    limits = {key: _own_limit(c) for key, c in g.groupby(["optimizer", "param"])}
+    sel["budget"] = [f"{fmt(m) if np.isfinite(m) else limits.get((o, p), 'none')}; "
+                     f"spent {fmt(e, 4)}" for m, e, o, p in
+                     zip(sel["max_evals"], sel["mean_evals"], sel["optimizer"], sel["param"])]
+    sel["converged"] = [f"{c}/{n}" for c, n in zip(sel["n_converged"], sel["n_jobs"])]
+    sel["median 95 % CI"] = [note or f"{fmt(lo, 6)} – {fmt(hi, 6)}" for lo, hi, note in
+                             zip(sel["median_ci95_lo"], sel["median_ci95_hi"], sel["ci_note"])]
+    sel["paper mean"] = sel["paper_mean"] if paper else np.nan
+    return sel
+
+
+#: Population-size and iteration-limit settings (first present is shown).
+SIZE_KEYS = ("n_particles", "swarm_size", "popsize")
+ITER_KEYS = ("iters", "max_iterations")
+
+
+def _own_limit(cell: pd.DataFrame) -> str:
+    """An optimizer's own limit when it has no ``max_evals``: e.g. ``30 × 100 iters``."""
+    settings = protocol.params_of(cell["optimizer_settings"].iloc[0]) \
+        if "optimizer_settings" in cell else {}
+    size = next((settings[k] for k in SIZE_KEYS if settings.get(k)), None)
+    iters = next((f"{settings[k]} {k}" for k in ITER_KEYS if settings.get(k)), None)
+    if size and iters:
+        return f"{size} × {iters}"
+    return iters or "none"
+
+
+def _comparisons(comp: pd.DataFrame, g: pd.DataFrame) -> pd.DataFrame:
+    first = g.iloc[0]
+    if comp.empty:
+        return comp
+    sel = comp[(comp["problem"] == first["problem"]) & (comp["case"] == first["case"])
+               & (comp["variant"] == first["variant"])].copy()
+    sel["n"] = [f"{a}/{b}" for a, b in zip(sel["n_a"], sel["n_b"])]
+    sel["budgets (max_evals; spent)"] = [
+        f"{fmt(ma) if np.isfinite(ma) else 'none'}/{fmt(mb) if np.isfinite(mb) else 'none'}; "
+        f"{fmt(ea, 4)}/{fmt(eb, 4)}" for ma, mb, ea, eb in
+        zip(sel["max_evals_a"], sel["max_evals_b"], sel["evals_a"], sel["evals_b"])]
+    sel["A12 (b beats a)"] = [f"{fmt(a, 2)} ({m})" if np.isfinite(a) else "—"
+                              for a, m in zip(sel["a12_b_beats_a"], sel["a12_magnitude"])]
+    sel["Holm p"] = sel["p_holm"]
+    return sel
+
+
+def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]:
+    first = g.iloc[0]
+    variant = first["variant"]
+    slug = "".join(ch if ch.isalnum() else "_" for ch in variant)[:60]
+    stem = f"{first['problem']}_{first['case']}" + (f"_{slug}" if variant else "")
+    title = f"{first['problem']} / {first['case']}" + (f" [{variant}]" if variant else "")
+    info = protocol.info_of(g)
+    lines = [f"## {title}", "", f"Cost: {info.cost_label}. Budget: `max_evals`, or the "
+             "optimizer's own limit (population × iterations); then the mean evaluations "
+             "spent per start.", "",
+             markdown(_cells(ctx["summary"], g, paper), CELL_COLUMNS), ""]
+    comp = _comparisons(ctx["comp"], g)
+    if not comp.empty:
+        lines += ["### Map vs map, same optimizer and variant", "",
+                  "Tested only where the budgets are equal; Holm p over the family declared in "
+                  "Statistics.", "", markdown(comp, COMPARISON_COLUMNS), ""]
+    steps = [("figures", lambda: _figures(g, ctx["bk"], out, stem, title, info, paper)),
+             ("problem plots", lambda: sections.plots_section(g, out, stem)),
+             ("paper values", lambda: sections.paper_section(g, ctx["paper"])
+              if paper else []),
+             ("held-out", lambda: holdout.problem_section(g, ctx["held"], ctx["imps"], out)
+              if not variant or variant == first["problem_variant"] else [])]
+    for name, step in steps:
+        try:
+            lines += step()
+        except Exception as exc:  # a figure that cannot be drawn must not lose the tables
+            logger.warning("%s of %s failed: %s", name, title, exc)
+            lines += [f"({name} failed: {exc!r})", ""]
     return lines
 
 
 def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str,
-             paper: bool) -> list[str]:
-    first = g.iloc[0]
-    label = cost_label(first["problem"], first["problem_params"], first["case"])
+             info: object, paper: bool) -> list[str]:
+    label = info.cost_label
     lines = []
     for name, path in (
             ("anytime", figures.anytime(g, bk, label, title, out / f"anytime_{stem}.png")),
             ("ECDF", figures.ecdf_figure(g, bk, title, out / f"ecdf_{stem}.png")),
             ("costs", figures.cost_distribution(
                 g, label, f"{title}: best cost per converged start", out / f"costs_{stem}.png",
-                MEAN_COST.get((first["problem"], first["case"])) if paper else None))):
+                info.paper if paper else None))):
         if path is not None:
             lines += [f"![{name}]({path.name})", ""]
     if not any(line.startswith("![anytime]") for line in lines):
@@ -122,7 +192,7 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
 
 
 def build_report(src: Path, out: Path, paper: bool = True) -> Path:
-    """Write tables (CSV + Markdown), figures (PNG) and ``report.md`` into ``out``.
+    """Write tables (CSV + Markdown), figures (PNG), ``report.md`` and ``report.html``.
 
     Every file is first written into a temporary folder inside ``out`` and renamed into
     place when the report is complete, so no reader sees a half-written file. Unreadable
@@ -143,6 +213,7 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
         No results file, or none readable, under ``src``.
     """
     out = Path(out)
+    protocol.reset()
     df = add_variant(read_results(src))
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
@@ -159,57 +230,78 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
 def _write_report(src: Path, df: pd.DataFrame, out: Path, paper: bool) -> None:
     """Write every file of the report into ``out`` (see :func:`build_report`)."""
     summary = cell_summary(df)
+    summary.to_csv(out / "summary.csv", index=False, encoding="utf-8")
+    (out / "summary.md").write_text(markdown_split(summary[SUMMARY_MD]) + "\n",
+                                    encoding="utf-8")
     comp = pairwise(df)
-    bk = best_known(df)
-    targets = target_table(df, bk)
-    summary_cols = [c for c in SUMMARY_COLUMNS if paper or c != "paper_mean"]
-    lines = ["# penaltyrun report", "",
-             f"Source: `{src}` — {len(df)} jobs, "
-             f"{df['run_id'].nunique()} run(s), commit(s) "
-             f"{', '.join(sorted(df['git_commit'].dropna().unique())) or 'unknown'}.", "",
-             METHODS, "", "## All cells", "", write_table(summary, out, "summary", summary_cols),
-             ""]
-    lines += _best_known_lines(bk, out, df)
     if not comp.empty:
-        n_tests = int(np.isfinite(comp["p_mwu"]).sum())
-        lines += ["## Map vs map at equal budget (same optimizer, same variant)", "",
-                  f"Holm family: {FAMILY} — {n_tests} tests. median_change_pct = "
-                  "(median_a − median_b)/median_a (positive: map b is lower).", "",
-                  write_table(comp, out, "comparison", COMPARISON_COLUMNS), ""]
-        worse = full_worse_rows(comp)
-        if not worse.empty:
-            lines += ["### Where the best full start is worse than the best diagonal start", ""]
-            lines += [why_full_worse(df, r) for _, r in worse.iterrows()] + [""]
-    if not targets.empty:
-        lines += ["## Fixed targets: ERT and success share", "",
-                  "Target f* + ε·|f*|, f* the best-known of the map's family. ERT (COCO): "
-                  "evaluations spent by all starts, each counted until it reached the target "
-                  "or stopped, divided by the number of starts that reached it (∞ if none).",
-                  "", write_table(targets, out, "targets", TARGET_COLUMNS), ""]
+        comp.to_csv(out / "comparison.csv", index=False, encoding="utf-8")
+        (out / "comparison.md").write_text(markdown_split(comp[COMPARISON_MD]) + "\n",
+                                           encoding="utf-8")
+    bk = best_known(df)
+    held, imps = holdout.holdout_rows(df)
+    if not held.empty:
+        held.to_csv(out / "holdout.csv", index=False, encoding="utf-8")
+    verdict = verdict_rows(df, bk, comp, held)
+    ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
+           "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
+    lines = ["# penaltyrun report", "",
+             f"Source: `{src}` — {len(df)} jobs, {df['run_id'].nunique()} run(s).", ""]
+    if not verdict.empty:
+        verdict.to_csv(out / "verdict.csv", index=False, encoding="utf-8")
+        lines += ["## Verdict: does a full matrix beat the diagonal one?", "",
+                  markdown(verdict, VERDICT_COLUMNS), ""]
+        lines += [f"- {s}" for s in verdict["sentence"]] + [""]
+        lines += ["Gain = (diagonal − full)/diagonal of the best-known costs; equal budget: "
+                  "A12 = P(a full start beats a diagonal start), Holm-corrected; held-out: "
+                  "the best-known starts paired on the problem's held-out scenarios "
+                  "(change = (J_diag − J_full)/J_diag, median). Details per case below; "
+                  "methods at the end.", ""]
+    body = checks(df)
+    if body:
+        lines += ["## Checks", ""] + body + [""]
+    for _, g in df.groupby(["problem", "case", "variant"], sort=True):
+        lines += _case_lines(g, ctx, out, paper)
+    lines += sections.contributed(df, out)
+    try:
+        lines += tuning.study_sections(df, out, paper)
+    except Exception as exc:  # one study must not lose the rest of the report
+        logger.warning("tuning-mode section failed: %s", exc)
+        lines += [f"(tuning-mode section failed: {exc!r})", ""]
+    lines += _statistics(df, bk, out)
     failed = df[df["status"] == "failed"]
     if not failed.empty:
         lines += ["## Failed jobs", ""]
-        lines += [f"- `{r.job_id}`: {str(r.error).splitlines()[0]}" for r in failed.itertuples()]
+        lines += [f"- `{r.job_id}`: {str(r.error).splitlines()[0] if r.error else ''}"
+                  for r in failed.itertuples()]
         lines.append("")
-    for (problem, case, variant), g in df.groupby(["problem", "case", "variant"], sort=True):
-        slug = "".join(ch if ch.isalnum() else "_" for ch in variant)[:60]
-        stem = f"{problem}_{case}" + (f"_{slug}" if variant else "")
-        title = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
-        lines += [f"## {title}", ""]
-        try:
-            lines += _figures(g, bk, out, stem, title, paper)
-        except Exception as exc:  # a figure that cannot be drawn must not lose the tables
-            logger.warning("figures %s failed: %s", title, exc)
-            lines += [f"(figures failed: {exc!r})", ""]
-        try:
-            lines += sections.problem_section(problem, case, g, out, paper, stem)
-        except Exception as exc:  # a figure that cannot be drawn must not lose the tables
-            logger.warning("section %s/%s failed: %s", problem, case, exc)
-            lines += [f"(problem-specific section failed: {exc})", ""]
-    for family, study in sections.STUDIES.items():
-        try:
-            lines += study(df, out, paper)
-        except Exception as exc:  # one family's study must not lose the rest of the report
-            logger.warning("%s study sections failed: %s", family, exc)
-            lines += [f"({family} study sections failed: {exc!r})", ""]
-    (out / "report.md").write_text("\n".join(lines) + "\n")
+    commits = ", ".join(sorted(df["git_commit"].dropna().unique())) or "unknown"
+    lines += ["## Methods and conventions", "", methods(), "",
+              f"Code commit(s) of these results: {commits}.", ""]
+    text = "\n".join(lines) + "\n"
+    (out / "report.md").write_text(text, encoding="utf-8")
+    html.write_html(text, out, out / "report.html")
+
+
+def _statistics(df: pd.DataFrame, bk: pd.DataFrame, out: Path) -> list[str]:
+    lines = ["## Statistics", "",
+             f"Holm families: (1) {FAMILY}; (2) {holdout.FAMILY}; (3) "
+             f"{sections.PAPER_FAMILY}. Raw p-values are in the CSV files.", ""]
+    if not bk.empty:
+        lines += ["### Best-known optima", "",
+                  "Lowest converged cost per problem × case × problem variant and map family "
+                  "over every optimizer, budget and warm start, with its evidence.", "",
+                  write_table(bk, out, "best_known", BEST_KNOWN_COLUMNS), ""]
+        gaps = shortfall(df, bk)
+        if not gaps.empty:
+            lines += ["### Optimizer shortfall against the best-known value of the map family",
+                      "", "gap = (cell best or median − best-known)/best-known, %, converged "
+                      "starts.", "", write_table(gaps, out, "shortfall", SHORTFALL_COLUMNS), ""]
+    targets = target_table(df, bk)
+    if not targets.empty:
+        lines += ["### Fixed targets: ERT and success share", "",
+                  "Target f* + ε·|f*|, f* the best-known of the map's own family. ERT (COCO): "
+                  "evaluations spent by all starts, each counted until it reached the target "
+                  "or stopped, divided by the number of starts that reached it (∞ if none).",
+                  "", write_table(targets, out, "targets", TARGET_COLUMNS), ""]
+    return lines

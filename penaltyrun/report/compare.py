@@ -19,8 +19,35 @@ GROUP = ["problem", "case", "variant", "optimizer"]
 #: Display order of the maps (others follow alphabetically).
 MAP_ORDER = ("diagonal", "full", "geagsp", "givens", "cayley", "cayley_tan")
 #: Holm family named in the report text.
-FAMILY = ("every map-vs-map comparison of this report (all problems, cases, variants and "
-          "optimizers together)")
+FAMILY = ("every equal-budget map-vs-map Mann–Whitney test of this report (all problems, "
+          "cases, variants and optimizers together)")
+#: Relative difference of the mean evaluations spent within which two cells' budgets are
+#: equal (their ``max_evals`` must be equal too).
+SPENT_RTOL = 0.01
+NO_TEST = "budgets differ: no test"
+
+
+def budget(sel: pd.DataFrame) -> tuple[float, float]:
+    """(``max_evals`` of a cell, NaN when none or mixed; mean evaluations spent by its
+    non-failed starts)."""
+    cap = np.nan
+    if "max_evals" in sel:
+        values = pd.to_numeric(sel["max_evals"], errors="coerce").dropna().unique()
+        cap = float(values[0]) if values.size == 1 else np.nan
+    ran = sel[sel["status"] != "failed"]
+    spent = float(pd.to_numeric(ran["n_evals"], errors="coerce").mean()) \
+        if "n_evals" in ran and len(ran) else np.nan
+    return cap, spent
+
+
+def equal_budget(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """Two cells have equal budgets: equal ``max_evals`` (or none for both) and mean
+    evaluations spent within :data:`SPENT_RTOL` of each other."""
+    (cap_a, spent_a), (cap_b, spent_b) = a, b
+    same_cap = (np.isnan(cap_a) and np.isnan(cap_b)) or cap_a == cap_b
+    if not same_cap or not (np.isfinite(spent_a) and np.isfinite(spent_b)):
+        return False
+    return abs(spent_a - spent_b) <= SPENT_RTOL * max(spent_a, spent_b)
 
 
 def map_order(params: list[str] | np.ndarray) -> list[str]:
@@ -42,7 +69,9 @@ def pairwise(df: pd.DataFrame) -> pd.DataFrame:
     median ``(median_a − median_b)/median_a`` in % (positive: b is lower), A12 = P(b start
     beats an a start) (+ ½ ties) with its magnitude, the two-sided Mann–Whitney U p-value,
     the Holm-adjusted p over all rows with a p-value, and a note when a group has fewer
-    than :data:`~penaltyrun.report.stats.MIN_N_TEST` converged starts (underpowered). With
+    than :data:`~penaltyrun.report.stats.MIN_N_TEST` converged starts (underpowered). Only
+    cells with equal budgets (:func:`equal_budget`) are tested; the others say
+    :data:`NO_TEST`. With
     fewer than 2 converged starts in a group (e.g. the deterministic grid optimizer) there
     is no test and the row is not in the Holm family.
     """
@@ -53,20 +82,26 @@ def pairwise(df: pd.DataFrame) -> pd.DataFrame:
         for a, b in itertools.combinations(map_order(g["param"].unique()), 2):
             xa, na = _costs(g, a)
             xb, nb = _costs(g, b)
+            ba, bb = budget(g[g["param"] == a]), budget(g[g["param"] == b])
+            equal = equal_budget(ba, bb)
             p = np.nan
-            if min(xa.size, xb.size) >= 2:
+            if equal and min(xa.size, xb.size) >= 2:
                 p = float(stats.mannwhitneyu(xa, xb, alternative="two-sided").pvalue)
-            effect = a12(xa, xb)
+            effect = a12(xa, xb) if equal else np.nan
             med_a = float(np.median(xa)) if xa.size else np.nan
             med_b = float(np.median(xb)) if xb.size else np.nan
-            notes = []
-            if min(xa.size, xb.size) < MIN_N_TEST:
+            notes = [] if equal else [NO_TEST]
+            if equal and min(xa.size, xb.size) < MIN_N_TEST:
                 notes.append(f"underpowered (n < {MIN_N_TEST})")
-            if min(xa.size, xb.size) < 2:
+            if equal and min(xa.size, xb.size) < 2:
                 notes.append("fewer than 2 converged starts in a group: no test")
             rows.append({
                 **dict(zip(GROUP, key)), "map_a": a, "map_b": b,
-                "n_a": int(xa.size), "n_b": int(xb.size),
+                "problem_variant": str(g["problem_variant"].iloc[0])
+                if "problem_variant" in g else key[GROUP.index("variant")],
+                "n_a": int(xa.size), "n_b": int(xb.size), "jobs_a": na, "jobs_b": nb,
+                "max_evals_a": ba[0], "max_evals_b": bb[0], "evals_a": ba[1],
+                "evals_b": bb[1], "equal_budget": equal,
                 "success_a": xa.size / na, "success_b": xb.size / nb,
                 "best_a": float(xa.min()) if xa.size else np.nan,
                 "best_b": float(xb.min()) if xb.size else np.nan,

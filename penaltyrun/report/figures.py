@@ -4,6 +4,7 @@ fixed-target ECDFs and cost distributions of one problem × case × variant."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -21,8 +22,21 @@ from penaltyrun.report.anytime import (  # noqa: E402
     hitting_evals,
 )
 from penaltyrun.report.bestknown import family, reference, with_problem_variant  # noqa: E402
-from penaltyrun.report.compare import map_order  # noqa: E402
-from penaltyrun.report.stats import converged  # noqa: E402
+from penaltyrun.report.compare import (
+    MAP_ORDER,  # noqa: E402
+    map_order,  # noqa: E402
+)
+from penaltyrun.report.stats import converged, paper_value  # noqa: E402
+from penaltyrun.report.tables import save_figure  # noqa: E402
+
+#: Font sizes of the report figures (points).
+plt.rcParams.update({"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11,
+                     "legend.fontsize": 10, "xtick.labelsize": 10, "ytick.labelsize": 10,
+                     "axes.formatter.useoffset": False})
+#: One colour per map in every figure of every report; other maps get the next ones.
+MAP_COLORS = {m: f"C{i}" for i, m in enumerate(MAP_ORDER)}
+#: Colour of each published value (dashed lines).
+PAPER_COLORS = {"mean_cost": "k", "median_cost": "0.45"}
 
 
 def _optimizers(df: pd.DataFrame) -> list[str]:
@@ -30,14 +44,19 @@ def _optimizers(df: pd.DataFrame) -> list[str]:
 
 
 def _colors(df: pd.DataFrame) -> dict[str, str]:
-    return {m: f"C{i}" for i, m in enumerate(map_order(df["param"].unique()))}
+    extra = [m for m in map_order(df["param"].unique()) if m not in MAP_COLORS]
+    return {**MAP_COLORS, **{m: f"C{len(MAP_COLORS) + i}" for i, m in enumerate(extra)}}
+
+
+def _no_offset(ax: plt.Axes) -> None:
+    """Plain cost tick labels (no ``+1.066e1`` offset text)."""
+    fmt = ax.yaxis.get_major_formatter()
+    if isinstance(fmt, matplotlib.ticker.ScalarFormatter):
+        fmt.set_useOffset(False)
 
 
 def _save(fig: plt.Figure, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def _log_x(ax: plt.Axes) -> None:
@@ -71,7 +90,7 @@ def anytime(df: pd.DataFrame, bk: pd.DataFrame, label: str, title: str,
     f_ref = np.nanmin(refs) if np.isfinite(refs).any() else 0.0
     delta = 1e-6 * abs(f_ref) or 1e-12
     colors = _colors(df)
-    fig, axes = plt.subplots(1, len(opts), figsize=(5 * len(opts), 4.2), squeeze=False,
+    fig, axes = plt.subplots(1, len(opts), figsize=(5.5 * len(opts), 4.6), squeeze=False,
                              sharey=True)
     for ax, opt in zip(axes[0], opts):
         g = df[df["optimizer"] == opt]
@@ -94,10 +113,10 @@ def anytime(df: pd.DataFrame, bk: pd.DataFrame, label: str, title: str,
         ax.set_xlabel("objective evaluations")
         ax.set_title(opt)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    axes[0, 0].set_ylabel(f"best-so-far − best-known (f* = {f_ref:.6g}) + δ\n{label}",
-                          fontsize=8)
-    fig.suptitle(f"{title}: anytime (median, IQR band)")
+        ax.legend()
+    axes[0, 0].set_ylabel(f"best-so-far − f* + δ\n{label}")
+    fig.suptitle(f"{title}: anytime (median, IQR band)\nf* = {f_ref:.6g} (lowest best-known, "
+                 f"any map), δ = {delta:.2g} = 1e-6·|f*| keeps f* on the log axis")
     return _save(fig, path)
 
 
@@ -111,7 +130,7 @@ def ecdf_figure(df: pd.DataFrame, bk: pd.DataFrame, title: str, path: Path) -> P
     if not opts:
         return None
     colors = _colors(df)
-    fig, axes = plt.subplots(len(EPSILONS), len(opts), figsize=(5 * len(opts), 3.4 *
+    fig, axes = plt.subplots(len(EPSILONS), len(opts), figsize=(5.5 * len(opts), 3.8 *
                              len(EPSILONS)), squeeze=False, sharey=True)
     for j, opt in enumerate(opts):
         g = df[df["optimizer"] == opt]
@@ -131,27 +150,34 @@ def ecdf_figure(df: pd.DataFrame, bk: pd.DataFrame, title: str, path: Path) -> P
             ax = axes[i, j]
             _log_x(ax)
             ax.set_ylim(-0.02, 1.02)
-            ax.set_title(f"{opt}, target f*·(1 + {eps:g})", fontsize=9)
+            ax.set_title(f"{opt}, target f*·(1 + {eps:g})")
             ax.set_xlabel("objective evaluations")
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=7)
+            ax.legend()
         axes[0, j].set_ylabel("share of starts at target")
-    fig.suptitle(f"{title}: fixed-target ECDF (f* = best-known of the map's family)")
+    fig.suptitle(f"{title}: fixed-target ECDF\nf* = best-known of each map's own family "
+                 "(diagonal or full): a map that reaches its own, higher f* sooner is not "
+                 "better")
     return _save(fig, path)
 
 
 def cost_distribution(df: pd.DataFrame, label: str, title: str, path: Path,
-                      paper: dict[str, float] | None = None) -> Path:
+                      paper: Any = None) -> Path:
     """Box plot and points of converged costs per optimizer (panel) × map.
 
     Diverged and failed starts are not plotted (a penalty is not a cost): the tick label
-    gives converged / all starts. Paper means are dashed lines where known.
+    gives converged / all starts. Published means / medians (a problem's
+    :class:`~penaltyrun.problems.base.PaperValues`) are dashed lines of fixed colours. A log
+    axis when the costs span more than two decades.
     """
     opts = sorted(df["optimizer"].unique())
     ok = df[converged(df)]
-    fig, axes = plt.subplots(1, len(opts), figsize=(max(3.2, 0.9 * df["param"].nunique() + 1.2)
-                                                    * len(opts), 4.5), squeeze=False,
+    fig, axes = plt.subplots(1, len(opts), figsize=(max(4.0, 1.1 * df["param"].nunique() + 1.6)
+                                                    * len(opts), 4.8), squeeze=False,
                              sharey=True)
+    colors = _colors(df)
+    costs = ok["best_cost"].astype(float).to_numpy()
+    log = costs.size and costs.min() > 0 and costs.max() / costs.min() > 100
     rng = np.random.default_rng(0)
     for ax, opt in zip(axes[0], opts):
         g, gok = df[df["optimizer"] == opt], ok[ok["optimizer"] == opt]
@@ -161,18 +187,25 @@ def cost_distribution(df: pd.DataFrame, label: str, title: str, path: Path,
         if any(d.size for d in data):
             ax.boxplot([d if d.size else [np.nan] for d in data], showfliers=False)
         ticks = [f"{p}\n{d.size}/{int((g['param'] == p).sum())}" for p, d in zip(params, data)]
-        ax.set_xticks(range(1, len(params) + 1), ticks, fontsize=8)
+        ax.set_xticks(range(1, len(params) + 1), ticks)
+        shown: set[str] = set()
         for i, (p, values) in enumerate(zip(params, data), start=1):
-            ax.scatter(i + rng.uniform(-0.12, 0.12, values.size), values, s=14, color="C0",
-                       zorder=3)
-            ref = (paper or {}).get("full" if p in ("full", "geagsp") else p)
-            if ref is not None and np.isfinite(ref):
-                ax.hlines(ref, i - 0.3, i + 0.3, colors="k", linestyles="--",
-                          label="paper mean" if p == "diagonal" else None)
-        ax.set_title(f"{opt} (converged/all under each map)", fontsize=9)
+            ax.scatter(i + rng.uniform(-0.12, 0.12, values.size), values, s=16,
+                       color=colors[p], zorder=3)
+            for kind, color in PAPER_COLORS.items():
+                ref = paper_value(paper, p, kind) if paper is not None else np.nan
+                if np.isfinite(ref):
+                    name = f"paper {kind.split('_')[0]}"
+                    ax.hlines(ref, i - 0.3, i + 0.3, colors=color, linestyles="--",
+                              label=None if name in shown else name)
+                    shown.add(name)
+        ax.set_title(f"{opt} (converged/all under each map)")
         ax.grid(True, axis="y", alpha=0.3)
+        if log:
+            ax.set_yscale("log")
+        _no_offset(ax)
         if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7)
-    axes[0, 0].set_ylabel(f"best cost per converged start\n{label}", fontsize=8)
+            ax.legend()
+    axes[0, 0].set_ylabel(f"best cost per converged start\n{label}")
     fig.suptitle(title)
     return _save(fig, path)

@@ -1,20 +1,23 @@
-"""Held-out scenarios in the report: one section per problem family, and the low-thrust
-discretization check.
+"""Held-out scenarios in the report: one section per problem and the discretization check.
 
 Every job stores its best matrices' results on the problem's held-out set (``holdout``
-column, see :meth:`Problem.holdout`). For each cell (problem × case × variant × optimizer)
-the best diagonal start and the best start of each full map are paired scenario by
-scenario (by label):
+column, see :meth:`Problem.holdout`); the problem says what that set is
+(``ReportInfo.holdout_description``). Two kinds of pairing, scenario by scenario (by
+label):
 
-* convergence rate of each matrix on the held-out set, and over all starts of the cell;
-* improvement (J_diag − J_full)/J_diag per scenario where both converge: median and 5 / 95 %
-  quantiles; the share of those scenarios where full is better;
-* Wilcoxon signed-rank test of the paired costs (two-sided, ``scipy.stats.wilcoxon``;
-  spec statistics.md), with "underpowered" below 10 pairs.
+* per cell (problem × case × variant × optimizer): that cell's best diagonal start vs the
+  best start of each full map;
+* per problem × case × problem variant (``optimizer`` = :data:`BEST_KNOWN`): the starts that
+  hold the best-known diagonal and full costs (over every optimizer) — the verdict's row.
 
-Low thrust adds the discretization check: each tuned K's cost at the other control steps
-and RK4 substep counts of its held-out set; a nominal saving smaller than that spread is
-labelled "within discretization noise".
+Statistics: convergence rates; improvement (J_diag − J_full)/J_diag per scenario where both
+converge (median, 5 / 95 % quantiles); the share of those where full is better; the
+two-sided Wilcoxon signed-rank test (``scipy.stats.wilcoxon``), Holm-corrected over every
+held-out test of the report (:data:`FAMILY`), "underpowered" below 10 pairs.
+
+Scenarios whose ``kind`` the problem lists in ``ReportInfo.discretization_kinds`` re-run the
+training scenario at another discretization: they are left out of the pairing and give the
+discretization check instead (:func:`discretization_rows`).
 """
 
 from __future__ import annotations
@@ -31,21 +34,24 @@ import pandas as pd  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from penaltyrun.io import decode_json  # noqa: E402
-from penaltyrun.report.tables import markdown  # noqa: E402
+from penaltyrun.report import protocol  # noqa: E402
+from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
+from penaltyrun.report.stats import holm  # noqa: E402
+from penaltyrun.report.tables import markdown, save_figure  # noqa: E402
 
-#: Problem families: title → problem names.
-FAMILIES = {"Zermelo": ("zermelo",), "attitude": ("attitude_lyapunov", "attitude_lqr"),
-            "low thrust": ("qlaw", "lyapunov_transfer")}
 #: Fewer pairs than this: the Wilcoxon test is reported as underpowered.
 MIN_PAIRS = 10
-#: Held-out scenario kinds that change the discretization, not the scenario.
-DISCRETIZATION_KINDS = ("control_step", "substeps")
+#: ``optimizer`` label of the rows pairing the best-known starts (over all optimizers).
+BEST_KNOWN = "best-known (all optimizers)"
+#: Holm family of the held-out tests, named in the report.
+FAMILY = "every held-out Wilcoxon test of this report (all problems, cases and rows)"
 
 
-def scenario_table(holdout: Any) -> pd.DataFrame | None:
+def scenario_table(holdout: Any, drop_kinds: tuple[str, ...] = ()) -> pd.DataFrame | None:
     """Held-out JSON of one job as a table indexed by scenario label.
 
-    Results written before scenarios had labels are indexed by position.
+    Results written before scenarios had labels are indexed by position. Scenarios whose
+    ``kind`` is in ``drop_kinds`` (discretization re-runs) are left out.
 
     Returns
     -------
@@ -62,7 +68,8 @@ def scenario_table(holdout: Any) -> pd.DataFrame | None:
                          index=pd.Index([str(s) for s in labels], name="scenario"))
     if "kind" in data:
         table["kind"] = list(data["kind"])
-    return table
+        table = table[~table["kind"].isin(drop_kinds)]
+    return table if len(table) else None
 
 
 def best_start(g: pd.DataFrame) -> pd.Series | None:
@@ -75,11 +82,11 @@ def best_start(g: pd.DataFrame) -> pd.Series | None:
     return pick.loc[pick["best_cost"].idxmin()]
 
 
-def _rate_all(g: pd.DataFrame) -> float:
+def _rate_all(g: pd.DataFrame, drop: tuple[str, ...] = ()) -> float:
     """Share of (start, scenario) pairs that converge, over all starts of ``g``."""
     hits = total = 0
     for h in g["holdout"].dropna():
-        t = scenario_table(h)
+        t = scenario_table(h, drop)
         if t is not None:
             hits += int(t["converged"].sum())
             total += len(t)
@@ -121,151 +128,194 @@ def paired(diag: pd.DataFrame, full: pd.DataFrame) -> dict[str, Any]:
             "wilcoxon_p": p, "note": note, "improvements": imp}
 
 
+def _row(problem: str, case: str, variant: str, optimizer: str, param: str,
+         drow: pd.Series, frow: pd.Series, drop: tuple[str, ...]) -> dict[str, Any] | None:
+    dtab = scenario_table(drow["holdout"], drop)
+    ftab = scenario_table(frow["holdout"], drop)
+    if dtab is None or ftab is None:
+        return None
+    return {"problem": problem, "case": case, "variant": variant, "optimizer": optimizer,
+            "full_map": param, **paired(dtab, ftab)}
+
+
 def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
-    """One row per cell × full map: paired held-out statistics vs the cell's best diagonal.
+    """Paired held-out statistics: one row per cell × full map, and one per problem × case
+    × problem variant for the best-known starts (``optimizer`` = :data:`BEST_KNOWN`).
 
     Returns
     -------
     table : DataFrame
+        Columns of :func:`paired` plus ``p_holm`` (Holm over every row with a p-value) and
+        the convergence rates over all starts of the cell.
     improvements : dict label → ndarray of per-scenario improvements (%)
     """
-    rows, imps = [], {}
-    keys = ["problem", "case", "variant", "optimizer"]
-    for (problem, case, variant, optimizer), g in df.groupby(keys, sort=True):
+    if "holdout" not in df or df.empty:
+        return pd.DataFrame(), {}
+    df = with_problem_variant(df)
+    if "variant" not in df:
+        df = df.assign(variant=df["problem_variant"])
+    rows = []
+    for (problem, case, pvar, variant, optimizer), g in df.groupby(
+            ["problem", "case", "problem_variant", "variant", "optimizer"], sort=True):
+        drop = protocol.info_of(g).discretization_kinds
         dg = g[g["param"] == "diagonal"]
         drow = best_start(dg)
         if drow is None:
             continue
-        dtab = scenario_table(drow["holdout"])
         for param, fg in g[g["param"] != "diagonal"].groupby("param", sort=True):
             frow = best_start(fg)
-            ftab = None if frow is None else scenario_table(frow["holdout"])
-            if dtab is None or ftab is None:
-                continue
-            res = paired(dtab, ftab)
-            label = f"{problem} / {case}{' [' + variant + ']' if variant else ''} / " \
-                    f"{optimizer} / {param}"
-            if res["improvements"].size:
-                imps[label] = res.pop("improvements")
-            else:
-                res.pop("improvements")
-            rows.append({"problem": problem, "case": case, "variant": variant,
-                         "optimizer": optimizer, "full_map": param, **res,
-                         "diag_conv_all_starts": _rate_all(dg),
-                         "full_conv_all_starts": _rate_all(fg)})
-    return pd.DataFrame(rows), imps
+            res = None if frow is None else _row(problem, case, variant, optimizer, param,
+                                                 drow, frow, drop)
+            if res is not None:
+                rows.append({**res, "problem_variant": pvar,
+                             "diag_conv_all_starts": _rate_all(dg, drop),
+                             "full_conv_all_starts": _rate_all(fg, drop)})
+    for (problem, case, pvar), g in df.groupby(["problem", "case", "problem_variant"],
+                                               sort=True):
+        best = best_rows(g[g["holdout"].notna()])
+        if set(best) >= {"diagonal", "full"}:
+            drop = protocol.info_of(g).discretization_kinds
+            res = _row(problem, case, pvar, BEST_KNOWN, best["full"]["param"],
+                       best["diagonal"], best["full"], drop)
+            if res is not None:
+                rows.append({**res, "problem_variant": pvar})
+    table = pd.DataFrame(rows)
+    imps: dict[str, np.ndarray] = {}
+    if table.empty:
+        return table, imps
+    for _, r in table.iterrows():
+        if r["improvements"].size:
+            variant = f" [{r['variant']}]" if r["variant"] else ""
+            label = f"{r['problem']} / {r['case']}{variant} / {r['optimizer']} / {r['full_map']}"
+            imps[label] = r["improvements"]
+    table["label"] = [f"{r['problem']} / {r['case']}"
+                      f"{' [' + r['variant'] + ']' if r['variant'] else ''} / "
+                      f"{r['optimizer']} / {r['full_map']}" for _, r in table.iterrows()]
+    table = table.drop(columns="improvements")
+    table.insert(table.columns.get_loc("wilcoxon_p") + 1, "p_holm",
+                 holm(table["wilcoxon_p"].to_numpy(float)))
+    return table, imps
+
+
+def discretization_check(diag: pd.Series, full: pd.Series,
+                         kinds: tuple[str, ...]) -> dict[str, Any] | None:
+    """Discretization check of one diagonal and one full start.
+
+    spread = max − min of a start's cost over its training run and its held-out scenarios
+    of ``kinds`` (converged runs only); the saving (diagonal − full, training runs) is
+    *within discretization noise* when its magnitude is below the larger spread.
+
+    Returns
+    -------
+    dict or None
+        ``saving``, ``diag_spread``, ``full_spread``, ``verdict``; None without data.
+    """
+    spread, nominal = {}, {}
+    for name, row in (("diagonal", diag), ("full", full)):
+        data = None if row is None else decode_json(row["holdout"])
+        if not kinds or not data or "kind" not in data or "training" not in data:
+            return None
+        sel = np.isin(np.asarray(data["kind"]), kinds) & np.asarray(data["converged"], bool)
+        costs = list(np.asarray(data["cost"], float)[sel])
+        train = data["training"] or {}
+        if not train.get("converged"):
+            return None
+        nominal[name] = float(train["cost"])
+        costs.append(nominal[name])
+        spread[name] = float(np.ptp(costs)) if len(costs) >= 2 else np.nan
+    saving = nominal["diagonal"] - nominal["full"]
+    noise = np.nanmax([spread["diagonal"], spread["full"]]) \
+        if np.isfinite([spread["diagonal"], spread["full"]]).any() else np.nan
+    verdict = "—" if not np.isfinite(noise) else (
+        "within discretization noise" if abs(saving) < noise else "beyond the spread")
+    return {"saving": saving, "diag_spread": spread["diagonal"],
+            "full_spread": spread["full"], "verdict": verdict}
 
 
 def discretization_rows(df: pd.DataFrame) -> pd.DataFrame:
-    """Low-thrust discretization check of each cell's best diagonal and best full K.
-
-    spread = max − min of a K's cost over the training run and its held-out control-step /
-    substep scenarios (converged runs only); the nominal saving (diagonal − full, training
-    runs) is "within discretization noise" when it is smaller than the larger spread.
-    """
+    """The discretization check of each cell's best diagonal vs best full start, for the
+    problems that declare discretization scenario kinds."""
     rows = []
-    keys = ["problem", "case", "variant", "optimizer"]
-    for (problem, case, variant, optimizer), g in df.groupby(keys, sort=True):
-        best = {"diagonal": best_start(g[g["param"] == "diagonal"])}
-        for param, fg in g[g["param"] != "diagonal"].groupby("param", sort=True):
-            best[param] = best_start(fg)
-        spread, nominal = {}, {}
-        for param, row in best.items():
-            data = None if row is None else decode_json(row["holdout"])
-            if not data or "kind" not in data or "training" not in data:
-                continue
-            kinds = np.asarray(data["kind"])
-            sel = np.isin(kinds, DISCRETIZATION_KINDS) & np.asarray(data["converged"], bool)
-            costs = list(np.asarray(data["cost"], float)[sel])
-            train = data["training"]
-            if train.get("converged"):
-                costs.append(float(train["cost"]))
-                nominal[param] = float(train["cost"])
-            spread[param] = float(np.ptp(costs)) if len(costs) >= 2 else np.nan
-        if "diagonal" not in nominal:
+    if "holdout" not in df:
+        return pd.DataFrame(rows)
+    for (problem, case, variant, optimizer), g in df.groupby(
+            ["problem", "case", "variant", "optimizer"], sort=True):
+        kinds = protocol.info_of(g).discretization_kinds
+        drow = best_start(g[g["param"] == "diagonal"])
+        if not kinds or drow is None:
             continue
-        for param in [p for p in nominal if p != "diagonal"]:
-            saving = nominal["diagonal"] - nominal[param]
-            noise = np.nanmax([spread.get("diagonal", np.nan), spread.get(param, np.nan)])
-            verdict = "—" if not np.isfinite(noise) else (
-                "within discretization noise" if abs(saving) < noise else "beyond the spread")
-            rows.append({"problem": problem, "case": case, "variant": variant,
-                         "optimizer": optimizer, "full_map": param,
-                         "diag_nominal": nominal["diagonal"], "full_nominal": nominal[param],
-                         "saving": saving, "diag_spread": spread.get("diagonal", np.nan),
-                         "full_spread": spread.get(param, np.nan), "verdict": verdict})
+        for param, fg in g[g["param"] != "diagonal"].groupby("param", sort=True):
+            res = discretization_check(drow, best_start(fg), kinds)
+            if res is not None:
+                rows.append({"problem": problem, "case": case, "variant": variant,
+                             "optimizer": optimizer, "full_map": param, **res})
     return pd.DataFrame(rows)
 
 
-def _figure(imps: dict[str, np.ndarray], path: Path, title: str) -> None:
-    fig, ax = plt.subplots(figsize=(9, 0.5 * len(imps) + 1.8))
-    horizontal = ({"orientation": "horizontal"}
-                  if tuple(int(v) for v in matplotlib.__version__.split(".")[:2]) >= (3, 10)
-                  else {"vert": False})
-    ax.boxplot(list(imps.values()), showfliers=True, **horizontal)
-    ax.set_yticks(range(1, len(imps) + 1), list(imps), fontsize=7)
+def figure(imps: dict[str, np.ndarray], path: Path, title: str) -> Path:
+    """Box plot of the per-scenario improvements (%), symlog axis (outliers of −1 000 %
+    do not squash the boxes)."""
+    fig, ax = plt.subplots(figsize=(10, 0.55 * len(imps) + 2.0))
+    ax.boxplot(list(imps.values()), showfliers=True, orientation="horizontal")
+    ax.set_yticks(range(1, len(imps) + 1), list(imps), fontsize=9)
     ax.axvline(0.0, color="k", lw=0.8)
-    ax.set_xlabel("improvement of full over diagonal per held-out scenario (%), both converged")
+    ax.set_xscale("symlog", linthresh=1.0)
+    ax.set_xlabel("(J_diag − J_full)/J_diag per held-out scenario, both converged (%; "
+                  "symlog axis, linear within ±1 %)")
     ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    ax.grid(True, axis="x", alpha=0.3)
+    return save_figure(fig, path)
 
 
-COLUMNS = ["problem", "case", "variant", "optimizer", "full_map", "scenarios", "diag_conv",
-           "full_conv", "pairs", "full_better_share", "median_imp_pct", "q05_imp_pct",
-           "q95_imp_pct", "wilcoxon_p", "note", "diag_conv_all_starts",
-           "full_conv_all_starts"]
-HEADERS = ["problem", "case", "variant", "optimizer", "full map", "scenarios",
-           "diag conv.", "full conv.", "pairs (both conv.)", "full better (share)",
-           "median impr. %", "5 % q.", "95 % q.", "Wilcoxon p", "note",
-           "diag conv. (all starts)", "full conv. (all starts)"]
+COLUMNS = ["optimizer", "full_map", "pairs", "scenarios", "diag_conv", "full_conv",
+           "full_better_share", "median_imp_pct", "wilcoxon_p", "p_holm"]
+HEADERS = ["optimizer", "full map", "pairs (both conv.)", "scenarios", "diag conv.",
+           "full conv.", "full better (of pairs)", "median change %", "Wilcoxon p", "Holm p"]
 
 
-def family_section(family: str, df: pd.DataFrame, out: Path) -> list[str]:
-    """Markdown lines of one family's held-out section (empty without held-out data)."""
-    table, imps = holdout_rows(df)
-    if table.empty:
+def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.ndarray],
+                    out: Path) -> list[str]:
+    """Markdown lines of one problem case's held-out section (empty without data)."""
+    df = with_problem_variant(df)
+    first = df.iloc[0]
+    sel = table[(table["problem"] == first["problem"]) & (table["case"] == first["case"])
+                & (table["problem_variant"] == first["problem_variant"])] \
+        if not table.empty else table
+    if sel.empty:
         return []
-    slug = family.replace(" ", "_").lower()
-    table.to_csv(out / f"holdout_{slug}.csv", index=False)
-    lines = [f"## Held-out scenarios: {family}", "",
-             "Best diagonal vs best full matrices of each cell, re-evaluated on the "
-             "problem's held-out set and paired by scenario. Conv. = share of held-out "
-             "scenarios where the terminal condition is met; improvement = (J_diag − J_full)"
-             "/J_diag over the scenarios where both converge; Wilcoxon signed-rank, "
-             "two-sided, on those pairs (raw p, no multiplicity correction). The last two "
-             "columns pool every start of the cell.", "",
-             markdown(table, COLUMNS, HEADERS), ""]
-    if imps:
+    info = protocol.info_of(df)
+    what = info.holdout_description or "the problem does not describe its held-out set"
+    lines = ["### Held-out scenarios", "", f"Held-out set: {what}.", "",
+             "Best diagonal vs best full start, re-evaluated on the held-out set and paired "
+             "by scenario; change = (J_diag − J_full)/J_diag over the scenarios where both "
+             "converge (positive: full is lower). Wilcoxon signed-rank, two-sided; Holm p "
+             f"over {FAMILY}.", ""]
+    shown = sel.assign(full_better_share=[
+        "—" if not p else f"{int(round(s * p))}/{p}"
+        for s, p in zip(sel["full_better_share"], sel["pairs"])])
+    for variant, g in shown.groupby("variant", sort=True):
+        if variant:
+            lines += [f"Variant `{variant}`:", ""]
+        lines += [markdown(g, COLUMNS, HEADERS), ""]
+    mine = {k: imps[k] for k in sel["label"] if k in imps}
+    if mine:
+        slug = "".join(ch if ch.isalnum() else "_" for ch in f"{first['problem']}_"
+                       f"{first['case']}_{first['problem_variant']}").rstrip("_")
         name = f"holdout_{slug}.png"
-        _figure(imps, out / name, f"Held-out scenarios: {family}")
-        lines += [f"![held-out {family}]({name})", ""]
-    if family == "low thrust":
-        disc = discretization_rows(df)
-        if not disc.empty:
-            disc.to_csv(out / "holdout_discretization.csv", index=False)
-            lines += ["### Low thrust: discretization check", "",
-                      "Saving = cost of the best diagonal K − cost of the best full K at the "
-                      "training control step (days or kg). Spread = max − min of one K's "
-                      "cost over the training step and the held-out control steps / RK4 "
-                      "substeps (converged runs). A saving smaller than the larger spread is "
-                      "within discretization noise (spec lowthrust.md).", "",
-                      markdown(disc), ""]
+        figure(mine, out / name, f"{first['problem']} / {first['case']}: held-out scenarios")
+        lines += [f"![held-out {first['problem']} / {first['case']}]({name})", ""]
+    disc = discretization_rows(df)
+    if not disc.empty:
+        lines += ["### Discretization check", "",
+                  "Saving = training cost of the best diagonal − of the best full start "
+                  f"({info.cost_label}); spread = max − min of one start's cost over the "
+                  "training run and its discretization re-runs; a saving smaller than the "
+                  "larger spread is within discretization noise.", "",
+                  markdown(disc, ["optimizer", "full_map", "saving", "diag_spread",
+                                  "full_spread", "verdict"]), ""]
     return lines
 
 
-def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
-    """Held-out sections of every problem family present in ``df``."""
-    if "holdout" not in df:
-        return []
-    lines: list[str] = []
-    for family, names in FAMILIES.items():
-        sel = df[df["problem"].isin(names)]
-        if not sel.empty:
-            lines += family_section(family, sel, out)
-    return lines
-
-
-__all__ = ["best_start", "discretization_rows", "family_section", "holdout_rows", "paired",
-           "scenario_table", "study_sections"]
+__all__ = ["BEST_KNOWN", "FAMILY", "best_start", "discretization_check",
+           "discretization_rows", "holdout_rows", "paired", "problem_section",
+           "scenario_table"]

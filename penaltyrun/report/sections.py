@@ -1,44 +1,48 @@
-"""Problem-specific report sections (paper comparisons and problem figures)."""
+"""Problem sections of the report, built only from what each problem declares through the
+protocol (:mod:`penaltyrun.report.protocol`): its plots of the best starts, its paper values
+beside ours, active bounds, and the sections the problem contributes itself."""
 
 from __future__ import annotations
 
-import json
-from collections.abc import Callable
+import logging
 from pathlib import Path
 from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from scipy import stats  # noqa: E402
 
 from penaltyrun import problems  # noqa: E402
 from penaltyrun.io import decode_json  # noqa: E402
-from penaltyrun.report import attitude, companion, holdout, lowthrust, tuning  # noqa: E402
-from penaltyrun.report.paper import BEST_MATRICES  # noqa: E402
-from penaltyrun.report.tables import markdown  # noqa: E402
+from penaltyrun.problems import report_hooks  # noqa: E402
+from penaltyrun.problems.base import ReportSection  # noqa: E402
+from penaltyrun.report import protocol  # noqa: E402
+from penaltyrun.report.bestknown import best_rows, family  # noqa: E402
+from penaltyrun.report.stats import converged, holm, paper_value  # noqa: E402
+from penaltyrun.report.tables import (  # noqa: E402
+    fmt,
+    markdown,
+    markdown_split,
+    save_figure,
+    with_unit,
+)
+
+logger = logging.getLogger(__name__)
 
 #: Share of the largest entry within which a matrix "matches" a published one.
 MATCH_TOL = 0.005
-
-
-def best_rows(df: pd.DataFrame) -> dict[tuple[str, str], pd.Series]:
-    """Best non-failed job per (parameterization, optimizer)."""
-    ok = df[df["status"] != "failed"]
-    return {key: g.loc[g["best_cost"].idxmin()]
-            for key, g in ok.groupby(["param", "optimizer"], sort=True)}
+#: Relative distance to a bound within which a best matrix is "at" the bound.
+BOUND_RTOL = 1e-6
+#: Holm family of the median tests against published medians.
+PAPER_FAMILY = "every median test against a published median of this report"
 
 
 def matrices_of(row: pd.Series) -> dict[str, np.ndarray]:
     """Decoded best matrices of a job row."""
-    return {k: np.asarray(v, float) for k, v in decode_json(row["matrices"]).items()}
-
-
-def problem_of(row: pd.Series) -> Any:
-    """The problem instance a job row was run with."""
-    return problems.make(row["problem"], row["case"], decode_json(row["problem_params"]) or {})
+    return {k: np.asarray(v, float) for k, v in (decode_json(row["matrices"]) or {}).items()}
 
 
 def relative_deviation(K: np.ndarray, ref: np.ndarray) -> float:
@@ -46,73 +50,206 @@ def relative_deviation(K: np.ndarray, ref: np.ndarray) -> float:
     return float(np.max(np.abs(K - ref)) / np.max(np.abs(ref)))
 
 
-def zermelo_section(df: pd.DataFrame, out: Path, paper: bool, stem: str) -> list[str]:
-    """Best K vs the paper's K1/K2, match counts, and the phase-plane figure."""
-    mod = problems.module("zermelo")
-    best = best_rows(df)
-    if not best:
+def _slug(text: str) -> str:
+    return "".join(ch if ch.isalnum() else "_" for ch in text)[:80]
+
+
+def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
+    """The problem's own figures (``report_plots`` hook, default: time histories) of the
+    best diagonal and best full start over every optimizer, and of the paper's matrices."""
+    first = g.iloc[0]
+    mod = protocol.module(first["problem"])
+    if mod is None:
         return []
-    prob = problem_of(next(iter(best.values())))
-    rows, paths = [], {}
-    ref_mats = BEST_MATRICES[("zermelo", "default")]
-    for (param, optimizer), row in best.items():
-        K = matrices_of(row)["K"]
-        if param in ("diagonal", "full", "geagsp") and optimizer == "pso":
-            paths[f"best {param} (J = {row['best_cost']:.4f})"] = prob.simulate({"K": K})
-        entry = {"param": param, "optimizer": optimizer,
-                 "best K": json.dumps(np.round(K, 4).tolist()), "best J": float(row["best_cost"])}
-        ref = ref_mats.get("full" if param != "diagonal" else "diagonal")
-        if paper and ref is not None:
-            cell = df[(df["param"] == param) & (df["optimizer"] == optimizer)
-                      & (df["status"] != "failed")]
-            devs = [relative_deviation(matrices_of(r)["K"], ref["K"]) for _, r in cell.iterrows()]
-            entry.update({
-                "paper K": json.dumps(ref["K"].round(4).tolist()),
-                "J(paper K), ours": prob.evaluate(ref)["cost"],
-                "deviation of best K": f"{100 * relative_deviation(K, ref['K']):.3f} %",
-                "starts within 0.5 %": f"{sum(d <= MATCH_TOL for d in devs)}/{len(devs)}",
-            })
-        rows.append(entry)
-    if paper:
-        for param, ref in ref_mats.items():
-            paths[f"paper {param} K"] = prob.simulate(ref)
-    if not any(label.startswith("best") for label in paths):
-        paths.update({f"best {p} / {o}": prob.simulate(matrices_of(r))
-                      for (p, o), r in best.items()})
-    fig, ax = plt.subplots(figsize=(6.5, 6.5))
-    mod.plot_phase_plane(paths, ax=ax)
-    ax.set_title("Zermelo: closed-loop paths over the current")
-    fig.tight_layout()
-    fig.savefig(out / f"{stem}_phase_plane.png", dpi=120)
-    plt.close(fig)
+    info = protocol.info_of(g)
+    sims: dict[str, Any] = {}
+    for fam, row in best_rows(g).items():
+        sims[f"best {fam} ({row['optimizer']}/{row['param']}, "
+             f"{with_unit(float(row['best_cost']), info.cost_unit, 4)})"] = \
+            protocol.simulate(row)
+    if info.paper is not None and sims:
+        prob = problems.make(first["problem"], first["case"],
+                             protocol.params_of(first.get("problem_params")))
+        for name, mats in info.paper.matrices.items():
+            sims[f"paper {name}"] = prob.simulate(dict(mats))
+    figures = report_hooks.plots(mod, sims, first["case"],
+                                 protocol.params_of(first.get("problem_params")))
+    lines = []
+    for caption, fig in figures.items():
+        name = f"{stem}_{_slug(caption)}.png"
+        save_figure(fig, out / name)
+        lines += [f"![{caption}]({name})", ""]
+    return lines
+
+
+def paper_matrices(g: pd.DataFrame) -> list[str]:
+    """Our best matrices vs the published ones: cost of the published matrix in our
+    implementation, distance of our best, starts that match it."""
+    info = protocol.info_of(g)
+    if info.paper is None or not info.paper.matrices:
+        return []
+    first = g.iloc[0]
+    prob = problems.make(first["problem"], first["case"],
+                         protocol.params_of(first.get("problem_params")))
+    ok = g[converged(g) & (g["optimizer"] != "baseline")]
+    rows = []
+    for name, ref in info.paper.matrices.items():
+        cell = ok[ok["param"].map(family) == family(name)]
+        if cell.empty:
+            continue
+        best = cell.loc[cell["best_cost"].astype(float).idxmin()]
+        devs = [max(relative_deviation(matrices_of(r)[k], np.asarray(v, float))
+                    for k, v in ref.items()) for _, r in cell.iterrows()]
+        best_dev = max(relative_deviation(matrices_of(best)[k], np.asarray(v, float))
+                       for k, v in ref.items())
+        rows.append({"map": name, "our best": float(best["best_cost"]),
+                     "by": f"{best['optimizer']}/{best['param']}",
+                     f"paper {', '.join(ref)}: our cost": float(prob.evaluate(dict(ref))["cost"]),
+                     "deviation of our best": f"{100 * best_dev:.3g} %",
+                     f"starts within {100 * MATCH_TOL:g} %": f"{sum(d <= MATCH_TOL for d in devs)}"
+                                                             f"/{len(devs)}"})
+    if not rows:
+        return []
+    return [f"Our best matrices vs the published ones ({info.paper.source}); costs in "
+            f"{info.cost_label}; deviation = max |K − K_paper| / max |K_paper|.", "",
+            markdown(pd.DataFrame(rows)), ""]
+
+
+def median_test(ours: np.ndarray, their_median: float, their_runs: int) -> float:
+    """Two-sided Mood's median test of our costs against a published median.
+
+    Their runs are split half above, half below their median (true by definition of a
+    median of ``their_runs`` distinct values); ours are counted (values equal to it left
+    out); Fisher's exact test of the 2 × 2 table. NaN without our costs.
+    """
+    ours = np.asarray(ours, float)
+    above, below = int((ours > their_median).sum()), int((ours < their_median).sum())
+    if above + below == 0 or not their_runs:
+        return float("nan")
+    half = their_runs // 2
+    return float(stats.fisher_exact([[above, below], [half, their_runs - half]]).pvalue)
+
+
+def paper_rows(df: pd.DataFrame) -> pd.DataFrame:
+    """Our cells beside the published mean / median / four-number summaries, with a median
+    test where the number of published runs is known (Holm over :data:`PAPER_FAMILY`)."""
+    rows = []
+    for (problem, case, variant, optimizer, param), g in df[df["optimizer"] != "baseline"] \
+            .groupby(["problem", "case", "variant", "optimizer", "param"], sort=True):
+        paper = protocol.info_of(g).paper
+        if paper is None:
+            continue
+        summary = (paper.summaries or {}).get(param)
+        mean = paper_value(paper, param, "mean_cost")
+        median = paper_value(paper, param, "median_cost")
+        if summary is not None:
+            median = summary[1] if not np.isfinite(median) else median
+            mean = summary[2] if not np.isfinite(mean) else mean
+        if not (np.isfinite(mean) or np.isfinite(median)):
+            continue
+        cost = g.loc[converged(g), "best_cost"].astype(float).to_numpy()
+        rows.append({"problem": problem, "case": case, "variant": variant,
+                     "optimizer": optimizer, "map": param,
+                     "converged": f"{cost.size}/{len(g)}",
+                     "ours median / mean": f"{fmt(np.median(cost) if cost.size else np.nan, 4)}"
+                                           f" / {fmt(cost.mean() if cost.size else np.nan, 4)}",
+                     "paper median / mean": f"{fmt(median, 4)} / {fmt(mean, 4)}",
+                     "paper runs": paper.runs or "—", "source": paper.source,
+                     "p": median_test(cost, median, paper.runs or 0)
+                     if np.isfinite(median) else np.nan})
     table = pd.DataFrame(rows)
-    return ["### Best matrices vs the paper's K1 (diagonal) and K2 (full)", "",
-            markdown(table), "", f"![phase plane]({stem}_phase_plane.png)", ""]
+    if not table.empty:
+        table["Holm p"] = holm(table.pop("p").to_numpy(float))
+    return table
 
 
-#: problem name → section builder(df of one case and variant, out dir, paper flag, file stem)
-#: → Markdown lines.
-SECTIONS: dict[str, Callable[[pd.DataFrame, Path, bool, str], list[str]]] = {
-    "zermelo": zermelo_section,
-    "attitude_lyapunov": attitude.case_section,
-    "attitude_lqr": attitude.case_section,
-    "lyapunov_transfer": lowthrust.case_section,
-    "qlaw": lowthrust.case_section,
-}
+PAPER_COLUMNS = ["optimizer", "map", "converged", "ours median / mean", "paper median / mean",
+                 "paper runs", "source", "Holm p"]
 
 
-def problem_section(problem: str, case: str, df: pd.DataFrame, out: Path, paper: bool,
-                    stem: str) -> list[str]:
-    """Markdown lines of the problem-specific section (empty if none is registered)."""
-    builder = SECTIONS.get(problem)
-    return builder(df, out, paper, stem) if builder else []
+def paper_section(g: pd.DataFrame, table: pd.DataFrame) -> list[str]:
+    """Lines of one case's paper comparison (the rows of ``table`` for it)."""
+    first = g.iloc[0]
+    lines = paper_matrices(g)
+    info = protocol.info_of(g)
+    if not table.empty:
+        sel = table[(table["problem"] == first["problem"]) & (table["case"] == first["case"])
+                    & (table["variant"] == first["variant"])]
+        if not sel.empty:
+            lines += [f"Beside the published values ({info.cost_label}). Holm p: Mood's "
+                      "median test (Fisher's exact test of above / below the published "
+                      "median, which splits the published runs evenly by definition), Holm "
+                      f"over {PAPER_FAMILY}. Optimizer implementations and budgets may "
+                      "differ from the published ones.", "", markdown(sel, PAPER_COLUMNS), ""]
+    if info.paper is not None and info.paper.claim:
+        lines += [f"Published claim ({info.paper.source}): {info.paper.claim}.", ""]
+    return (["### Paper values", ""] + lines) if lines else []
 
 
-#: Cross-case sections (paper-layout tables spanning several cases), by problem family.
-STUDIES: dict[str, Callable[[pd.DataFrame, Path, bool], list[str]]] = {
-    "attitude": attitude.study_sections,
-    "low thrust": lowthrust.study_sections,
-    "attitude companion": companion.study_sections,
-    "held-out": holdout.study_sections,
-    "tuning modes": tuning.study_sections,
-}
+def active_bounds(g: pd.DataFrame) -> list[str]:
+    """Warning lines for best matrices (one per family) at a bound of their box: a
+    diagonal entry or an eigenvalue within :data:`BOUND_RTOL` relative of it."""
+    lines = []
+    for fam, row in best_rows(g).items():
+        bounds = protocol.bounds_of(row)
+        if not bounds:
+            continue
+        for name, K in matrices_of(row).items():
+            if name not in bounds:
+                continue
+            values = np.diag(K) if fam == "diagonal" else np.linalg.eigvalsh(K)
+            what = "diagonal entry" if fam == "diagonal" else "eigenvalue"
+            for b, side in zip(bounds[name], ("lower", "upper")):
+                hit = np.abs(values - b) <= BOUND_RTOL * max(abs(b), 1e-300)
+                for v in values[hit]:
+                    where = f"{row['problem']} / {row['case']}" + (
+                        f" [{row['problem_variant']}]" if row.get("problem_variant") else "")
+                    lines.append(f"- {where}: best {fam} {name} "
+                                 f"({row['optimizer']}/{row['param']}): "
+                                 f"{what} {v:.6g} at its {side} bound {b:g} — the box may be "
+                                 "too small.")
+    return lines
+
+
+def render(section: ReportSection, out: Path, stem: str, level: str = "##") -> list[str]:
+    """Markdown lines of a problem-contributed section (figures saved into ``out``)."""
+    lines = [f"{level} {section.title}", ""]
+    if section.text:
+        lines += [section.text, ""]
+    for caption, rows in section.tables:
+        if caption:
+            lines += [caption, ""]
+        if rows:
+            lines += [markdown_split(pd.DataFrame(rows)), ""]
+    for k, (caption, fig) in enumerate(section.figures):
+        name = f"{stem}_{k}_{_slug(caption)}.png"
+        save_figure(fig, out / name)
+        lines += [f"![{caption}]({name})", ""]
+    return lines
+
+
+def contributed(df: pd.DataFrame, out: Path) -> list[str]:
+    """The sections each problem contributes (``report_sections`` hook), problem by
+    problem; a failing hook costs one line."""
+    lines: list[str] = []
+    for problem, g in df.groupby("problem", sort=True):
+        mod = protocol.module(problem)
+        if mod is None:
+            continue
+        try:
+            found = report_hooks.sections(mod, protocol.jobs_of(g))
+        except Exception as exc:  # one problem's hook must not lose the report
+            logger.warning("report_sections of %s failed: %s", problem, exc)
+            lines += [f"({problem}: its report sections failed: {exc!r})", ""]
+            continue
+        for k, section in enumerate(found):
+            try:
+                lines += render(section, out, f"{_slug(str(problem))}_section{k}")
+            except Exception as exc:  # a malformed section costs one line
+                logger.warning("section %r of %s failed: %s", section.title, problem, exc)
+                lines += [f"({problem}: section {section.title!r} failed: {exc!r})", ""]
+    return lines
+
+
+__all__ = ["active_bounds", "contributed", "median_test", "paper_rows", "paper_section",
+           "plots_section", "render"]

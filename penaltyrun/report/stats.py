@@ -18,11 +18,12 @@ import pandas as pd
 from scipy import stats
 
 from penaltyrun.io import decode_json
-from penaltyrun.report.paper import paper_mean
 
 CELL = ["problem", "case", "variant", "optimizer", "param"]
 #: Per-group size below which a rank test is reported as underpowered.
 MIN_N_TEST = 10
+#: Relative spread below which a sample is treated as constant (no interval, no test).
+DEGENERATE_RTOL = 1e-9
 #: |A12 − 0.5| thresholds of the magnitude labels (Vargha & Delaney 2000).
 A12_THRESHOLDS = ((0.21, "large"), (0.14, "medium"), (0.06, "small"))
 
@@ -58,21 +59,26 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     from dataclasses import asdict
 
     from penaltyrun import problems
+    from penaltyrun.report import protocol
 
     register_user_problems(df)
     labels: dict[tuple[str, str, str], str] = {}
-    for key in df[["problem", "case", "problem_params"]].drop_duplicates().itertuples(
-            index=False):
+    keys = df[["problem", "case", "problem_params"]].drop_duplicates()
+    for key in keys.itertuples(index=False):
         problem, case, params = key
+        mod = protocol.module(problem)
         try:
-            ignore = getattr(problems.module(problem), "VARIANT_IGNORE", ())
+            if mod is None:
+                raise LookupError(problem)
+            ignore = getattr(mod, "VARIANT_IGNORE", ())
             default = asdict(problems.make(problem, case, {}).params)
             used = asdict(problems.make(problem, case, decode_json(params) or {}).params)
             diff = [f"{k}={used[k]}" for k in sorted(used)
                     if used[k] != default[k] and k not in ignore]
             labels[key] = ",".join(diff)
-        except Exception as exc:  # an unknown problem in old results still gets reported
-            labels[key] = f"unresolved ({type(exc).__name__})"
+        except Exception:  # module not importable, or old parameters: label from the data
+            same = keys[(keys["problem"] == problem) & (keys["case"] == case)]
+            labels[key] = _raw_label(params, list(same["problem_params"]))
     out = df.copy()
     out["problem_variant"] = [labels[k] for k in zip(df["problem"], df["case"],
                                                      df["problem_params"])]
@@ -80,6 +86,17 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     out["variant"] = [",".join(part for part in (v, _warm_label(w)) if part)
                       for v, w in zip(out["problem_variant"], warm)]
     return _add_budget_variant(out)
+
+
+def _raw_label(params: Any, all_params: list[Any]) -> str:
+    """Variant label from the stored overrides alone: the keys whose values differ between
+    the jobs of one problem case (``""`` when they all ran with the same overrides)."""
+    dicts = [decode_json(p) or {} if isinstance(p, str) else (p or {}) for p in all_params]
+    own = decode_json(params) or {} if isinstance(params, str) else (params or {})
+    keys = sorted({k for d in dicts for k in d})
+    varying = [k for k in keys if len({json.dumps(d.get(k), sort_keys=True, default=str)
+                                       for d in dicts}) > 1]
+    return ",".join(f"{k}={own.get(k)}" for k in varying)
 
 
 def _warm_label(warm_json: Any) -> str:
@@ -161,7 +178,7 @@ def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
     x = np.asarray(values, float)
     if x.size < 3:
         return float("nan"), float("nan"), f"n = {x.size} < 3: no CI"
-    if np.ptp(x) == 0.0:
+    if np.ptp(x) <= DEGENERATE_RTOL * max(1.0, float(np.max(np.abs(x)))):
         return float("nan"), float("nan"), "constant sample: no CI"
     func = {"median": np.median, "mean": np.mean}[statistic]
     with warnings.catch_warnings(record=True) as caught:
@@ -248,7 +265,7 @@ def cell_summary(df: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
             "max_evals": _max_evals(g),
             "mean_evals": float(ran["n_evals"].mean()) if len(ran) else np.nan,
             "mean_wall_s": float(ran["wall_time_s"].mean()) if len(ran) else np.nan,
-            "paper_mean": paper_mean(key[0], key[1], key[CELL.index("param")]),
+            "paper_mean": paper_mean(g, key[CELL.index("param")]),
         })
     return pd.DataFrame(rows)
 
@@ -259,3 +276,22 @@ def _max_evals(g: pd.DataFrame) -> float:
         return float("nan")
     values = pd.to_numeric(g["max_evals"], errors="coerce").dropna().unique()
     return float(values[0]) if values.size == 1 else float("nan")
+
+
+def paper_value(paper: Any, param: str, kind: str = "mean_cost") -> float:
+    """A published value for one map (``kind``: ``mean_cost`` or ``median_cost``) from a
+    problem's :class:`~penaltyrun.problems.base.PaperValues`; NaN where it has none. A
+    specific map's value takes precedence over the ``full`` family's."""
+    values = getattr(paper, kind, None) or {}
+    if param in values:
+        return float(values[param])
+    if param != "diagonal" and "full" in values and param in ("full", "geagsp"):
+        return float(values["full"])
+    return float("nan")
+
+
+def paper_mean(g: pd.DataFrame, param: str) -> float:
+    """The paper's mean cost of a cell (NaN where the problem declares none)."""
+    from penaltyrun.report import protocol
+
+    return paper_value(protocol.info_of(g).paper, param)

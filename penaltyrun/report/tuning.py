@@ -145,7 +145,11 @@ def _paired(g: pd.DataFrame, full_map: str) -> dict[str, Any] | None:
     frow = holdout.best_start(g[g["param"] == full_map])
     if drow is None or frow is None:
         return None
-    dtab, ftab = holdout.scenario_table(drow["holdout"]), holdout.scenario_table(frow["holdout"])
+    from penaltyrun.report import protocol
+
+    drop = protocol.info_of(g).discretization_kinds
+    dtab = holdout.scenario_table(drow["holdout"], drop)
+    ftab = holdout.scenario_table(frow["holdout"], drop)
     if dtab is None or ftab is None:
         return None
     return holdout.paired(dtab, ftab)
@@ -156,7 +160,7 @@ def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
     table = comparison(df)
     if table.empty:
         return []
-    table.to_csv(out / "holdout_tuning_modes.csv", index=False)
+    table.to_csv(out / "holdout_tuning_modes.csv", index=False, encoding="utf-8")
     return ["## Held-out scenarios: multi-scenario vs single-scenario tuning", "",
             "The full-vs-diagonal gap on the held-out set for each tuning mode, side by "
             "side: same problem, case, other parameters, optimizer and budget; within each "
@@ -164,7 +168,25 @@ def study_sections(df: pd.DataFrame, out: Path, paper: bool) -> list[str]:
             "improvement = median of (J_diag − J_full)/J_diag over the scenarios where both "
             "converge; full better = share of those where J_full < J_diag; Wilcoxon "
             "signed-rank, two-sided (raw p). `multi (mean of n)`: tuned on the mean (or max) "
-            "of n training scenarios.", "", markdown(table), ""]
+            "of n training scenarios.", "", markdown(long_form(table), LONG_COLUMNS), ""]
+
+
+LONG_COLUMNS = ["problem / case", "setting", "optimizer", "full_map", "tuning"] + \
+    [suffix for _, suffix in STATS]
+
+
+def long_form(table: pd.DataFrame) -> pd.DataFrame:
+    """One row per set-up × full map × tuning mode (≤ 10 columns for the report)."""
+    rows = []
+    for _, r in table.iterrows():
+        modes = sorted({c.split(": ")[0] for c in r.index if ": " in c},
+                       key=lambda t: (t != SINGLE, t))
+        for mode in modes:
+            rows.append({"problem / case": f"{r['problem']} / {r['case']}",
+                         "setting": r["setting"], "optimizer": r["optimizer"],
+                         "full_map": r["full_map"], "tuning": mode,
+                         **{suffix: r[f"{mode}: {suffix}"] for _, suffix in STATS}})
+    return pd.DataFrame(rows)
 
 
 __all__ = ["SINGLE", "TRAIN_KEYS", "comparison", "mode_label", "study_sections",

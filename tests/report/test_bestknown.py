@@ -55,20 +55,28 @@ def test_best_known_takes_converged_non_baseline_starts_of_every_full_map():
     assert reference(bk, "toy", "c1", "", "full") == 1.5
 
 
-@pytest.mark.parametrize("costs, certified, by", [
-    ({"grid": 4.0}, True, "grid"),  # the exhaustive optimizer found it
-    ({"pso": 4.0, "grid": 4.0003}, True, "pso"),  # the grid is 7.5e-5 above: reached
-    ({"pso": 4.0, "de": 4.0 * (1 + 0.9e-4)}, True, "pso, de"),  # two optimizers agree
-    ({"pso": 4.0, "de": 4.0 * (1 + 2e-4)}, False, "—"),  # too far apart
-    ({"pso": 4.0}, False, "—"),  # one optimizer, however many starts
-    ({"grid": 4.002, "pso": 4.0}, False, "—"),  # the grid did not reach it
+@pytest.mark.parametrize("costs, level, by, evidence", [
+    ({"grid": 4.0}, "certified", "grid", "certified (grid + local search)"),
+    ({"pso": 4.0, "grid": 4.0003}, "certified", "pso",  # the grid is 7.5e-5 above: reached
+     "certified (grid + local search)"),
+    ({"pso": 4.0, "de": 4.0 * (1 + 0.9e-4)}, "agreement", "pso, de",  # two optimizers agree
+     "agreement (2 optimizers, 3 starts)"),
+    ({"pso": 4.0, "de": 4.0 * (1 + 2e-4)}, "single optimizer", "—",  # too far apart
+     "single optimizer (pso, 2 starts)"),
+    ({"pso": 4.0}, "single optimizer", "—",  # one optimizer, however many starts
+     "single optimizer (pso, 2 starts)"),
+    ({"grid": 4.002, "pso": 4.0}, "single optimizer", "—",  # the grid did not reach it
+     "single optimizer (pso, 2 starts)"),
 ])
-def test_certification_rules(costs, certified, by):
+def test_evidence_levels(costs, level, by, evidence):
+    """Certified only by the grid; two optimizers that agree are *agreement*, not
+    certified."""
     data = [job("diagonal", o, c) for o, c in costs.items()]
     data += [job("diagonal", "pso", 4.0, job_id="second-pso-start")]
     row = bk_row(best_known(pd.DataFrame(data)), "diagonal")
-    assert row["certified"] == certified
-    if certified:
+    assert row["level"] == level and row["evidence"] == evidence
+    assert row["certified"] == (level == "certified")
+    if level != "single optimizer":
         assert set(row["certified_by"].split(" (")[0].split(", ")) >= set(by.split(", "))
     else:
         assert row["certified_by"] == "—"

@@ -1,6 +1,5 @@
 """The report end to end on small real runs of every problem family (Parquet → files)."""
 
-import numpy as np
 import pandas as pd
 import pytest
 
@@ -34,26 +33,21 @@ def attitude_report(tmp_path_factory):
 
 
 def test_attitude_tables_figures_and_studies(attitude_report):
-    text = (attitude_report / "report.md").read_text()
-    for heading in ("Table 1 — attitude LQR", "Table 2 — attitude Lyapunov PD",
-                    "horizon study", "robustness on held-out initial attitudes"):
+    text = (attitude_report / "report.md").read_text(encoding="utf-8")
+    assert text.index("## Verdict") < text.index("## attitude_lqr / detumble")
+    for heading in ("Table 1 — attitude LQR layout (pso)", "Table 2 — attitude Lyapunov PD",
+                    "horizon study", "### Held-out scenarios", "N²·m²·s"):
         assert heading in text
-    assert "section failed" not in text and "sections failed" not in text
-    table = pd.read_csv(attitude_report / "table_attitude_lqr_pso.csv")
-    assert list(table["start"][:2]) == ["1", "2"]
-    paper = table.set_index("start").loc["paper mean"]
-    assert paper["detumble diagonal"] == pytest.approx(0.423)
-    assert paper["rest_to_rest full"] == pytest.approx(0.152)
-    assert "## Held-out scenarios: attitude" in text
-    held = pd.read_csv(attitude_report / "holdout_attitude.csv")
+    assert "failed" not in text
+    held = pd.read_csv(attitude_report / "holdout.csv")
     assert set(held["scenarios"]) == {8} and held["diag_conv"].between(0, 1).all()
-    robust = pd.read_csv(attitude_report / "attitude_robustness.csv")
-    assert set(robust["held-out starts"]) == {8}
-    horizon = pd.read_csv(attitude_report / "attitude_horizon.csv")
-    assert {80.0, 100.0} <= set(horizon["t_f"])
-    for name in ("attitude_lqr_detumble_histories.png", "attitude_robustness.png",
-                 "attitude_horizon.png"):
+    assert "8 rest-to-rest starts from the attitudes of a grid" in text
+    paper = pd.read_csv(attitude_report / "summary.csv")
+    lqr = paper[(paper["problem"] == "attitude_lqr") & (paper["case"] == "detumble")]
+    assert lqr.set_index("param").loc["diagonal", "paper_mean"] == pytest.approx(0.423)
+    for name in ("attitude_lqr_detumble_histories.png",):
         assert (attitude_report / name).stat().st_size > 0
+    assert list(attitude_report.glob("attitude_lyapunov_section*_horizon_study.png"))
 
 
 def test_lowthrust_tables_and_case_e(tmp_path):
@@ -63,31 +57,16 @@ def test_lowthrust_tables_and_case_e(tmp_path):
              ("lyapunov_transfer", "C", "diagonal", "baseline", 1, {})]
     run_cells(tmp_path / "run", cells)
     out = build_report(tmp_path / "run", tmp_path / "report")
-    text = (out / "report.md").read_text()
-    for heading in ("Table 3 (case definitions used)", "Table 5 — Q-law",
-                    "Table 4 — generic Lyapunov law", "original Case E"):
+    text = (out / "report.md").read_text(encoding="utf-8")
+    for heading in ("Table 3 layout (case definitions used)", "Table 5 — Q-law layout",
+                    "Table 4 — generic Lyapunov law layout", "original Case E",
+                    "time of flight (days)", "### Discretization check",
+                    "re-run at control steps"):
         assert heading in text
-    assert "section failed" not in text and "sections failed" not in text
-    table5 = pd.read_csv(out / "table_qlaw.csv")
-    row_c = table5[(table5["case"] == "C") & table5["variant"].isna()].iloc[0]
-    assert row_c["K=I"] == "1.412 d"
-    assert row_c["diag conv."] == "2/2"
-    assert np.isfinite(row_c["full mean ToF d"])
-    # discretization column from the jobs' held-out control steps / substeps
-    assert row_c["discr. K (diag/full)"] == "2/2"
-    assert np.isfinite(row_c["discr. spread"]) and row_c["discr. spread"] > 0
-    assert row_c["discr. verdict"] in ("within discretization noise",
-                                       "beyond discretization spread")
-    row_e = table5[table5["case"] == "E"].iloc[0]
-    assert row_e["K=I"] == "tof_cap"
-    table4 = pd.read_csv(out / "table_lyapunov_transfer.csv")
-    assert table4.iloc[0]["K=I"] == "impact"
-    assert "## Held-out scenarios: low thrust" in text
-    assert "### Low thrust: discretization check" in text
-    held = pd.read_csv(out / "holdout_low_thrust.csv")
-    assert list(held["scenarios"]) == [12]
-    disc = pd.read_csv(out / "holdout_discretization.csv")
-    assert disc.iloc[0]["verdict"] in ("within discretization noise", "beyond the spread")
+    assert "failed" not in text
+    verdict = pd.read_csv(out / "verdict.csv", keep_default_na=False)
+    row = verdict[verdict["case"] == "C"].iloc[0]
+    assert row["discretization"] in ("within discretization noise", "beyond the spread")
     for name in ("qlaw_C_trajectory.png", "qlaw_C_elements.png", "qlaw_C_thrust.png"):
         assert (out / name).stat().st_size > 0
 
@@ -95,28 +74,11 @@ def test_lowthrust_tables_and_case_e(tmp_path):
 def test_lowthrust_report_without_case_e(tmp_path):
     """A plain `penaltyrun problem=qlaw case=A` has no E/E* rows: the report must still build."""
     run_cells(tmp_path / "run", [("qlaw", "C", "diagonal", "baseline", 1, {})])
-    text = (build_report(tmp_path / "run", tmp_path / "report") / "report.md").read_text()
+    text = (build_report(tmp_path / "run", tmp_path / "report") / "report.md").read_text(
+        encoding="utf-8")
     assert "Table 5 — Q-law" in text
     assert "original Case E" not in text
     assert "failed" not in text
-
-
-def test_full_worse_explanation_names_the_cell_and_its_variant():
-    from penaltyrun.report.build import _why_full_worse
-
-    df = pd.DataFrame({
-        "problem": ["qlaw"] * 2, "case": ["Estar"] * 2,
-        "variant": ["objective=min_fuel"] * 2, "optimizer": ["pso"] * 2,
-        "param": ["full"] * 2, "stop_reason": ["iters", "ftol"], "n_evals": [120, 96],
-        "best_z": [np.zeros(16), np.zeros(16)],
-    })
-    row = pd.Series({"problem": "qlaw", "case": "Estar", "variant": "objective=min_fuel",
-                     "optimizer": "pso", "full_map": "full", "full_best": 514.4,
-                     "diag_best": 476.6})
-    text = _why_full_worse(df, row)
-    assert "qlaw / Estar [objective=min_fuel] / pso / full" in text
-    assert "514.4 > best diagonal 476.6" in text
-    assert "mean evaluations 108 for 16 variables" in text
 
 
 @pytest.fixture(scope="module")
@@ -141,10 +103,10 @@ def zermelo_run(tmp_path_factory):
 
 def test_zermelo_report_statistics_best_known_and_anytime(zermelo_run, tmp_path):
     out = build_report(zermelo_run, tmp_path / "report")
-    text = (out / "report.md").read_text()
-    for heading in ("## Best-known optima", "best-known full vs best-known diagonal",
-                    "Optimizer shortfall", "## Map vs map at equal budget",
-                    "Fixed targets: ERT", "Holm family: every map-vs-map comparison"):
+    text = (out / "report.md").read_text(encoding="utf-8")
+    for heading in ("## Verdict", "## Best-known optima", "Optimizer shortfall",
+                    "### Map vs map", "Fixed targets: ERT",
+                    "Holm families: (1) every equal-budget map-vs-map"):
         assert heading in text
     assert "failed" not in text
     summary = pd.read_csv(out / "summary.csv", keep_default_na=False)
@@ -156,7 +118,10 @@ def test_zermelo_report_statistics_best_known_and_anytime(zermelo_run, tmp_path)
     # one diagonal-vs-full row per optimizer of the main variant, none for the warm variant
     assert sorted(comp["optimizer"]) == ["cmaes", "grid", "pso"]
     assert set(comp["variant"]) == {""}
-    assert (comp["note"] != "").all()  # 3 starts: underpowered (grid: no test)
+    assert (comp["note"] != "").all()  # 3 starts: underpowered, or budgets differ
+    grid = comp[comp["optimizer"] == "grid"].iloc[0]
+    assert grid["note"].startswith("budgets differ")  # grid spends what its grid needs
+    assert "certified (grid + local search)" in text
     bk = pd.read_csv(out / "best_known.csv")
     assert sorted(bk["family"]) == ["diagonal", "full"]
     jobs = pd.read_parquet(zermelo_run)
@@ -182,8 +147,8 @@ def test_results_without_traces_still_report(zermelo_run, tmp_path):
     (tmp_path / "old").mkdir()
     pq.write_table(old, tmp_path / "old" / "results.parquet")
     out = build_report(tmp_path / "old", tmp_path / "report")
-    text = (out / "report.md").read_text()
-    assert "## Best-known optima" in text and "## Map vs map" in text
+    text = (out / "report.md").read_text(encoding="utf-8")
+    assert "## Best-known optima" in text and "### Map vs map" in text
     assert "anytime and ECDF figures skipped" in text
     assert "Fixed targets" not in text
     assert not list(out.glob("anytime_*.png")) and (out / "costs_zermelo_default.png").exists()
@@ -194,8 +159,10 @@ def test_zermelo_held_out_section(tmp_path):
              for param in ("diagonal", "full")]
     run_cells(tmp_path / "run", cells)
     out = build_report(tmp_path / "run", tmp_path / "report")
-    text = (out / "report.md").read_text()
-    assert "## Held-out scenarios: Zermelo" in text
-    held = pd.read_csv(out / "holdout_zermelo.csv")
-    assert list(held["scenarios"]) == [16]
-    assert (out / "holdout_zermelo.png").stat().st_size > 0
+    text = (out / "report.md").read_text(encoding="utf-8")
+    assert "### Held-out scenarios" in text and "16 starts on circles of radius 2, 5" in text
+    head = "\n".join(text.splitlines()[:12])  # the answer is on the first screen
+    assert "## Verdict" in head and "zermelo / default" in head and "held-out" in head
+    held = pd.read_csv(out / "holdout.csv")
+    assert list(held["scenarios"]) == [16, 16]  # the pso cell and the best-known pair
+    assert (out / "holdout_zermelo_default.png").stat().st_size > 0

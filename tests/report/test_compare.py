@@ -19,7 +19,8 @@ PENALTY = 1000.0
 def rows(param, costs, optimizer="pso", variant="", statuses=None):
     statuses = statuses or ["ok"] * len(costs)
     return [{"problem": "toy", "case": "c1", "variant": variant, "optimizer": optimizer,
-             "param": param, "best_cost": c, "status": s, "best_converged": s == "ok"}
+             "param": param, "best_cost": c, "status": s, "best_converged": s == "ok",
+             "n_evals": 100}
             for c, s in zip(costs, statuses)]
 
 

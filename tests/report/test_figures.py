@@ -7,9 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from penaltyrun.report import figures
+from penaltyrun.report import figures, protocol
 from penaltyrun.report.bestknown import best_known
-from penaltyrun.report.units import cost_label
 
 PENALTY = 1000.0
 
@@ -89,11 +88,30 @@ def test_anytime_and_ecdf_skip_results_without_traces(frame, tmp_path):
 @pytest.mark.parametrize("problem, params, case, label", [
     ("zermelo", None, "default", "J = ∫½‖u‖² dt (nondimensional)"),
     ("attitude_lqr", "{}", "detumble", "J = ∫½‖u‖² dt (N²·m²·s)"),
-    ("attitude_lyapunov", None, None, "J = ∫½‖u‖² dt (N²·m²·s)"),
+    ("attitude_lyapunov", None, "rest_to_rest", "J = ∫½‖u‖² dt (N²·m²·s)"),
     ("qlaw", "{}", "C", "time of flight (days)"),
     ("qlaw", '{"objective": "min_fuel"}', "Estar", "propellant used (kg)"),
     ("lyapunov_transfer", None, "B", "time of flight (days)"),
-    ("cartpole", None, None, "best cost (problem units)"),
+    ("no_such_problem_here", None, "x", "cost (unit not declared)"),
 ])
-def test_cost_labels_say_the_unit(problem, params, case, label):
-    assert cost_label(problem, params, case) == label
+def test_cost_labels_come_from_the_problems(problem, params, case, label):
+    protocol.reset()
+    assert protocol.info(problem, case, params).cost_label == label
+
+
+def test_saved_figures_are_not_clipped(frame, kept, tmp_path):
+    """bbox_inches="tight": the saved image holds every title and label (its extent grows
+    past the figure size when a long title would otherwise be cut)."""
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    from penaltyrun.report.tables import save_figure
+
+    fig, ax = plt.subplots(figsize=(3, 2))
+    ax.set_title("a title far too long for a three-inch figure " * 3)
+    path = save_figure(fig, tmp_path / "long.png", dpi=100)
+    width, _ = Image.open(path).size
+    assert width > 3 * 100  # tight bbox widened the image to hold the title
+    out = figures.ecdf_figure(frame, best_known(frame), "toy", tmp_path / "ecdf.png")
+    fig_w = 5.5 * frame["optimizer"].nunique() * 110
+    assert Image.open(out).size[0] >= 0.9 * fig_w

@@ -48,7 +48,7 @@ def test_rows_pick_best_converged_start_and_pool_all_starts():
     assert row["pairs"] == 2  # the converged diagonal start (17.0) was paired, not 15.0
     assert row["diag_conv_all_starts"] == pytest.approx(3 / 8)
     assert row["full_conv_all_starts"] == pytest.approx(3 / 4)
-    assert list(imps) == ["qlaw / A / pso / full"]
+    assert list(imps) == ["qlaw / A / pso / full", "qlaw / A / best-known (all optimizers) / full"]
 
 
 def test_discretization_verdict():
@@ -75,7 +75,9 @@ def test_old_results_without_labels_pair_by_position(tmp_path):
     new = {"cost": [0.5, 2.5], "converged": [True, True]}
     df = pd.DataFrame([{**_job("diagonal", 1.0, True, old), "problem": "attitude_lqr"},
                        {**_job("full", 0.9, True, new), "problem": "attitude_lqr"}])
-    lines = rh.study_sections(df, tmp_path, paper=False)
-    assert lines[0] == "## Held-out scenarios: attitude"
-    assert (tmp_path / "holdout_attitude.csv").exists()
-    assert (tmp_path / "holdout_attitude.png").exists()
+    table, imps = rh.holdout_rows(df)
+    lines = rh.problem_section(df, table, imps, tmp_path)
+    assert lines[0] == "### Held-out scenarios"
+    assert "rest-to-rest starts" in lines[2]  # the problem describes its held-out set
+    assert list(table["pairs"]) == [2, 2]
+    assert (tmp_path / "holdout_attitude_lqr_A.png").exists()

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from penaltyrun.problems.attitude import report as attitude_report
 from penaltyrun.problems.attitude.common import (
     CASE_PARAMS,
     CASES,
@@ -224,3 +225,6 @@ __all__ = [
     "reference_cost",
     "robustness_grid",
 ]
+
+#: Report hooks (:mod:`penaltyrun.problems.report_hooks`).
+report_info, report_plots, report_sections = attitude_report.hooks(NAME)

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from penaltyrun.problems.attitude import report as attitude_report
 from penaltyrun.problems.attitude.common import (
     CASE_PARAMS,
     CASES,
@@ -96,3 +97,6 @@ __all__ = [
     "reference_cost",
     "robustness_grid",
 ]
+
+#: Report hooks (:mod:`penaltyrun.problems.report_hooks`).
+report_info, report_plots, report_sections = attitude_report.hooks(NAME)

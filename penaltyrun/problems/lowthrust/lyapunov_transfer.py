@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from penaltyrun.dynamics import lowthrust as lt
+from penaltyrun.problems.lowthrust import report as lowthrust_report
 from penaltyrun.problems.lowthrust.common import (
     CASE_PARAMS,
     CASES,
@@ -74,3 +75,6 @@ __all__ = [
     "plot_thrust",
     "plot_trajectory",
 ]
+
+#: Report hooks (:mod:`penaltyrun.problems.report_hooks`).
+report_info, report_plots, report_sections = lowthrust_report.hooks("lyapunov_transfer", Params)

@@ -28,8 +28,7 @@ def _finish(fig: Any, out: Any) -> Any:
     if out is not None:
         import matplotlib.pyplot as plt
 
-        fig.tight_layout()
-        fig.savefig(out, dpi=120)
+        fig.savefig(out, dpi=120, bbox_inches="tight")
         plt.close(fig)
     return fig
 
@@ -50,11 +49,20 @@ def plot_trajectory(sim: Mapping[str, np.ndarray], out: Any = None, ax: Any = No
     fig, ax = _figure_axes(ax, projection="3d")
     x, y, z = sim["x"], sim["y"], sim["z"]
     on = np.asarray(sim["thrust_on"]) > 0.5
-    ax.plot(x, y, z, color="0.7", lw=0.4)
+    ax.plot(x, y, z, color="0.7", lw=0.4, label="coast arcs")
     ax.plot(np.where(on, x, np.nan), np.where(on, y, np.nan), np.where(on, z, np.nan),
-            color="C3", lw=0.5)
+            color="C3", lw=0.5, label="thrust arcs")
     u = np.linspace(0.0, 2.0 * np.pi, 60)
-    ax.plot(lt.R_E * np.cos(u), lt.R_E * np.sin(u), 0.0 * u, color="C0")
+    ax.plot(lt.R_E * np.cos(u), lt.R_E * np.sin(u), 0.0 * u, color="C0",
+            label="Earth radius (equator)")
+    if len(x):
+        ax.scatter([x[0]], [y[0]], [z[0]], color="C2", marker="o", s=30,
+                   label="departure (on the departure orbit)")
+        ax.scatter([x[-1]], [y[-1]], [z[-1]], color="k", marker="*", s=60,
+                   label="arrival (on the target orbit)")
+    if "t" in sim and len(sim["t"]):
+        title = f"{title}\nToF {float(sim['t'][-1]) / 86400.0:.3f} days" if title else \
+            f"ToF {float(sim['t'][-1]) / 86400.0:.3f} days"
     lim = float(np.nanmax(np.abs(np.concatenate([x, y, z])))) if len(x) else lt.R_E
     for setter in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
         setter(-lim, lim)
@@ -62,6 +70,7 @@ def plot_trajectory(sim: Mapping[str, np.ndarray], out: Any = None, ax: Any = No
     ax.set_ylabel("y [km]")
     ax.set_zlabel("z [km]")
     ax.set_title(title)
+    ax.legend(loc="upper left", fontsize=9)
     return _finish(fig, out)
 
 

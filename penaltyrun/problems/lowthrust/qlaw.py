@@ -19,6 +19,7 @@ from typing import Any
 from penaltyrun.dynamics import lowthrust as lt
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import ScalarSpec
+from penaltyrun.problems.lowthrust import report as lowthrust_report
 from penaltyrun.problems.lowthrust.common import (
     CASE_PARAMS,
     CASES,
@@ -143,3 +144,6 @@ __all__ = [
     "plot_thrust",
     "plot_trajectory",
 ]
+
+#: Report hooks (:mod:`penaltyrun.problems.report_hooks`).
+report_info, report_plots, report_sections = lowthrust_report.hooks("qlaw", Params)

@@ -1,0 +1,117 @@
+"""``report.html``: the report as one self-contained page (figures embedded as base64, no
+network access), from the Markdown the report writes.
+
+Only the Markdown the report itself produces is converted: headings, paragraphs, ``- ``
+lists, pipe tables, images, ``**bold**`` and ```code```. Tables sort by a click on a column
+header (a few lines of inline JavaScript).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import re
+from pathlib import Path
+
+STYLE = """
+body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;margin:2em auto;max-width:1300px;
+padding:0 1.5em;line-height:1.45;color:#222}
+h1{border-bottom:2px solid #444}h2{border-bottom:1px solid #bbb;margin-top:2em}
+table{border-collapse:collapse;margin:0.8em 0;font-size:0.9em}
+th,td{border:1px solid #ccc;padding:0.3em 0.6em;vertical-align:top}
+th{background:#eef;cursor:pointer;user-select:none;position:sticky;top:0}
+tr:nth-child(even) td{background:#f8f8f8}
+img{max-width:100%;height:auto;margin:0.5em 0;border:1px solid #eee}
+code{background:#f2f2f2;padding:0 0.2em}
+li{margin:0.3em 0}
+"""
+SCRIPT = """
+document.querySelectorAll('table').forEach(function(t){
+ t.querySelectorAll('th').forEach(function(th,i){th.title='click to sort';
+  th.addEventListener('click',function(){
+   var rows=Array.from(t.tBodies[0].rows),asc=th.dataset.asc!=='1';th.dataset.asc=asc?'1':'0';
+   var key=function(r){var s=r.cells[i].innerText,x=parseFloat(s.replace('\\u2212','-'));
+    return isNaN(x)?s:x;};
+   rows.sort(function(a,b){var x=key(a),y=key(b);
+    if(typeof x===typeof y){return (x<y?-1:x>y?1:0)*(asc?1:-1);}
+    return (typeof x==='number'?-1:1)*(asc?1:-1);});
+   rows.forEach(function(r){t.tBodies[0].appendChild(r);});});});});
+"""
+
+_IMAGE = re.compile(r"^!\[([^\]]*)\]\(([^)]+)\)$")
+
+
+def inline(text: str) -> str:
+    """Escape ``text`` and render ``**bold**``, ``*italic*`` and ```code```."""
+    out = html.escape(text, quote=False)
+    out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
+    out = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", out)
+    return re.sub(r"(?<![*\w])\*([^*\s][^*]*?[^*\s])\*(?![*\w])", r"<i>\1</i>", out)
+
+
+def _cells(line: str) -> list[str]:
+    body = line.strip()[1:-1]
+    return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", body)]
+
+
+def _image(alt: str, name: str, folder: Path) -> str:
+    path = folder / name
+    if not path.is_file():
+        return f"<p>(missing figure {html.escape(name)})</p>"
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return (f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{html.escape(alt)}</figcaption></figure>")
+
+
+def to_html(markdown: str, folder: Path) -> str:
+    """One HTML page of the report's Markdown; images are read from ``folder``."""
+    lines = markdown.splitlines()
+    parts: list[str] = []
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        if not line.strip():
+            i += 1
+        elif line.startswith("#"):
+            level = len(line) - len(line.lstrip("#"))
+            parts.append(f"<h{level}>{inline(line[level:].strip())}</h{level}>")
+            i += 1
+        elif line.startswith("|"):
+            block = []
+            while i < len(lines) and lines[i].startswith("|"):
+                block.append(lines[i])
+                i += 1
+            head = "".join(f"<th>{inline(c)}</th>" for c in _cells(block[0]))
+            rows = "".join("<tr>" + "".join(f"<td>{inline(c)}</td>" for c in _cells(r))
+                           + "</tr>" for r in block[2:])
+            parts.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
+        elif line.startswith("- "):
+            items = []
+            while i < len(lines) and lines[i].startswith("- "):
+                items.append(f"<li>{inline(lines[i][2:])}</li>")
+                i += 1
+            parts.append("<ul>" + "".join(items) + "</ul>")
+        elif _IMAGE.match(line.strip()):
+            alt, name = _IMAGE.match(line.strip()).groups()
+            parts.append(_image(alt, name, folder))
+            i += 1
+        else:
+            para = []
+            while i < len(lines) and lines[i].strip() and not lines[i].startswith(
+                    ("#", "|", "- ", "![")):
+                para.append(lines[i])
+                i += 1
+            parts.append(f"<p>{inline(' '.join(para))}</p>")
+    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+            "<title>penaltyrun report</title>"
+            f"<style>{STYLE}</style></head><body>\n" + "\n".join(parts)
+            + f"\n<script>{SCRIPT}</script></body></html>\n")
+
+
+def write_html(markdown: str, folder: Path, path: Path) -> Path:
+    """Write :func:`to_html` of ``markdown`` (figures from ``folder``) to ``path``."""
+    path.write_text(to_html(markdown, folder), encoding="utf-8")
+    return path
+
+
+__all__ = ["inline", "to_html", "write_html"]

@@ -1,0 +1,96 @@
+"""The verdict on hand-made results with known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from penaltyrun.report.bestknown import best_known
+from penaltyrun.report.compare import pairwise
+from penaltyrun.report.holdout import holdout_rows
+from penaltyrun.report.verdict import COLUMNS, stop_setting, verdict_rows
+
+SCENARIOS = [f"s{k}" for k in range(12)]
+
+
+def job(param, optimizer, cost, holdout=None, n_evals=100, max_evals=None, stop="iters"):
+    return {"problem": "toy_handmade", "case": "c1", "variant": "", "problem_variant": "",
+            "optimizer": optimizer, "param": param, "best_cost": cost, "status": "ok",
+            "best_converged": True, "n_evals": n_evals, "max_evals": max_evals,
+            "stop_reason": stop, "holdout": holdout, "matrices": '{"K": [[1.0]]}',
+            "optimizer_settings": '{"iters": 10}', "problem_params": "{}",
+            "job_id": f"{param}-{optimizer}-{cost}"}
+
+
+def held(costs):
+    return {"scenario": SCENARIOS, "cost": list(costs), "converged": [True] * len(costs)}
+
+
+def frame(full_evals=100, diag_second=None):
+    diag_h = held(np.full(12, 10.0))
+    full_h = held([8.0, 8.0] + [20.0 + k for k in range(10)])  # worse on 10 of 12
+    rows = [job("diagonal", "pso", 10.0 + 0.1 * k, diag_h if k == 0 else None)
+            for k in range(10)]
+    rows += [job("full", "pso", 9.0 + 0.1 * k, full_h if k == 0 else None, n_evals=full_evals)
+             for k in range(10)]
+    if diag_second:
+        rows.append(job("diagonal", diag_second, 10.0))
+    return pd.DataFrame(rows)
+
+
+def verdict(df):
+    bk = best_known(df)
+    comp = pairwise(df)
+    held_table, _ = holdout_rows(df)
+    return verdict_rows(df, bk, comp, held_table).iloc[0]
+
+
+def test_full_better_on_training_but_worse_held_out():
+    row = verdict(frame(diag_second="de"))
+    assert row["gain_pct"] == np.float64(10.0)
+    assert row["diag_level"] == "agreement" and "agreement (2 optimizers" in \
+        row["diagonal best-known"]
+    assert "full better on 2/12" in row["held-out"]
+    s = row["sentence"]
+    assert "full is 10 % better on the training scenario" in s
+    assert "but worse on 10 of 12 held-out scenarios" in s
+    assert "the gain is specific to the training scenario" in s
+    assert "A12 = 1" in s and "equal budget" in s  # equal budgets: tested
+    assert len(COLUMNS) <= 10
+
+
+def test_unequal_budgets_give_no_test():
+    df = frame(full_evals=300)
+    comp = pairwise(df)
+    assert not comp["equal_budget"].any() and comp["p_mwu"].isna().all()
+    assert comp["note"].iloc[0] == "budgets differ: no test"
+    row = verdict(df)
+    assert row["equal budget"] == "pso: budgets differ: no test"
+    assert "no equal-budget test (budgets differ)" in row["sentence"]
+    assert "at equal budget" not in row["sentence"]
+    maxed = frame()
+    maxed.loc[maxed["param"] == "full", "max_evals"] = 500  # spent equal, budgets not
+    assert not pairwise(maxed)["equal_budget"].any()
+
+
+def test_certified_vs_agreement_vs_single_diagonal():
+    assert verdict(frame(diag_second="grid"))["diag_level"] == "certified"
+    assert "certified (grid + local search)" in verdict(frame(diag_second="grid"))[
+        "diagonal best-known"]
+    assert verdict(frame(diag_second="de"))["diag_level"] == "agreement"
+    single = verdict(frame())
+    assert single["diag_level"] == "single optimizer"
+    assert "rests on a single optimizer" in single["sentence"]
+
+
+def test_full_worse_names_the_setting_that_stopped_the_search():
+    df = frame()
+    df.loc[df["param"] == "full", "best_cost"] += 5.0
+    s = verdict(df)["sentence"]
+    assert "worse on the training scenario" in s and "optimizer shortfall" in s
+    assert "the iteration limit (`optimizer.iters`) in 10 of 10 starts" in s
+    assert stop_setting("iters", {"max_iterations": 5}) == \
+        "the iteration limit (`optimizer.max_iterations`)"
+    assert stop_setting("ftol+polish", {"ftol": 1e-6, "ftol_iter": 5}) == \
+        "the stall rule (`optimizer.ftol`, `optimizer.ftol_iter`)"
+    assert stop_setting("max_evals", {}) == "the evaluation budget (`optimizer.max_evals`)"

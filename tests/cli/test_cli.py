@@ -121,7 +121,7 @@ def test_multirun_sweep_and_report_command(tmp_path):
     assert list(zip(comparison["map_a"], comparison["map_b"])) == [("diagonal", "full")]
     assert {"median_change_pct", "a12_b_beats_a", "p_mwu", "p_holm"} <= set(comparison.columns)
     text = (out / "report.md").read_text()
-    assert "Map vs map at equal budget" in text and "paper K" in text
+    assert "### Map vs map" in text and "paper K" in text
     for name in ("anytime_zermelo_default.png", "costs_zermelo_default.png",
                  "zermelo_default_phase_plane.png", "summary.md", "comparison.md",
                  "best_known.md"):

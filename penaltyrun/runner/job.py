@@ -16,12 +16,12 @@ from penaltyrun.problems.base import CUTOFF_STATUS
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
 from penaltyrun.runner.swarm import LocalEvaluation
+from penaltyrun.runner.validate import JOB_STATUSES
+
+__all__ = ["HEARTBEAT_S", "JOB_STATUSES", "Heartbeat", "run_job"]
 
 logger = logging.getLogger(__name__)
 
-#: Job-level statuses: ``ok`` (best candidate converged), ``diverged`` (the optimizer's
-#: best candidate did not meet the terminal condition), ``failed`` (the job raised).
-JOB_STATUSES = ("ok", "diverged", "failed")
 #: Seconds between the progress lines of a long job (see :class:`Heartbeat`).
 HEARTBEAT_S = 60.0
 

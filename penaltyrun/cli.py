@@ -27,10 +27,12 @@ from omegaconf import DictConfig, OmegaConf
 from penaltyrun import __version__, cells, checks, userconf
 from penaltyrun.errors import (
     ConfigError,
+    EnvironmentProblemError,
     ResultsUnreadableError,
     RunAbortedError,
     RunInterruptedError,
     SignalInterrupt,
+    describe_os_error,
     signal_name,
 )
 from penaltyrun.preflight import preflight
@@ -42,6 +44,7 @@ EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_JOBS_FAILED = 3
 EXIT_ABORTED = 4
+EXIT_ENVIRONMENT = 5
 EXIT_INTERRUPTED = 130
 #: Exit code → meaning (also in README "Errors and exit codes").
 EXIT_CODES = {
@@ -51,6 +54,9 @@ EXIT_CODES = {
     EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed`",
     EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
                   "runner.worker_timeout s); finished jobs are kept",
+    EXIT_ENVIRONMENT: "the machine refused a file operation (disk full, no permission, "
+                      "read-only file system, output not writable): one line naming the "
+                      "path; finished jobs are kept",
     128 + signal.SIGINT: "stopped by Ctrl-C (SIGINT); finished jobs are kept",
     128 + signal.SIGTERM: "stopped by SIGTERM; finished jobs are kept",
     128 + signal.SIGHUP: "stopped by SIGHUP; finished jobs are kept",
@@ -102,7 +108,8 @@ def run_optimize(cfg: DictConfig) -> Path:
                        max_retries=rc.get("max_retries", 1),
                        worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected,
                        evaluate_on=rc.get("evaluate_on", "local"),
-                       chunks=rc.get("chunks", "auto"))
+                       chunks=rc.get("chunks", "auto"),
+                       stall_timeout=float(rc.get("stall_timeout", 600)))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
@@ -199,6 +206,12 @@ def _guard(func: Callable[[], Any]) -> Any:
     except RunAbortedError as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_ABORTED)
+    except EnvironmentProblemError as exc:
+        _print_error(str(exc))
+        sys.exit(EXIT_ENVIRONMENT)
+    except OSError as exc:  # any other file operation the machine refused
+        _print_error(describe_os_error(exc, doing="use"))
+        sys.exit(EXIT_ENVIRONMENT)
     except RunInterruptedError as exc:
         print(f"penaltyrun: {exc}", file=sys.stderr)
         sys.exit(128 + exc.signum)
@@ -207,6 +220,46 @@ def _guard(func: Callable[[], Any]) -> Any:
         how = "interrupted" if signum == signal.SIGINT else f"stopped by {signal_name(signum)}"
         print(f"penaltyrun: {how}", file=sys.stderr)
         sys.exit(128 + signum)
+
+
+def _print_error(line: str) -> None:
+    """``penaltyrun: error: <line>`` on stderr, even when stdout is broken."""
+    try:
+        print(f"penaltyrun: error: {line}", file=sys.stderr, flush=True)
+    except OSError:
+        pass
+
+
+def ensure_utf8_mode(argv: list[str]) -> None:
+    """Run in Python's UTF-8 mode whatever the locale: under a non-UTF-8 locale (e.g.
+    ``LC_ALL=C PYTHONUTF8=0``) re-execute the interpreter with ``-X utf8``, so every text
+    file, log line and printed line is UTF-8 instead of failing on a non-ASCII character."""
+    import locale
+    import os
+
+    if sys.flags.utf8_mode or locale.getpreferredencoding(False).lower().replace("-", "") \
+            == "utf8" or os.environ.get("PENALTYRUN_NO_REEXEC"):
+        return
+    os.environ["PENALTYRUN_NO_REEXEC"] = "1"  # never loop
+    os.environ["PYTHONUTF8"] = "1"
+    os.execv(sys.executable, [sys.executable, "-X", "utf8", *sys.orig_argv[1:]]
+             if hasattr(sys, "orig_argv") else [sys.executable, "-X", "utf8", *argv])
+
+
+def flush_stdout() -> None:
+    """Flush stdout; a stdout that cannot be written (``/dev/full``, a closed pipe) is one
+    line on stderr and exit code 5, not a traceback at interpreter shutdown."""
+    import os
+
+    try:
+        sys.stdout.flush()
+    except OSError as exc:
+        _print_error(describe_os_error(exc, "standard output"))
+        try:
+            sys.stdout = open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115
+        except OSError:
+            pass
+        sys.exit(EXIT_ENVIRONMENT)
 
 
 def install_signal_handlers() -> None:
@@ -264,16 +317,19 @@ def main() -> None:
 
     Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
     """
+    ensure_utf8_mode(sys.argv)
     if print_version(sys.argv[1:]):
-        return
+        return flush_stdout()
     install_signal_handlers()
     if _guard(lambda: preflight(sys.argv[1:])) == "plan":
         from penaltyrun import planmode
 
         if planmode.intercepts(sys.argv[1:]):  # forecast only: Hydra runs nothing
-            return _guard(lambda: planmode.run(sys.argv[1:]))
+            _guard(lambda: planmode.run(sys.argv[1:]))
+            return flush_stdout()
     sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
     _guard(_hydra_main)
+    flush_stdout()
     if FAILED_RUNS:
         sys.exit(EXIT_JOBS_FAILED)
 
@@ -291,6 +347,8 @@ def report_main(argv: list[str] | None = None) -> None:
                         help="also write each cell's best matrices to DIR as JSON and MATLAB "
                              ".mat files (with index.csv)")
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
+    if argv is None:
+        ensure_utf8_mode(sys.argv)
     args = parser.parse_args(argv)
     from penaltyrun import report
 
@@ -301,6 +359,7 @@ def report_main(argv: list[str] | None = None) -> None:
     def build() -> None:
         if not src.exists():
             raise ConfigError("input", f"{src} does not exist")
+        checks.check_output_dir(args.output, "-o")
         out = Path(args.output) if args.output else \
             (src.parent if src.is_file() else src) / "report"
         report.build_report(src, out, paper=not args.no_paper)
@@ -309,6 +368,7 @@ def report_main(argv: list[str] | None = None) -> None:
             _export(src, Path(args.export))
 
     _guard(build)
+    flush_stdout()
 
 
 def _export(src: Path, out: Path) -> None:

@@ -21,6 +21,7 @@ class ConfigError(ValueError):
 
     def __init__(self, key: str, message: str, allowed: Iterable[str] | None = None) -> None:
         self.key = key
+        self.message = message
         self.allowed = tuple(allowed) if allowed is not None else None
         text = f"{key}: {message}"
         if self.allowed:

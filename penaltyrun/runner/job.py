@@ -104,6 +104,33 @@ class Heartbeat:
                 f"({100.0 * self.n_evals / self.total:.1f} %, ≤ {left:.0f} s left at this pace)")
 
 
+def numba_cache_dir() -> str:
+    """Where numba keeps penaltyrun's compiled kernels: ``NUMBA_CACHE_DIR`` if set, else
+    the ``__pycache__`` folders of :mod:`penaltyrun.dynamics`."""
+    import os
+    from pathlib import Path
+
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return os.environ["NUMBA_CACHE_DIR"]
+    from penaltyrun import dynamics
+
+    return str(Path(dynamics.__file__).parent)
+
+
+def describe_job_error(exc: BaseException) -> str:
+    """First line of a failed job's error: ``Type: message``; an error raised while numba
+    loads its on-disk cache (a damaged ``.nbi`` / ``.nbc`` file) names the cache directory
+    and how to clear it."""
+    text = f"{type(exc).__name__}: {exc}"
+    frames = traceback.extract_tb(exc.__traceback__)
+    if any("numba" in f.filename and "caching" in f.filename for f in frames):
+        where = numba_cache_dir()
+        text += (f" (numba's cache of compiled kernels under {where} is damaged: clear it "
+                 f"with `find {where} -name '*.nbi' -delete -o -name '*.nbc' -delete` and "
+                 "rerun with runner.resume=true runner.retry_failed=true)")
+    return text
+
+
 def _objective(evaluation: Any, job: Job, prob: Any, layout: Any, param: str,
                settings: Any) -> Heartbeat:
     """Batched objective of ``prob`` over ``layout``'s box (parameterization ``param``),
@@ -236,9 +263,9 @@ def run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
             "max_evals": getattr(settings, "max_evals", None),
         })
     except Exception as exc:  # a failing job is recorded, never crashes the run
-        logger.error("job %s failed: %s", job.job_id, exc)
-        record.update({"status": "failed",
-                       "error": f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"})
+        text = describe_job_error(exc)
+        logger.error("job %s failed: %s", job.job_id, text)
+        record.update({"status": "failed", "error": f"{text}\n{traceback.format_exc()}"})
     record["wall_time_s"] = time.perf_counter() - t0
     record["finished_at"] = datetime.now(timezone.utc).isoformat()
     return record

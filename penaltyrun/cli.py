@@ -318,6 +318,7 @@ def main() -> None:
     Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
     """
     ensure_utf8_mode(sys.argv)
+    logging.raiseExceptions = False  # a broken stdout is one line at the end, not tracebacks
     if print_version(sys.argv[1:]):
         return flush_stdout()
     install_signal_handlers()

@@ -126,8 +126,8 @@ def describe_job_error(exc: BaseException) -> str:
     if any("numba" in f.filename and "caching" in f.filename for f in frames):
         where = numba_cache_dir()
         text += (f" (numba's cache of compiled kernels under {where} is damaged: clear it "
-                 f"with `find {where} -name '*.nbi' -delete -o -name '*.nbc' -delete` and "
-                 "rerun with runner.resume=true runner.retry_failed=true)")
+                 f"with `find {where} -name '*.nbi' -delete -o -name '*.nbc' -delete`, then "
+                 "run the failed jobs again)")
     return text
 
 

@@ -210,7 +210,9 @@ def _guard(func: Callable[[], Any]) -> Any:
         _print_error(str(exc))
         sys.exit(EXIT_ENVIRONMENT)
     except OSError as exc:  # any other file operation the machine refused
-        _print_error(describe_os_error(exc, doing="use"))
+        broken = _stdout_broken()
+        _print_error(_stdout_error_line(broken) if broken is not None
+                     else describe_os_error(exc, doing="use"))
         sys.exit(EXIT_ENVIRONMENT)
     except RunInterruptedError as exc:
         print(f"penaltyrun: {exc}", file=sys.stderr)
@@ -246,19 +248,72 @@ def ensure_utf8_mode(argv: list[str]) -> None:
              if hasattr(sys, "orig_argv") else [sys.executable, "-X", "utf8", *argv])
 
 
-def flush_stdout() -> None:
-    """Flush stdout; a stdout that cannot be written (``/dev/full``, a closed pipe) is one
-    line on stderr and exit code 5, not a traceback at interpreter shutdown."""
+class WatchedStream:
+    """A text stream that remembers the OSError of its last failed write or flush (so that
+    a failure to print is told apart from other file errors)."""
+
+    def __init__(self, inner: Any) -> None:
+        self._inner = inner
+        self.error: OSError | None = None
+
+    def write(self, text: str) -> int:
+        try:
+            return self._inner.write(text)
+        except OSError as exc:
+            self.error = exc
+            raise
+
+    def flush(self) -> None:
+        try:
+            self._inner.flush()
+        except OSError as exc:
+            self.error = exc
+            raise
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+
+def watch_stdout() -> None:
+    """Wrap ``sys.stdout`` in a :class:`WatchedStream` (once)."""
+    if not isinstance(sys.stdout, WatchedStream) and sys.stdout is not None:
+        sys.stdout = WatchedStream(sys.stdout)
+
+
+def _stdout_broken() -> OSError | None:
+    """The error of writing stdout, or None if it can be written. A broken stdout
+    (``/dev/full``, a closed pipe) is replaced by ``/dev/null`` at the file-descriptor
+    level, so that no later flush (at interpreter shutdown) fails again."""
     import os
 
     try:
         sys.stdout.flush()
+        error = getattr(sys.stdout, "error", None)
+        if error is not None:
+            raise error
     except OSError as exc:
-        _print_error(describe_os_error(exc, "standard output"))
         try:
-            sys.stdout = open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115
-        except OSError:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, sys.stdout.fileno())
+            os.close(null)
+        except (OSError, ValueError):
             pass
+        return exc
+    except ValueError:  # stdout closed by the caller
+        return None
+    return None
+
+
+def _stdout_error_line(exc: OSError) -> str:
+    return f"cannot write standard output: {exc.strerror or exc}"
+
+
+def flush_stdout() -> None:
+    """Flush stdout; a stdout that cannot be written (``/dev/full``, a closed pipe) is one
+    line on stderr and exit code 5, not a traceback at interpreter shutdown."""
+    exc = _stdout_broken()
+    if exc is not None:
+        _print_error(_stdout_error_line(exc))
         sys.exit(EXIT_ENVIRONMENT)
 
 
@@ -319,7 +374,8 @@ def main() -> None:
     """
     ensure_utf8_mode(sys.argv)
     logging.raiseExceptions = False  # a broken stdout is one line at the end, not tracebacks
-    if print_version(sys.argv[1:]):
+    watch_stdout()
+    if _guard(lambda: print_version(sys.argv[1:])):
         return flush_stdout()
     install_signal_handlers()
     if _guard(lambda: preflight(sys.argv[1:])) == "plan":
@@ -350,6 +406,7 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     if argv is None:
         ensure_utf8_mode(sys.argv)
+    watch_stdout()
     args = parser.parse_args(argv)
     from penaltyrun import report
 

@@ -36,6 +36,15 @@ from penaltyrun.errors import (
     signal_name,
 )
 from penaltyrun.preflight import preflight
+from penaltyrun.streams import (
+    EXIT_ENVIRONMENT,
+    ensure_utf8_mode,
+    flush_stdout,
+    print_error,
+    stdout_broken,
+    stdout_error_line,
+    watch_stdout,
+)
 
 logger = logging.getLogger("penaltyrun")
 
@@ -44,13 +53,13 @@ EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_JOBS_FAILED = 3
 EXIT_ABORTED = 4
-EXIT_ENVIRONMENT = 5
 EXIT_INTERRUPTED = 130
 #: Exit code → meaning (also in README "Errors and exit codes").
 EXIT_CODES = {
     EXIT_OK: "success (every job recorded ok or diverged)",
     1: "internal error (a bug: please report the traceback)",
-    EXIT_USAGE: "bad command line or config, or no readable results (one line on stderr)",
+    EXIT_USAGE: "bad command line or config, a run directory in use by another run, or no "
+                "readable results (one line on stderr)",
     EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed`",
     EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
                   "runner.worker_timeout s); finished jobs are kept",
@@ -207,11 +216,11 @@ def _guard(func: Callable[[], Any]) -> Any:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_ABORTED)
     except EnvironmentProblemError as exc:
-        _print_error(str(exc))
+        print_error(str(exc))
         sys.exit(EXIT_ENVIRONMENT)
     except OSError as exc:  # any other file operation the machine refused
-        broken = _stdout_broken()
-        _print_error(_stdout_error_line(broken) if broken is not None
+        broken = stdout_broken()
+        print_error(stdout_error_line(broken) if broken is not None
                      else describe_os_error(exc, doing="use"))
         sys.exit(EXIT_ENVIRONMENT)
     except RunInterruptedError as exc:
@@ -222,99 +231,6 @@ def _guard(func: Callable[[], Any]) -> Any:
         how = "interrupted" if signum == signal.SIGINT else f"stopped by {signal_name(signum)}"
         print(f"penaltyrun: {how}", file=sys.stderr)
         sys.exit(128 + signum)
-
-
-def _print_error(line: str) -> None:
-    """``penaltyrun: error: <line>`` on stderr, even when stdout is broken."""
-    try:
-        print(f"penaltyrun: error: {line}", file=sys.stderr, flush=True)
-    except OSError:
-        pass
-
-
-def ensure_utf8_mode(argv: list[str]) -> None:
-    """Run in Python's UTF-8 mode whatever the locale: under a non-UTF-8 locale (e.g.
-    ``LC_ALL=C PYTHONUTF8=0``) re-execute the interpreter with ``-X utf8``, so every text
-    file, log line and printed line is UTF-8 instead of failing on a non-ASCII character."""
-    import locale
-    import os
-
-    if sys.flags.utf8_mode or locale.getpreferredencoding(False).lower().replace("-", "") \
-            == "utf8" or os.environ.get("PENALTYRUN_NO_REEXEC"):
-        return
-    os.environ["PENALTYRUN_NO_REEXEC"] = "1"  # never loop
-    os.environ["PYTHONUTF8"] = "1"
-    os.execv(sys.executable, [sys.executable, "-X", "utf8", *sys.orig_argv[1:]]
-             if hasattr(sys, "orig_argv") else [sys.executable, "-X", "utf8", *argv])
-
-
-class WatchedStream:
-    """A text stream that remembers the OSError of its last failed write or flush (so that
-    a failure to print is told apart from other file errors)."""
-
-    def __init__(self, inner: Any) -> None:
-        self._inner = inner
-        self.error: OSError | None = None
-
-    def write(self, text: str) -> int:
-        try:
-            return self._inner.write(text)
-        except OSError as exc:
-            self.error = exc
-            raise
-
-    def flush(self) -> None:
-        try:
-            self._inner.flush()
-        except OSError as exc:
-            self.error = exc
-            raise
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._inner, name)
-
-
-def watch_stdout() -> None:
-    """Wrap ``sys.stdout`` in a :class:`WatchedStream` (once)."""
-    if not isinstance(sys.stdout, WatchedStream) and sys.stdout is not None:
-        sys.stdout = WatchedStream(sys.stdout)
-
-
-def _stdout_broken() -> OSError | None:
-    """The error of writing stdout, or None if it can be written. A broken stdout
-    (``/dev/full``, a closed pipe) is replaced by ``/dev/null`` at the file-descriptor
-    level, so that no later flush (at interpreter shutdown) fails again."""
-    import os
-
-    try:
-        sys.stdout.flush()
-        error = getattr(sys.stdout, "error", None)
-        if error is not None:
-            raise error
-    except OSError as exc:
-        try:
-            null = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(null, sys.stdout.fileno())
-            os.close(null)
-        except (OSError, ValueError):
-            pass
-        return exc
-    except ValueError:  # stdout closed by the caller
-        return None
-    return None
-
-
-def _stdout_error_line(exc: OSError) -> str:
-    return f"cannot write standard output: {exc.strerror or exc}"
-
-
-def flush_stdout() -> None:
-    """Flush stdout; a stdout that cannot be written (``/dev/full``, a closed pipe) is one
-    line on stderr and exit code 5, not a traceback at interpreter shutdown."""
-    exc = _stdout_broken()
-    if exc is not None:
-        _print_error(_stdout_error_line(exc))
-        sys.exit(EXIT_ENVIRONMENT)
 
 
 def install_signal_handlers() -> None:

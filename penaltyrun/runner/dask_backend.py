@@ -32,12 +32,29 @@ CONNECT_TIMEOUT_S = 10.0
 _DASK_LOGGERS = ("distributed", "dask", "bokeh", "tornado")
 
 
+class OneLineDaskLogs(logging.Filter):
+    """Drop the tracebacks of dask's own log records (e.g. every failed reconnection to a
+    lost scheduler): their message stays, one line each."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.name.split(".", 1)[0] in _DASK_LOGGERS:
+            record.exc_info, record.exc_text, record.stack_info = None, None, None
+        return True
+
+
 def quiet_dask_logs() -> None:
-    """dask's own logs at WARNING, unless penaltyrun runs verbose (``hydra.verbose``)."""
+    """dask's own logs at WARNING and without tracebacks, unless penaltyrun runs verbose
+    (``hydra.verbose``)."""
     if logging.getLogger("penaltyrun").isEnabledFor(logging.DEBUG):
         return
     for name in _DASK_LOGGERS:
         logging.getLogger(name).setLevel(logging.WARNING)
+    names = ["", *(n for n in list(logging.root.manager.loggerDict)
+                   if n.split(".", 1)[0] in _DASK_LOGGERS)]
+    handlers = [h for name in names for h in logging.getLogger(name).handlers]
+    for handler in handlers:
+        if not any(isinstance(f, OneLineDaskLogs) for f in handler.filters):
+            handler.addFilter(OneLineDaskLogs())
 
 
 def import_distributed() -> Any:

@@ -92,7 +92,9 @@ def _profile_sweeps(cfg: DictConfig, parsed: list[Any], parser: Any) -> list[Any
     """
     from hydra.errors import HydraException
 
-    params = OmegaConf.select(cfg, "hydra.sweeper.params") or {}
+    params = OmegaConf.select(cfg, "hydra.sweeper.params")
+    if not isinstance(params, DictConfig):
+        return []
     given = {o.key_or_group for o in parsed}
     out = []
     for key, value in OmegaConf.to_container(params, resolve=False).items():

@@ -80,6 +80,7 @@ def test_huge_n_starts_is_one_line_in_seconds(tmp_path, args):
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.slow
 def test_plan_at_the_limit_answers(tmp_path):
     proc = cli(*FAST_JOBS, "mode=plan", "runner.n_starts=100000", "runner.forecast_samples=0",
                cwd=tmp_path, timeout=300)
@@ -111,6 +112,7 @@ def test_graded_penalty_never_decreases_with_the_failure():
     assert np.all(np.diff(att) >= 0) and np.all(np.isfinite(att))
 
 
+@pytest.mark.slow
 def test_gain_1e308_costs_no_less_than_gain_1e44(tmp_path):
     costs = []
     for k in ("1e44", "1e308"):

@@ -51,3 +51,26 @@ def test_report_and_param_options():
     for bad in ({"eig_bounds": [2, 1]}, {"eig_bounds": "x"}, {"cayley_bound": 0}):
         with pytest.raises(ConfigError):
             checks.check_param_options(bad)
+
+
+def test_run_dir_kinds_refused(tmp_path):
+    (tmp_path / "link").symlink_to(tmp_path / "gone")
+    with pytest.raises(ConfigError, match="symbolic link .* does not exist"):
+        checks.check_run_dir(tmp_path / "link")
+    with pytest.raises(ConfigError, match="symbolic link"):
+        checks.check_run_dir(tmp_path / "link" / "run")
+    (tmp_path / "run" / "results.parquet").mkdir(parents=True)
+    with pytest.raises(ConfigError, match="results.parquet exists and is not a file"):
+        checks.check_run_dir(tmp_path / "run")
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(ConfigError, match="-o: .* is a file"):
+        checks.check_output_dir(tmp_path / "afile", "-o")
+    checks.check_output_dir(None)
+    checks.check_output_dir(tmp_path / "new" / "report")
+
+
+def test_matrix_entries_must_be_numbers():
+    checks.check_matrix_entries({"K": [[1, 0.5], [0.5, 2]], "Q": None}, "matrices")
+    for bad in ([[True, False], [False, True]], [[1, "a"], [0, 1]], True):
+        with pytest.raises(ConfigError, match="matrices.K: entries must be numbers"):
+            checks.check_matrix_entries({"K": bad}, "matrices")

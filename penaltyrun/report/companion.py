@@ -1,4 +1,4 @@
-"""The authors' companion attitude study beside ours (spec attitude.md, last section).
+"""The authors' companion attitude study beside ours.
 
 Cases ``schaub_detumble`` (unconstrained) and ``schaub_detumble_sat`` (|u_i| ≤ 1 N·m) of
 ``attitude_lyapunov``: best / median / mean / worst J over the successful starts of each

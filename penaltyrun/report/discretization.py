@@ -1,7 +1,7 @@
 """Low-thrust discretization spread of tuned matrices, for the main comparison tables.
 
 The time of flight (or propellant) of a low-thrust transfer depends on the control-hold step
-and the RK4 substeps (spec lowthrust.md). Every job re-evaluates its best K at the held-out
+and the RK4 substeps. Every job re-evaluates its best K at the held-out
 control steps and substep counts (``holdout`` column, scenario kinds ``control_step`` and
 ``substeps``, with the training run under ``training``). For one K:
 

@@ -250,7 +250,7 @@ def family_section(family: str, df: pd.DataFrame, out: Path) -> list[str]:
                       "training control step (days or kg). Spread = max − min of one K's "
                       "cost over the training step and the held-out control steps / RK4 "
                       "substeps (converged runs). A saving smaller than the larger spread is "
-                      "within discretization noise (spec lowthrust.md).", "",
+                      "within discretization noise.", "",
                       markdown(disc), ""]
     return lines
 

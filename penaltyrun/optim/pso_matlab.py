@@ -1,9 +1,9 @@
 """MATLAB-faithful particle swarm (``optimizer=pso_matlab``): the paper's own optimizer.
 
 A self-contained numpy re-implementation of MATLAB's ``particleswarm`` with its documented
-default options, written from MathWorks' published algorithm description ("Particle Swarm Optimization
-Algorithm" in the Global Optimization Toolbox documentation) and checked against the shipped ``particleswarm.m`` where the
-two differ (no MATLAB code is reproduced):
+default options, written from MathWorks' published algorithm description ("Particle Swarm
+Optimization Algorithm", Global Optimization Toolbox) and checked against the shipped
+``particleswarm.m`` where the two differ (no MATLAB code is reproduced):
 
 * initial positions uniform in the box (``x0``, if given, replaces particle 0), initial
   velocities uniform in [−r, r] per component with r = min(ub − lb, ``initial_swarm_span``);

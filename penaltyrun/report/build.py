@@ -44,7 +44,7 @@ TARGET_COLUMNS = ["problem", "case", "variant", "optimizer", "param", "epsilon",
                   "median_evals_to_target"]
 
 METHODS = (
-    "Conventions (documentation: explanation/statistics). A cell is problem × case × variant × optimizer × map; "
+    "Conventions (docs: statistics). A cell is problem × case × variant × optimizer × map; "
     "a variant is a set of problem parameters, a warm start or an optimizer budget of its "
     "own, and cells are never pooled across optimizers, budgets or variants. Cost "
     "statistics use **converged starts only** (a diverged start carries a graded penalty, "

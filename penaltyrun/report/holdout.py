@@ -9,8 +9,8 @@ scenario (by label):
 * convergence rate of each matrix on the held-out set, and over all starts of the cell;
 * improvement (J_diag − J_full)/J_diag per scenario where both converge: median and 5 / 95 %
   quantiles; the share of those scenarios where full is better;
-* Wilcoxon signed-rank test of the paired costs (two-sided, ``scipy.stats.wilcoxon``;
-  spec statistics.md), with "underpowered" below 10 pairs.
+* Wilcoxon signed-rank test of the paired costs (two-sided, ``scipy.stats.wilcoxon``),
+  with "underpowered" below 10 pairs.
 
 Low thrust adds the discretization check: each tuned K's cost at the other control steps
 and RK4 substep counts of its held-out set; a nominal saving smaller than that spread is

@@ -13,6 +13,7 @@ import dataclasses
 import importlib
 import inspect
 import math
+import re
 import typing
 from pathlib import Path
 from typing import Any
@@ -47,6 +48,8 @@ def cell(value: Any) -> str:
 
 
 def _text(text: str) -> str:
+    """Prose for a table cell: one line, pipes escaped, no tracker references."""
+    text = re.sub(r"\s*\((?:see )?issue[^)]*\)", "", text, flags=re.IGNORECASE)
     return text.replace("|", "\\|").replace("\n", " ")
 
 
@@ -135,11 +138,11 @@ def top_level_section() -> list[str]:
             kind = type(value).__name__ if value is not None else "any"
         lines.append(f"| `{key}` | {cell(kind)} | {cell(value)} | {_text(allowed)} | "
                      f"{_text(entry['comment'])} |")
-    from penaltyrun.runner.options import RUNNER_OPTIONS as options
     listed = {e["key"] for e in yaml_entries(CONF / "config.yaml")}
-    for leaf, (kind, allowed) in options.items():
+    for leaf, (kind, allowed) in RUNNER_OPTIONS.items():
         if f"runner.{leaf}" not in listed:
-            lines.append(f"| `runner.{leaf}` | {cell(_KINDS.get(kind, kind))} | | {_text(allowed)} | |")
+            lines.append(f"| `runner.{leaf}` | {cell(_KINDS.get(kind, kind))} | | "
+                         f"{_text(allowed)} | |")
     return lines
 
 
@@ -188,8 +191,7 @@ def problem_section(name: str, module_path: str) -> list[str]:
         lines.append(f"| `problem.params.{field.name}` | {cell(type_name(hints[field.name]))} "
                      f"| {cell(default)} | {yaml_value} | {_text(meaning)} |")
     return lines + ["", "A `null` in the shipped YAML means: the case's value, else the "
-                    "dataclass default. Every field can be set on the command line, "
-                    f"`problem.params.<key>=<value>`.", ""]
+                    "dataclass default. Set a key with `problem.params.<key>=<value>`.", ""]
 
 
 def experiment_section() -> list[str]:

@@ -1,5 +1,6 @@
-"""MkDocs hook: the reference pages generated from the code join the site at build time
-(``hooks:`` in ``mkdocs.yml``), so they are never stale and never committed."""
+"""MkDocs hook: the reference pages are generated from the code again at build time
+(``hooks:`` in ``mkdocs.yml``), so the site never shows a stale page even where the
+committed copies (checked by ``make check-docs``) lag behind."""
 
 from __future__ import annotations
 

@@ -1,5 +1,8 @@
 """Results pages and the README's answer table, rendered from committed study data.
 
+The reference pages generated from the code (:mod:`.reference`) are committed too and
+checked the same way, so the Markdown in ``docs/`` reads correctly without a site build.
+
 Templates (``studies/templates/*.md``, Jinja) hold the prose; every number comes from an
 expression over a study's merged ``results.parquet`` or the report tables written beside it
 (:class:`StudyData`). :func:`render_all` writes ``docs/results/<template>.md`` and the
@@ -118,9 +121,12 @@ class Context:
             self._studies[name] = StudyData(self.root, name)
         return self._studies[name]
 
-    def pending(self, name: str) -> str:
-        """The sentence that stands where a study's numbers will go."""
+    def pending(self, name: str, short: bool = False) -> str:
+        """The sentence that stands where a study's numbers will go (``short``: for a table
+        cell)."""
         data = self.study(name)
+        if short:
+            return f"*not yet regenerated: `{data.make}`*"
         return (f"*Not yet regenerated: this place is filled from the committed data of the "
                 f"study `{name}` ({data.title}). Run `{data.make}` (resumable with "
                 f"`RESUME=true`), commit `studies/{name}/`, then `make docs-results`.*")
@@ -133,6 +139,13 @@ class Context:
         if agg == "count":
             return str(len(frame))
         return fmt(getattr(frame[column].astype(float), agg)(), spec)
+
+    def number(self, name: str, column: str, agg: str = "min", where: dict | None = None,
+               converged: bool = True) -> float:
+        """Like :meth:`value`, unformatted (for arithmetic in a template, e.g. a gain)."""
+        frame = self.study(name).rows(where, converged=converged)
+        return float(len(frame)) if agg == "count" else \
+            float(getattr(frame[column].astype(float), agg)())
 
     def summary(self, name: str, by: list[str], where: dict | None = None,
                 cost: str = "best_cost", spec: str = ".4g") -> str:
@@ -172,6 +185,18 @@ class Context:
                 f"versions: {versions}; commits: {', '.join(info.get('git_commits', []))}.")
 
 
+def paper_claim(problem: str) -> str:
+    """What the paper states for ``problem`` (:data:`penaltyrun.report.paper.CLAIMS`)."""
+    from penaltyrun.report.paper import CLAIMS
+    return CLAIMS[problem]
+
+
+def paper_mean(problem: str, case: str, param: str, spec: str = ".3g") -> str:
+    """The paper's mean cost of a cell (:data:`penaltyrun.report.paper.MEAN_COST`)."""
+    from penaltyrun.report.paper import MEAN_COST
+    return fmt(MEAN_COST[(problem, case)][param], spec)
+
+
 def environment(root: Path) -> jinja2.Environment:
     """The Jinja environment of ``<root>/studies/templates`` with :class:`Context`."""
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(Path(root) / TEMPLATES)),
@@ -179,17 +204,23 @@ def environment(root: Path) -> jinja2.Environment:
                              autoescape=False)
     ctx = Context(root)
     env.globals.update(study=ctx.study, pending=ctx.pending, value=ctx.value,
+                       number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
-                       studies=lambda: list_studies(root))
+                       studies=lambda: list_studies(root), paper_claim=paper_claim,
+                       paper_mean=paper_mean)
     env.filters["num"] = fmt
     return env
 
 
-def render(root: Path) -> dict[Path, str]:
-    """Rendered text of every generated file, by path relative to ``root``."""
+def render(root: Path, reference: bool = True) -> dict[Path, str]:
+    """Rendered text of every generated file, by path relative to ``root``: the results
+    pages, the README and (``reference``) the reference pages generated from the code."""
     root = Path(root)
     env = environment(root)
     out: dict[Path, str] = {}
+    if reference:
+        from penaltyrun.docsgen.reference import pages
+        out.update({Path("docs") / rel: text for rel, text in pages().items()})
     for path in sorted((root / TEMPLATES).glob("*.md")):
         text = env.get_template(path.name).render()
         if path.name == ANSWERS_TEMPLATE:
@@ -208,10 +239,10 @@ def splice_readme(readme: str, block: str) -> str:
     return f"{head}{README_START}\n{block.strip()}\n{README_END}{tail}"
 
 
-def render_all(root: Path) -> list[Path]:
+def render_all(root: Path, reference: bool = True) -> list[Path]:
     """Write every generated file; return the paths written."""
     written = []
-    for rel, text in render(root).items():
+    for rel, text in render(root, reference=reference).items():
         path = Path(root) / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         if not path.is_file() or path.read_text() != text:
@@ -220,12 +251,13 @@ def render_all(root: Path) -> list[Path]:
     return written
 
 
-def check(root: Path) -> list[str]:
+def check(root: Path, reference: bool = True) -> list[str]:
     """Differences between the committed generated files and a fresh rendering (rendered
     into a temporary folder); empty when they agree."""
     problems: list[str] = []
+    rendered = render(root, reference=reference)
     with tempfile.TemporaryDirectory(prefix="check-docs-") as tmp:
-        for rel, text in render(root).items():
+        for rel, text in rendered.items():
             fresh = Path(tmp) / rel
             fresh.parent.mkdir(parents=True, exist_ok=True)
             fresh.write_text(text)
@@ -238,7 +270,7 @@ def check(root: Path) -> list[str]:
                 diff = difflib.unified_diff(old, text.splitlines(), f"{rel} (committed)",
                                             f"{rel} (from the data)", lineterm="", n=0)
                 problems.append("\n".join(diff))
-        expected = {rel for rel in render(root) if rel.parent == RESULTS_DOCS}
+        expected = {rel for rel in rendered if rel.parent == RESULTS_DOCS}
         for page in sorted((Path(root) / RESULTS_DOCS).glob("*.md")):
             rel = page.relative_to(root)
             if rel not in expected:

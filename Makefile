@@ -126,11 +126,11 @@ reproduce-tables: reproduce-zermelo reproduce-attitude reproduce-lowthrust  ## a
 	$(MAKE) report REPRO=$(REPRO)
 
 docs: install-dev  ## build the documentation site strictly (every warning an error) into site/
-	$(PYTHON) -m mkdocs build --strict --quiet
+	NO_MKDOCS_2_WARNING=1 $(PYTHON) -m mkdocs build --strict --quiet
 	@echo "site: site/index.html"
 
 docs-serve: install-dev  ## serve the documentation at http://127.0.0.1:8000 while editing
-	$(PYTHON) -m mkdocs serve
+	NO_MKDOCS_2_WARNING=1 $(PYTHON) -m mkdocs serve
 
 docs-results: install-dev  ## regenerate docs/results/*.md and the README's answer table from studies/*
 	$(PYTHON) -m penaltyrun.docsgen results

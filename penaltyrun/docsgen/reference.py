@@ -122,19 +122,23 @@ def top_level_section() -> list[str]:
     from penaltyrun.checks import REPORT_OPTIONS
     from penaltyrun.runner.options import RUNNER_OPTIONS
     lines = ["| key | type | default | range | meaning |", "|---|---|---|---|---|"]
-    for entry in yaml_entries(CONF / "config.yaml"):
+    entries = yaml_entries(CONF / "config.yaml")
+    nested = {e["key"].rsplit(".", 1)[0] for e in entries if "." in e["key"]}
+    for entry in entries:
         key, value = entry["key"], entry["value"]
-        if key.startswith(("hydra", "defaults")) or isinstance(value, dict) and value:
+        if key.startswith(("hydra", "defaults")) or isinstance(value, dict) and key in nested:
             continue
         group, _, leaf = key.partition(".")
         kind, allowed = "", ""
+        if isinstance(value, dict):  # an inline mapping of pre-declared names
+            kind, value = "mapping", ", ".join(value)
         if group == "runner" and leaf in RUNNER_OPTIONS:
             kind, allowed = RUNNER_OPTIONS[leaf]
             kind = _KINDS.get(kind, kind)
         elif group == "report" and leaf in REPORT_OPTIONS:
             kind = " or ".join("null" if t is type(None) else t.__name__
                                for t in REPORT_OPTIONS[leaf])
-        else:
+        elif kind != "mapping":
             kind = type(value).__name__ if value is not None else "any"
         lines.append(f"| `{key}` | {cell(kind)} | {cell(value)} | {_text(allowed)} | "
                      f"{_text(entry['comment'])} |")

@@ -65,7 +65,8 @@ def yaml_entries(path: Path) -> list[dict[str, Any]]:
     """Every key of a YAML config with its dotted path, value and inline comment.
 
     Comment lines right below a key (indented deeper than the key, or aligned comment
-    continuation lines) extend its comment. Keys under ``hydra`` and ``defaults`` are kept;
+    continuation lines) extend its comment; a key without an inline comment takes the
+    comment block right above it. Keys under ``hydra`` and ``defaults`` are kept;
     the caller filters.
 
     Returns
@@ -78,6 +79,7 @@ def yaml_entries(path: Path) -> list[dict[str, Any]]:
     entries: list[dict[str, Any]] = []
     stack: list[tuple[int, str]] = []
     last: dict[str, Any] | None = None
+    above: list[str] = []
     for line in path.read_text().splitlines():
         comment = _COMMENT_LINE.match(line)
         if comment:
@@ -85,10 +87,12 @@ def yaml_entries(path: Path) -> list[dict[str, Any]]:
                 last["comment"] = (last["comment"] + " " + comment["comment"]).strip()
             else:
                 last = None
+                above.append(comment["comment"].strip())
             continue
         match = _KEY_LINE.match(line)
         if not match or line.lstrip().startswith("-"):
             last = None
+            above = []
             continue
         indent = len(match["indent"])
         while stack and stack[-1][0] >= indent:
@@ -96,8 +100,10 @@ def yaml_entries(path: Path) -> list[dict[str, Any]]:
         dotted = ".".join([k for _, k in stack] + [match["key"]])
         stack.append((indent, match["key"]))
         value = _lookup(data, dotted)
-        last = {"key": dotted, "value": value, "comment": (match["comment"] or "").strip(),
-                "indent": indent if match["comment"] else indent}
+        last = {"key": dotted, "value": value, "indent": indent,
+                "comment": (match["comment"] or "").strip() or " ".join(
+                    a for a in above if not a.startswith("-")).strip()}
+        above = []
         entries.append(last)
     for entry in entries:
         entry.pop("indent", None)

@@ -172,6 +172,20 @@ class Context:
             frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
         return markdown_table(frame[columns] if columns else frame, spec)
 
+    def held_out(self, name: str, spec: str = ".4g") -> str:
+        """Every per-family held-out table of the study's report (``holdout_<family>.csv``:
+        paired by scenario, share full better, median improvement, Wilcoxon p), one after
+        another under a heading naming the family."""
+        folder = self.study(name).folder / TABLES
+        skip = {"holdout_discretization", "holdout_tuning_modes"}
+        parts = []
+        for path in sorted(folder.glob("holdout_*.csv")):
+            if path.stem not in skip:
+                family = path.stem.removeprefix("holdout_").replace("_", " ")
+                parts.append(f"**Held-out scenarios, {family}:**\n\n"
+                             + self.csv(name, path.stem, spec=spec))
+        return "\n\n".join(parts) or "*The study's report has no held-out table.*"
+
     def provenance(self, name: str) -> str:
         """One paragraph: jobs, machine, package versions and commits of the study's data."""
         info = self.study(name).provenance
@@ -206,6 +220,7 @@ def environment(root: Path) -> jinja2.Environment:
     env.globals.update(study=ctx.study, pending=ctx.pending, value=ctx.value,
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
+                       held_out=ctx.held_out,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        paper_mean=paper_mean)
     env.filters["num"] = fmt

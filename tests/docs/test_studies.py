@@ -5,12 +5,13 @@ merged zstd Parquet with the report's tables and a provenance file."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
 
-from penaltyrun.docsgen import studies
+from penaltyrun.docsgen import results, studies
 
 ROOT = Path(__file__).resolve().parents[2]
 CONF = ROOT / "penaltyrun" / "conf"
@@ -60,7 +61,23 @@ def run_reduced(name: str, tmp_path: Path) -> Path:
     info = json.loads((dest / "provenance.json").read_text())
     assert info["jobs"] == len(frame) and "numpy" in info["packages"]
     assert len(info["commands"]) == len(study.commands)
+    render_pages_with(name, dest, tmp_path / "root")
     return merged
+
+
+def render_pages_with(name: str, dest: Path, root: Path) -> None:
+    """Render the real templates with this study's (reduced) data in place: its place on
+    every page is filled from the data, no longer pending."""
+    for other in NAMES:
+        folder = root / "studies" / other
+        folder.mkdir(parents=True)
+        shutil.copy2(ROOT / "studies" / other / "study.yaml", folder)
+    shutil.copytree(dest, root / "studies" / name, dirs_exist_ok=True)
+    shutil.copytree(ROOT / "studies" / "templates", root / "studies" / "templates")
+    shutil.copy2(ROOT / "README.md", root)
+    text = "\n".join(results.render(root, reference=False).values())
+    assert f"study-{name}`" not in text
+    assert f"`{name}` | " in text
 
 
 @pytest.mark.parametrize("name", FAST)

@@ -29,7 +29,9 @@ Best diagonal: {{ value(name, "best_cost", "min", {"param": "diagonal"}, ".4f") 
 """
 ANSWERS = """| question | answer |
 |---|---|
-| demo | {% if study("demo").available %}{{ value("demo", "best_cost", "median", {"param": "full"}) }}{% else %}{{ pending("demo", short=True) }}{% endif %} |
+| demo | {% if study("demo").available -%}
+{{ value("demo", "best_cost", "median", {"param": "full"}) }}
+{%- else %}{{ pending("demo", short=True) }}{% endif %} |
 """
 README = f"# demo\n\n{results.README_START}\n{results.README_END}\n\nend\n"
 

@@ -76,7 +76,7 @@ def probe_range(cls: type, name: str, hint: Any) -> str:
             if exc.allowed:
                 return "one of " + ", ".join(f"`{a}`" for a in exc.allowed)
             return text
-        except (TypeError, ValueError):
+        except Exception:  # a probe the settings class rejects in its own way  # noqa: BLE001
             continue
     from penaltyrun.optim.checks import describe
     return "any " + describe(hint).removeprefix("a ").removeprefix("an ")

@@ -191,7 +191,17 @@ class Context:
         info = self.study(name).provenance
         if not info:
             return ""
-        versions = ", ".join(f"{k} {v}" for k, v in sorted(info.get("packages", {}).items()))
+        packages = info.get("packages", {})
+        in_records = info.get("packages_in_records") or []
+        if len(in_records) == 1:  # the versions the records carry win over the merge's
+            try:
+                packages = {k: v for k, v in json.loads(in_records[0]).items()
+                            if isinstance(v, str)}
+            except (ValueError, AttributeError):
+                pass
+        versions = ", ".join(f"{k} {v}" for k, v in sorted(packages.items()))
+        if len(in_records) > 1:
+            versions += f" (the records carry {len(in_records)} different version sets)"
         host = info.get("machine", {})
         statuses = ", ".join(f"{v} {k}" for k, v in sorted(info.get("status", {}).items()))
         return (f"Data: {info.get('jobs')} jobs ({statuses}); "

@@ -265,6 +265,9 @@ def write_provenance(root: Path, dest: Path, frame: Any,
             "lock_sha256": hashlib.sha256(lock.read_bytes()).hexdigest()
             if lock.is_file() else None,
             "git_commits": sorted({str(c) for c in frame["git_commit"].dropna()}),
+            # the versions each record carries, where the schema has a packages column
+            "packages_in_records": sorted({str(p) for p in frame["packages"].dropna()})
+            if "packages" in frame else [],
             "jobs": int(len(frame)),
             "status": {str(k): int(v) for k, v in frame["status"].value_counts().items()},
             "commands": commands}

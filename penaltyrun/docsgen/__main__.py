@@ -28,8 +28,12 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     ref = sub.add_parser("reference", help="write the generated reference pages")
     ref.add_argument("out", type=Path)
-    sub.add_parser("results", help="regenerate docs/results and the README answer table")
-    sub.add_parser("check", help="fail if the generated docs differ from the data")
+    for name, text in (("results", "regenerate docs/results, the README answer table and "
+                                    "the reference pages"),
+                       ("check", "fail if the generated docs differ from the data")):
+        command = sub.add_parser(name, help=text)
+        command.add_argument("--no-reference", action="store_true",
+                             help="leave out the reference pages generated from the code")
     study = sub.add_parser("study", help="run or merge a study")
     study.add_argument("action", choices=("list", "run", "merge"))
     study.add_argument("name", nargs="?")
@@ -55,11 +59,11 @@ def main(argv: list[str] | None = None) -> int:
             path.write_text(text)
         return 0
     if args.command == "results":
-        for rel in results.render_all(root):
+        for rel in results.render_all(root, reference=not args.no_reference):
             print(f"wrote {rel}")
         return 0
     if args.command == "check":
-        problems = results.check(root)
+        problems = results.check(root, reference=not args.no_reference)
         for problem in problems:
             print(problem, file=sys.stderr)
         if problems:

@@ -166,7 +166,11 @@ class Context:
 
     def csv(self, name: str, stem: str, columns: list[str] | None = None,
             where: dict | None = None, spec: str = ".4g") -> str:
-        """A report table of the study (or some of its columns / rows) as Markdown."""
+        """A report table of the study (or some of its columns / rows) as Markdown; a note
+        saying so when the study's report did not write that table (e.g. no pair of maps
+        to compare)."""
+        if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
+            return f"*The report of `{name}` has no `{stem}` table.*"
         frame = self.study(name).table(stem)
         for key, value in (where or {}).items():
             frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]

@@ -176,6 +176,22 @@ class Context:
             frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
         return markdown_table(frame[columns] if columns else frame, spec)
 
+    def table_value(self, name: str, stem: str, column: str, where: dict | None = None,
+                    spec: str = ".4g") -> str:
+        """One entry of a report table: the row matching ``where`` must be unique.
+
+        Raises
+        ------
+        ValueError
+            If no row or several rows match (the template's query is ambiguous).
+        """
+        frame = self.study(name).table(stem)
+        for key, value in (where or {}).items():
+            frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
+        if len(frame) != 1:
+            raise ValueError(f"{name}/{stem}: {len(frame)} rows match {where}, need one")
+        return fmt(frame[column].iloc[0], spec)
+
     def held_out(self, name: str, spec: str = ".4g") -> str:
         """Every per-family held-out table of the study's report (``holdout_<family>.csv``:
         paired by scenario, share full better, median improvement, Wilcoxon p), one after
@@ -234,7 +250,7 @@ def environment(root: Path) -> jinja2.Environment:
     env.globals.update(study=ctx.study, pending=ctx.pending, value=ctx.value,
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
-                       held_out=ctx.held_out,
+                       held_out=ctx.held_out, table_value=ctx.table_value,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        paper_mean=paper_mean)
     env.filters["num"] = fmt

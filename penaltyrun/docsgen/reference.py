@@ -18,7 +18,13 @@ import typing
 from pathlib import Path
 from typing import Any
 
-from penaltyrun.docsgen.sources import attribute_docs, header_comment, rst_to_md, yaml_entries
+from penaltyrun.docsgen.sources import (
+    attribute_docs,
+    header_comment,
+    numpydoc_to_md,
+    rst_to_md,
+    yaml_entries,
+)
 from penaltyrun.errors import ConfigError
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
@@ -277,7 +283,7 @@ def page_protocol() -> str:
              "## The module", "", rst_to_md(inspect.getdoc(base) or ""), ""]
     for obj in (base.Problem, base.MatrixSpec, base.ScalarSpec, base.BatchEvaluation,
                 base.ParamsMixin):
-        lines += [f"## `{obj.__name__}`", "", rst_to_md(inspect.getdoc(obj) or ""), ""]
+        lines += [f"## `{obj.__name__}`", "", numpydoc_to_md(inspect.getdoc(obj) or ""), ""]
         for name, member in vars(obj).items():
             if callable(member) and not name.startswith("_") or isinstance(member, classmethod):
                 func = member.__func__ if isinstance(member, classmethod) else member
@@ -286,12 +292,12 @@ def page_protocol() -> str:
                 except (TypeError, ValueError):
                     signature = "(...)"
                 lines += [f"### `{name}{signature}`", "",
-                          rst_to_md(inspect.getdoc(func) or ""), ""]
+                          numpydoc_to_md(inspect.getdoc(func) or ""), ""]
     for name in sorted(base.__all__):
         member = getattr(base, name)
         if inspect.isfunction(member):
             lines += [f"## `{name}{inspect.signature(member)}`", "",
-                      rst_to_md(inspect.getdoc(member) or ""), ""]
+                      numpydoc_to_md(inspect.getdoc(member) or ""), ""]
     return "\n".join(lines)
 
 

@@ -21,6 +21,39 @@ def rst_to_md(text: str) -> str:
     return text.replace("``", "`")
 
 
+def numpydoc_to_md(doc: str) -> str:
+    """A numpydoc docstring as Markdown: section titles in bold, ``name : type`` entries
+    as list items with their indented descriptions joined."""
+    lines = doc.splitlines()
+    out: list[str] = []
+    in_section = False
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        nxt = lines[i + 1] if i + 1 < len(lines) else ""
+        if line.strip() and nxt.strip() and set(nxt.strip()) == {"-"}:
+            out += ["", f"**{line.strip()}**", ""]
+            in_section = True
+            i += 2
+            continue
+        if in_section and line and not line.startswith(" "):
+            name, _, kind = line.partition(" : ")
+            item = f"* `{name.strip()}`" + (f" ({kind.strip()})" if kind else "")
+            desc = []
+            i += 1
+            while i < len(lines) and (lines[i].startswith(" ") or not lines[i].strip()):
+                if lines[i].strip():
+                    desc.append(lines[i].strip())
+                elif desc:
+                    break
+                i += 1
+            out.append(item + (": " + " ".join(desc) if desc else ""))
+            continue
+        out.append(line)
+        i += 1
+    return rst_to_md("\n".join(out))
+
+
 def attribute_docs(cls: type) -> dict[str, str]:
     """Field name → description from the numpydoc ``Attributes`` sections of ``cls`` and
     its bases (a line ``a, b : type`` documents both names).

@@ -18,11 +18,12 @@ PIP ?= $(PYTHON) -m pip
 PYTEST_ARGS ?=
 WORKERS ?= 2
 
-.PHONY: help venv install install-dev run test test-slow test-reference lint bench reproduce-tables \
-	reproduce-zermelo reproduce-attitude reproduce-lowthrust referee-zermelo referee-attitude report clean
+.PHONY: help venv install install-dev install-locked run test test-slow test-reference lint bench \
+	reproduce-tables reproduce-zermelo reproduce-attitude reproduce-lowthrust referee-zermelo \
+	referee-attitude report docs docs-serve docs-results check-docs lock study-list clean
 
 help:  ## list targets
-	@grep -E '^[a-zA-Z_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  %-18s %s\n", $$1, $$2}'
+	@grep -E '^[a-zA-Z_%-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  %-18s %s\n", $$1, $$2}'
 
 venv: $(VENV_PYTHON)  ## create the virtual environment $(VENV) (done by every target)
 
@@ -35,8 +36,31 @@ $(VENV_PYTHON):
 install: $(VENV_PYTHON)  ## install penaltyrun (editable) with its runtime dependencies
 	$(PIP) install -q -e .
 
-install-dev: $(VENV_PYTHON)  ## install penaltyrun with test and lint tools
+install-dev: $(VENV_PYTHON)  ## install penaltyrun with test, lint and documentation tools
 	$(PIP) install -q -e ".[dev]"
+
+# requirements.lock pins every package version that made the committed study data
+# (`make lock` writes it from this environment). LOCKED=true makes the study and reproduce
+# targets install exactly those versions first, so a regenerated study runs on the same
+# numpy / scipy / numba / pyswarms / cma as the committed one.
+LOCK_FILE ?= requirements.lock
+LOCKED ?= false
+ifeq ($(LOCKED),true)
+STUDY_INSTALL := install-locked
+else
+STUDY_INSTALL := install
+endif
+
+install-locked: $(VENV_PYTHON)  ## install the exact versions of requirements.lock, then penaltyrun (editable)
+	$(PIP) install -q -r $(LOCK_FILE)
+	$(PIP) install -q --no-deps -e .
+
+lock: install-dev  ## pin this environment's versions of penaltyrun's dependencies into requirements.lock (uv)
+	$(PYTHON) -m pip freeze --exclude-editable > $(LOCK_FILE).constraints
+	$(PYTHON) -m uv pip compile pyproject.toml --extra dev --extra docs --extra dask \
+		--constraint $(LOCK_FILE).constraints --python $(PYTHON) --no-header \
+		--output-file $(LOCK_FILE) --quiet; status=$$?; rm -f $(LOCK_FILE).constraints; exit $$status
+	@echo "wrote $(LOCK_FILE)"
 
 run: install  ## small default experiment end to end: optimize → Parquet → report
 	$(PYTHON) -m penaltyrun.cli -m problem=zermelo param=diagonal,full runner.n_starts=4 \
@@ -67,28 +91,28 @@ RESUME ?= false
 SWEEP = $(PYTHON) -m penaltyrun.cli -m runner.workers=$(WORKERS) runner.report=false \
 	runner.resume=$(RESUME)
 
-reproduce-zermelo: install  ## Zermelo study: 4 maps × PSO and DE × 10 starts (≈ 1 min)
+reproduce-zermelo: $(STUDY_INSTALL)  ## Zermelo study: 4 maps × PSO and DE × 10 starts (≈ 1 min)
 	$(SWEEP) +experiment=zermelo_paper hydra.sweep.dir=$(REPRO)/zermelo
 
-reproduce-attitude: install  ## attitude Tables 1-2 + robustness, DE check of diagonal, t_f sweep
+reproduce-attitude: $(STUDY_INSTALL)  ## attitude Tables 1-2 + robustness, DE check of diagonal, t_f sweep
 	$(SWEEP) +experiment=attitude_paper hydra.sweep.dir=$(REPRO)/attitude
 	$(SWEEP) +experiment=attitude_de_check hydra.sweep.dir=$(REPRO)/attitude_de_check
 	$(SWEEP) +experiment=attitude_horizon hydra.sweep.dir=$(REPRO)/attitude_horizon
 
-reproduce-lowthrust: install  ## low-thrust Tables 3-5: K = I baselines, generic law, Q-law
+reproduce-lowthrust: $(STUDY_INSTALL)  ## low-thrust Tables 3-5: K = I baselines, generic law, Q-law
 	$(SWEEP) +experiment=lowthrust_baseline hydra.sweep.dir=$(REPRO)/lowthrust_baseline
 	$(SWEEP) +experiment=lowthrust_cap hydra.sweep.dir=$(REPRO)/lowthrust_cap
 	$(SWEEP) +experiment=lowthrust_generic hydra.sweep.dir=$(REPRO)/lowthrust_generic
 	$(SWEEP) +experiment=lowthrust_qlaw hydra.sweep.dir=$(REPRO)/lowthrust_qlaw
 	$(SWEEP) +experiment=lowthrust_qlaw_minfuel hydra.sweep.dir=$(REPRO)/lowthrust_qlaw_minfuel
 
-referee-zermelo: install  ## referee study, Zermelo: 4 maps × pso/de/cmaes × 30 starts at 2000 evaluations + grid
+referee-zermelo: $(STUDY_INSTALL)  ## referee study, Zermelo: 4 maps × pso/de/cmaes × 30 starts at 2000 evaluations + grid
 	$(SWEEP) +experiment=referee_zermelo hydra.sweep.dir=$(REPRO)/referee_zermelo
 	$(SWEEP) problem=zermelo param=diagonal,geagsp optimizer=grid runner.n_starts=1 \
 		hydra.sweep.dir=$(REPRO)/referee_zermelo/grid
 	$(PYTHON) -m penaltyrun.report_cli $(REPRO)/referee_zermelo -o $(REPRO)/referee_zermelo/report
 
-referee-attitude: install  ## referee study, attitude: 2 laws × 2 manoeuvres × 4 maps × pso/de/cmaes × 30 starts at 3000 evaluations, + diagonal check (≈ 1.5 h)
+referee-attitude: $(STUDY_INSTALL)  ## referee study, attitude: 2 laws × 2 manoeuvres × 4 maps × pso/de/cmaes × 30 starts at 3000 evaluations, + diagonal check (≈ 1.5 h)
 	$(SWEEP) +experiment=referee_attitude hydra.sweep.dir=$(REPRO)/referee_attitude
 	$(SWEEP) +experiment=referee_attitude_diagonal \
 		hydra.sweep.dir=$(REPRO)/referee_attitude/diagonal_check
@@ -101,5 +125,24 @@ report:  ## report of everything under $(REPRO)
 reproduce-tables: reproduce-zermelo reproduce-attitude reproduce-lowthrust  ## all paper studies, then the report (RESUME=true continues an interrupted run)
 	$(MAKE) report REPRO=$(REPRO)
 
+docs: install-dev  ## build the documentation site strictly (every warning an error) into site/
+	NO_MKDOCS_2_WARNING=1 $(PYTHON) -m mkdocs build --strict --quiet
+	@echo "site: site/index.html"
+
+docs-serve: install-dev  ## serve the documentation at http://127.0.0.1:8000 while editing
+	NO_MKDOCS_2_WARNING=1 $(PYTHON) -m mkdocs serve
+
+docs-results: install-dev  ## regenerate docs/results/*.md and the README's answer table from studies/*
+	$(PYTHON) -m penaltyrun.docsgen results
+
+check-docs: install-dev  ## fail if a generated number in docs/results or the README differs from studies/*
+	$(PYTHON) -m penaltyrun.docsgen check
+
+study-list:  ## list the studies (studies/<name>/study.yaml)
+	@$(PYTHON) -m penaltyrun.docsgen study list
+
+study-%: $(STUDY_INSTALL)  ## run study <name> (resumable: RESUME=true), merge into studies/<name>/
+	$(PYTHON) -m penaltyrun.docsgen study run $* --workers $(WORKERS) --resume $(RESUME)
+
 clean:  ## remove outputs and caches (not the virtual environment: `rm -rf .venv`)
-	rm -rf outputs .pytest_cache .ruff_cache .hypothesis
+	rm -rf outputs site .pytest_cache .ruff_cache .hypothesis

@@ -1,5 +1,5 @@
 """Independent low-thrust reference shared by the kernel and min-fuel reference tests: the
-Gauss variational equations in modified equinoctial elements written from the spec in plain
+Gauss variational equations in modified equinoctial elements written independently in plain
 numpy (no production code), for scipy ``solve_ivp``."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Particle swarm optimization through pyswarms' ``GlobalBestPSO`` (the only pyswarms user).
 
-Traps handled here (see the spec's ``pso.md``):
+Traps handled here (docs: explanation/pso-matlab.md):
 
 * pyswarms draws from the global ``np.random`` state: it is seeded right before the
   optimizer is built (one job per process, so this is safe);

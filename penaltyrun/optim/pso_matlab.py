@@ -1,9 +1,9 @@
 """MATLAB-faithful particle swarm (``optimizer=pso_matlab``): the paper's own optimizer.
 
 A self-contained numpy re-implementation of MATLAB's ``particleswarm`` with its documented
-default options, written from the algorithm description in the spec (``pso.md``, "MATLAB
-particleswarm, step by step") and checked against the shipped ``particleswarm.m`` where the
-two differ (no MATLAB code is reproduced):
+default options, written from MathWorks' published algorithm description ("Particle Swarm
+Optimization Algorithm", Global Optimization Toolbox) and checked against the shipped
+``particleswarm.m`` where the two differ (no MATLAB code is reproduced):
 
 * initial positions uniform in the box (``x0``, if given, replaces particle 0), initial
   velocities uniform in [−r, r] per component with r = min(ub − lb, ``initial_swarm_span``);
@@ -22,7 +22,7 @@ two differ (no MATLAB code is reproduced):
   ``max_stall_iterations`` iterations; else stop at ``max_iterations`` (200 · nvars by
   default) or when ``max_evals`` is spent.
 
-Three places where MathWorks' algorithm page (and the spec after it) and the shipped
+Three places where MathWorks' algorithm page and the shipped
 ``particleswarm.m`` read differently, each a setting whose default is the shipped code:
 
 * ``neighbourhood``: the page draws N particles *other than* i (N ≤ S − 1); the code puts
@@ -118,7 +118,7 @@ class PSOMatlabSettings(CommonSettings):
     inertia_update : str
         When the doubling/halving rule runs: ``every_iteration`` (default; W falls during a
         stall, as MATLAB's runs behave) or ``on_improvement`` (the literal reading of the
-        algorithm page and the spec; see the module docstring for the measured difference).
+        algorithm page; see the module docstring for the measured difference).
     neighbourhood : str
         ``with_self`` (default, as ``particleswarm.m`` runs): the particle itself plus N − 1
         random others, N ≤ S; ``others`` (the algorithm page): N random others, N ≤ S − 1.

@@ -4,7 +4,7 @@
 * ``geagsp`` (alias ``full``), ``givens``, ``cayley``, ``cayley_tan``: z = (λ_1..λ_N,
   angles_1..angles_M), K = Q diag(λ) Qᵀ with Q from :mod:`penaltyrun.penalty.orthogonal`;
   N + N(N−1)/2 variables. ``cayley_tan`` is the Cayley map with skew entries tan θ,
-  θ ∈ [−(π/2 − 0.01), π/2 − 0.01] (the authors' companion study, spec attitude.md).
+  θ ∈ [−(π/2 − 0.01), π/2 − 0.01] (the authors' companion study).
 
 Every map is a pure function of z and decodes whole batches: ``decode(Z)`` with Z of shape
 (B, dim) returns (B, N, N); a single vector (dim,) returns (N, N).

@@ -1,6 +1,6 @@
 """Cells (variants) and per-cell statistics of a results DataFrame.
 
-Conventions (``spec/statistics.md``): cost statistics use converged starts only (status
+Conventions (docs: explanation/statistics.md): cost statistics use converged starts only (status
 ``ok`` and ``best_converged``), the success rate stands beside them; confidence intervals
 are BCa bootstrap intervals from :func:`scipy.stats.bootstrap`; the effect size is
 Vargha–Delaney A12 from the Mann–Whitney U statistic; multiple comparisons are corrected

@@ -1,4 +1,4 @@
-"""Property-based tests of the SPD parameterizations (spec: parameterizations.md)."""
+"""Property-based tests of the SPD parameterizations."""
 
 from __future__ import annotations
 

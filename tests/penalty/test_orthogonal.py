@@ -1,4 +1,4 @@
-"""The orthogonal maps against plain-numpy reference implementations of the spec."""
+"""The orthogonal maps against plain-numpy reference implementations of their definitions."""
 
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ Cases
 -----
 * ``detumble`` (ω0 = (0.01, −0.01, 0.01) rad/s) and ``rest_to_rest`` (ω0 = 0), both from
   Euler angles (yaw, pitch, roll) = (60°, 80°, −60°), intrinsic Z-Y-X, I = diag(10, 15, 20)
-  kg·m², t_max = 100 s, event ‖(q0 − 1, q_v, ω)‖ ≤ 1e-4 (the main set-up, spec attitude.md).
+  kg·m², t_max = 100 s, event ‖(q0 − 1, q_v, ω)‖ ≤ 1e-4 (the main set-up).
 * ``schaub_detumble`` and ``schaub_detumble_sat``: the authors' companion study (after
   Schaub & Junkins): I = diag(140, 100, 80) kg·m², MRP σ0 = (0.6, −0.4, 0.2),
   ω0 = (0.70, 0.20, −0.15) rad/s, t_max = 350 s, event ‖(10·q_v, ω)‖ ≤ 1e-3 (weights

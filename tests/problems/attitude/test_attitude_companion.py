@@ -1,4 +1,4 @@
-"""The authors' companion attitude set-up (spec attitude.md, last section): configurable
+"""The authors' companion attitude set-up: configurable
 terminal event, the ``schaub_detumble`` / ``schaub_detumble_sat`` presets, their best
 published runs, and the held-out perturbations of their initial state."""
 

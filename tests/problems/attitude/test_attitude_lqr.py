@@ -2,7 +2,7 @@
 
 Reference agreement: production (batched Hamiltonian-subspace Riccati + compiled kernel) vs
 scipy ``solve_continuous_are`` + ``solve_ivp`` (DOP853) at the same tolerances (1e-10),
-``max_step`` and graded penalty. Default run: the spec's diagonal example (converges), a
+``max_step`` and graded penalty. Default run: the documented diagonal example (converges), a
 weak pair Q = 1e-3·I, R = 10·I (too slow to converge) and 4 random PD pairs (Q eigenvalues
 uniform in [0.01, 10], R in [0.1, 10]) × 3 initial conditions; ``slow``: 50 random × 3.
 """
@@ -80,7 +80,7 @@ def test_scale_invariance():
 
 def test_event_first_dip_not_stepped_over():
     """The distance first dips under 1e-4 at 61.37 s, rises again at 64.63 s and falls back at
-    70.81 s (spec); the event must fire at the first dip."""
+    70.81 s (independent reference); the event must fire at the first dip."""
     for overrides in ({}, {"max_step": 1e9, "n_event_samples": 8}):
         res = make("attitude_lqr", "detumble", overrides).evaluate(EXAMPLE)
         assert res["converged"]

@@ -1,7 +1,7 @@
-"""Independent reference for minimum-fuel Q-law coasting (spec lowthrust.md, "Coasting").
+"""Independent reference for minimum-fuel Q-law coasting.
 
 The reference re-implements, in plain numpy/scipy, everything the coasting decision depends
-on except ∇Q: the Keplerian Gauss matrix (written from the spec's equations), the extremes
+on except ∇Q: the Keplerian Gauss matrix (written from Gauss' equations), the extremes
 Q̇_nn, Q̇_nx of Q̇_n = −F‖Bᵀ∇Q‖ over true anomaly by brute force on a dense grid of
 ``N_NU`` points (no golden-section refinement, unlike the production code), the
 effectivity η_a or η_r, and the flight between control steps (scipy ``solve_ivp`` DOP853 at

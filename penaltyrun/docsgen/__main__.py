@@ -1,0 +1,97 @@
+"""``python -m penaltyrun.docsgen`` — the documentation machinery's command line.
+
+Commands (every one takes ``--root``, the repository root, default the current folder):
+
+* ``reference OUT``: write the generated reference pages into folder ``OUT`` (MkDocs gets
+  them from :mod:`penaltyrun.docsgen.mkdocs_hook` at build time);
+* ``results``: regenerate ``docs/results/*.md`` and the README's answer table;
+* ``check``: exit 1, listing the differing lines, if those files differ from a fresh
+  rendering (``make check-docs``);
+* ``study list`` / ``study run NAME`` / ``study merge NAME``: run a study (resumable) and
+  merge its data and tables into ``studies/NAME`` (``make study-NAME``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from penaltyrun.docsgen import results, studies
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit code."""
+    parser = argparse.ArgumentParser(prog="python -m penaltyrun.docsgen")
+    parser.add_argument("--root", type=Path, default=Path("."), help="repository root")
+    sub = parser.add_subparsers(dest="command", required=True)
+    ref = sub.add_parser("reference", help="write the generated reference pages")
+    ref.add_argument("out", type=Path)
+    for name, text in (("results", "regenerate docs/results, the README answer table and "
+                                    "the reference pages"),
+                       ("check", "fail if the generated docs differ from the data")):
+        command = sub.add_parser(name, help=text)
+        command.add_argument("--no-reference", action="store_true",
+                             help="leave out the reference pages generated from the code")
+    study = sub.add_parser("study", help="run or merge a study")
+    study.add_argument("action", choices=("list", "run", "merge"))
+    study.add_argument("name", nargs="?")
+    study.add_argument("--run-dir", type=Path, help="fixed run directory "
+                       "(default outputs/studies/NAME)")
+    study.add_argument("--resume", default="false", choices=("true", "false"))
+    study.add_argument("--workers", default="auto")
+    study.add_argument("--reduced", action="store_true",
+                       help="each command's reduced overrides (few starts, tiny budgets)")
+    study.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       help="override appended to every command (repeatable)")
+    study.add_argument("--dest", type=Path, help="where results and tables go "
+                       "(default studies/NAME)")
+    study.add_argument("--no-tables", action="store_true", help="skip the report tables")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    root = args.root.resolve()
+    if args.command == "reference":
+        from penaltyrun.docsgen.reference import pages
+        for rel, text in pages().items():
+            path = args.out / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+        return 0
+    if args.command == "results":
+        for rel in results.render_all(root, reference=not args.no_reference):
+            print(f"wrote {rel}")
+        return 0
+    if args.command == "check":
+        problems = results.check(root, reference=not args.no_reference)
+        for problem in problems:
+            print(problem, file=sys.stderr)
+        if problems:
+            print(f"check-docs: {len(problems)} generated file(s) differ from the committed "
+                  "data; run `make docs-results` and commit", file=sys.stderr)
+            return 1
+        print("check-docs: every generated number matches the committed data")
+        return 0
+    if args.action == "list":
+        for name in studies.list_studies(root):
+            print(f"{name}: {studies.load_study(root, name).title}")
+        return 0
+    if not args.name:
+        parser.error("study run/merge needs a NAME")
+    try:
+        if args.action == "run":
+            studies.run_study(root, args.name, run_dir=args.run_dir,
+                              resume=args.resume == "true", workers=args.workers,
+                              reduced=args.reduced, extra=args.set, dest=args.dest,
+                              tables=not args.no_tables)
+        else:
+            studies.merge_study(root, args.name, run_dir=args.run_dir, dest=args.dest,
+                                tables=not args.no_tables)
+    except studies.StudyError as exc:
+        print(f"penaltyrun: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

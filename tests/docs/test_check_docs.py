@@ -1,0 +1,120 @@
+"""`make check-docs` machinery on a synthetic study: a page rendered from the data passes,
+the same page with one number edited by hand fails, a study without data renders as
+pending (no number)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from penaltyrun.docsgen import results
+from penaltyrun.io.schema import to_table
+
+TEMPLATE = """# Demo
+
+{% set name = "demo" -%}
+{% if study(name).available -%}
+Best diagonal: {{ value(name, "best_cost", "min", {"param": "diagonal"}, ".4f") }}.
+
+{{ summary(name, ["param"]) }}
+{%- else -%}
+{{ pending(name) }}
+{%- endif %}
+"""
+ANSWERS = """| question | answer |
+|---|---|
+| demo | {% if study("demo").available -%}
+{{ value("demo", "best_cost", "median", {"param": "full"}) }}
+{%- else %}{{ pending("demo", short=True) }}{% endif %} |
+"""
+README = f"# demo\n\n{results.README_START}\n{results.README_END}\n\nend\n"
+
+
+def records() -> list[dict]:
+    rows = []
+    for k, (param, cost) in enumerate([("diagonal", 26.5218), ("diagonal", 27.1),
+                                       ("full", 24.8265), ("full", 25.0)]):
+        rows.append({"job_id": f"zermelo-default-{param}-pso-x-s{k:03d}", "problem": "zermelo",
+                     "case": "default", "param": param, "optimizer": "pso", "start": k,
+                     "seed": k, "status": "ok", "best_cost": cost, "best_converged": True,
+                     "n_evals": 100 + k, "git_commit": "abc"})
+    return rows
+
+
+@pytest.fixture()
+def repo(tmp_path: Path) -> Path:
+    study = tmp_path / "studies" / "demo"
+    study.mkdir(parents=True)
+    (study / "study.yaml").write_text(
+        "title: Demo study\nquestion: Is full better?\ncommands:\n"
+        "  - {subdir: main, args: [problem=zermelo]}\n")
+    templates = tmp_path / "studies" / "templates"
+    templates.mkdir()
+    (templates / "demo.md").write_text(TEMPLATE)
+    (templates / "answers.md").write_text(ANSWERS)
+    (tmp_path / "README.md").write_text(README)
+    return tmp_path
+
+
+def commit_data(root: Path) -> None:
+    pq.write_table(to_table(records(), run_id="demo"),
+                   root / "studies" / "demo" / "results.parquet", compression="zstd")
+
+
+def test_pending_study_renders_no_number(repo):
+    results.render_all(repo, reference=False)
+    page = (repo / "docs" / "results" / "demo.md").read_text()
+    assert "make study-demo" in page
+    assert not re.search(r"\d", page.replace("study-demo", ""))
+    assert results.check(repo, reference=False) == []
+
+
+def test_numbers_come_from_the_data(repo):
+    commit_data(repo)
+    results.render_all(repo, reference=False)
+    page = (repo / "docs" / "results" / "demo.md").read_text()
+    assert "Best diagonal: 26.5218." in page
+    assert "| full | 2 | 2 | 24.83 |" in page
+    readme = (repo / "README.md").read_text()
+    assert "| demo | 24.91 |" in readme and readme.endswith("end\n")
+    assert results.check(repo, reference=False) == []
+
+
+def test_a_number_edited_by_hand_fails_check_docs(repo, tmp_path):
+    commit_data(repo)
+    results.render_all(repo, reference=False)
+    copy = tmp_path / "copy"
+    shutil.copytree(repo, copy)
+    page = copy / "docs" / "results" / "demo.md"
+    page.write_text(page.read_text().replace("26.5218", "26.5219"))
+    problems = results.check(copy, reference=False)
+    assert len(problems) == 1 and "26.5219" in problems[0] and "26.5218" in problems[0]
+    readme = copy / "README.md"
+    page.write_text(page.read_text().replace("26.5219", "26.5218"))
+    readme.write_text(readme.read_text().replace("24.91", "24.90"))
+    assert any("README.md" in p for p in results.check(copy, reference=False))
+
+
+def test_new_data_makes_committed_pages_stale(repo):
+    results.render_all(repo, reference=False)
+    commit_data(repo)
+    assert results.check(repo, reference=False)
+
+
+def test_check_command_exit_code(repo):
+    commit_data(repo)
+    results.render_all(repo, reference=False)
+    cmd = [sys.executable, "-m", "penaltyrun.docsgen", "--root", str(repo), "check",
+           "--no-reference"]
+    assert subprocess.run(cmd, capture_output=True, text=True).returncode == 0
+    page = repo / "docs" / "results" / "demo.md"
+    page.write_text(page.read_text().replace("26.5218", "26.5200"))
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    assert done.returncode == 1
+    assert "26.5200" in done.stderr and "make docs-results" in done.stderr

@@ -1,0 +1,67 @@
+"""The reference pages are generated from the code: every optimizer option, runner option,
+problem parameter, exit code and Parquet column appears, read from where it is defined."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+
+import pytest
+
+from penaltyrun import cli
+from penaltyrun.docsgen import reference
+from penaltyrun.io import schema
+from penaltyrun.optim import OPTIMIZERS
+from penaltyrun.problems import REGISTRY
+from penaltyrun.runner.options import RUNNER_OPTIONS
+
+
+@pytest.fixture(scope="module")
+def pages() -> dict[str, str]:
+    return reference.pages()
+
+
+def test_every_config_key_is_listed(pages):
+    text = pages["reference/config.md"]
+    for name, (cls, _) in OPTIMIZERS.items():
+        assert f"### `{name}`" in text
+        for field in dataclasses.fields(cls):
+            assert f"`optimizer.{field.name}`" in text
+    for key in RUNNER_OPTIONS:
+        assert f"`runner.{key}`" in text
+    for name, module_path in REGISTRY.items():
+        params = importlib.import_module(module_path).Params
+        for field in dataclasses.fields(params):
+            assert f"`problem.params.{field.name}`" in text, (name, field.name)
+
+
+def test_ranges_come_from_the_checks(pages):
+    text = pages["reference/config.md"]
+    row = next(line for line in text.splitlines() if line.startswith("| `optimizer.polish` |"))
+    assert "`L-BFGS-B`" in row and "one of" in row
+    row = next(line for line in text.splitlines()
+               if line.startswith("| `optimizer.n_particles` |"))
+    assert "a positive integer" in row
+
+
+def test_exit_codes_and_schema(pages):
+    codes = pages["reference/exit-codes.md"]
+    for code, meaning in cli.EXIT_CODES.items():
+        assert f"| {int(code)} |" in codes
+        assert meaning.split("(")[0].strip().replace("|", "\\|") in codes
+    columns = pages["reference/schema.md"]
+    for name in schema.COLUMNS:
+        assert f"| `{name}` |" in columns
+
+
+def test_protocol_page_names_required_members(pages):
+    text = pages["reference/problem-protocol.md"]
+    from penaltyrun import problems
+    for member in (*problems.MODULE_MEMBERS, *problems.PROBLEM_MEMBERS):
+        assert f"`{member}`" in text
+
+
+def test_generated_text_has_no_tracker_references(pages):
+    for text in pages.values():
+        assert "issue " not in text.lower().replace("tissue", "")
+        assert "spec/" not in text

@@ -1,0 +1,97 @@
+"""Every study the docs cite can be regenerated: its definition loads, names profiles that
+exist, and its command runs end to end in a reduced form (few starts, tiny budgets) into a
+merged zstd Parquet with the report's tables and a provenance file."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from penaltyrun.docsgen import results, studies
+
+ROOT = Path(__file__).resolve().parents[2]
+CONF = ROOT / "penaltyrun" / "conf"
+NAMES = studies.list_studies(ROOT)
+#: Studies whose reduced run takes a few seconds of CPU (two Zermelo cells).
+FAST = ("pso_matlab_zermelo",)
+#: Total size of the committed study data (results, tables, provenance).
+DATA_LIMIT_MB = 50
+
+
+def test_every_study_is_defined():
+    assert len(NAMES) >= 10
+    for name in NAMES:
+        study = studies.load_study(ROOT, name)
+        assert study.commands and study.question and (study.folder / "README.md").is_file()
+        readme = (study.folder / "README.md").read_text()
+        assert f"make study-{name}" in readme and "RESUME=true" in readme
+        for command in study.commands:
+            for arg in command.args:
+                if arg.startswith("+experiment="):
+                    assert (CONF / "experiment" / f"{arg.split('=', 1)[1]}.yaml").is_file()
+            if command.budget_from:
+                assert command.budget_from["subdir"] in {c.subdir for c in study.commands}
+
+
+def test_committed_study_data_fits_the_budget():
+    total = sum(p.stat().st_size for p in (ROOT / "studies").rglob("*") if p.is_file())
+    assert total <= DATA_LIMIT_MB * 1e6
+
+
+def test_unknown_study_is_one_clear_error():
+    with pytest.raises(studies.StudyError, match="no study 'nope'"):
+        studies.load_study(ROOT, "nope")
+
+
+def run_reduced(name: str, tmp_path: Path) -> Path:
+    dest = tmp_path / "dest"
+    merged = studies.run_study(ROOT, name, run_dir=tmp_path / "run", workers=1, reduced=True,
+                               dest=dest, extra=["runner.forecast_samples=0"])
+    frame = pq.read_table(merged).to_pandas()
+    study = studies.load_study(ROOT, name)
+    assert len(frame) >= len(study.commands)
+    assert set(frame["status"]) <= {"ok", "diverged"}
+    meta = pq.ParquetFile(merged).metadata
+    assert meta.row_group(0).column(0).compression == "ZSTD"
+    assert (dest / "tables" / "summary.csv").is_file()
+    info = json.loads((dest / "provenance.json").read_text())
+    assert info["jobs"] == len(frame) and "numpy" in info["packages"]
+    assert len(info["commands"]) == len(study.commands)
+    render_pages_with(name, dest, tmp_path / "root")
+    return merged
+
+
+def render_pages_with(name: str, dest: Path, root: Path) -> None:
+    """Render the real templates with this study's (reduced) data in place: its place on
+    every page is filled from the data, no longer pending."""
+    for other in NAMES:
+        folder = root / "studies" / other
+        folder.mkdir(parents=True)
+        shutil.copy2(ROOT / "studies" / other / "study.yaml", folder)
+    shutil.copytree(dest, root / "studies" / name, dirs_exist_ok=True)
+    shutil.copytree(ROOT / "studies" / "templates", root / "studies" / "templates")
+    shutil.copy2(ROOT / "README.md", root)
+    text = "\n".join(results.render(root, reference=False).values())
+    assert f"study-{name}`" not in text
+    assert f"`{name}` | " in text
+
+
+@pytest.mark.parametrize("name", FAST)
+def test_fast_study_regenerates(name, tmp_path):
+    merged = run_reduced(name, tmp_path)
+    frame = pq.read_table(merged).to_pandas()
+    assert set(frame["param"]) == {"diagonal", "full"}
+    again = studies.run_study(ROOT, name, run_dir=tmp_path / "run", workers=1, reduced=True,
+                              resume=True, dest=tmp_path / "dest2",
+                              extra=["runner.forecast_samples=0"])
+    assert len(pq.read_table(again)) == len(frame)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [n for n in NAMES if n not in FAST])
+def test_study_regenerates(name, tmp_path):
+    run_reduced(name, tmp_path)

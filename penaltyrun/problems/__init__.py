@@ -35,6 +35,7 @@ REGISTRY: dict[str, str] = {
     "attitude_lqr": "penaltyrun.problems.attitude.lqr",
     "lyapunov_transfer": "penaltyrun.problems.lowthrust.lyapunov_transfer",
     "qlaw": "penaltyrun.problems.lowthrust.qlaw",
+    "lqr": "penaltyrun.problems.lqr",
 }
 ENTRY_POINT_GROUP = "penaltyrun.problems"
 #: What a problem module must define (see :mod:`penaltyrun.problems.base`).

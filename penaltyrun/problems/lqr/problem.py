@@ -159,7 +159,9 @@ class LQRProblem:
             cost = np.where(np.isin(codes, ("diverged", "step_failure")),
                             P * (2.0 + late) + np.minimum(J, P), cost)
         cost = np.where(np.isfinite(cost) & (codes != "nonfinite"), cost, HARD_FACTOR * P)
-        size = np.where(np.isfinite(failure), failure / (1.0 + failure), 1.0)
+        finite = np.isfinite(failure)
+        size = np.ones_like(failure)
+        size[finite] = failure[finite] / (1.0 + failure[finite])
         cost[~ok] = (HARD_FACTOR * P * (1.0 + size[~ok]))[:, None]
         codes[~ok] = "care_failure"
         return {"cost": cost, "J": J, "status": codes, "t_final": t_end, "x_final": x_final,

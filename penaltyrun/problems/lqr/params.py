@@ -11,7 +11,8 @@ unit initial states and identity weights.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any, ClassVar
 
@@ -25,8 +26,9 @@ PREFIX = "problem.params"
 PLANT_KEYS = ("A", "B", "plant_file", "plant", "dynamics")
 CASES = ("default",)
 DEFAULT_CASE = "default"
-#: Parameters that do not change the tuned objective (reports do not split cells by them).
-VARIANT_IGNORE = ("holdout_x0", "holdout_n", "holdout_seed", "cost_unit")
+#: Keys that do not define the tuned objective (left out of :attr:`Params.setup`).
+NOT_SETUP = ("holdout_x0", "holdout_n", "holdout_seed", "cost_unit", "train_scenarios",
+             "train_aggregate", "train_sample", "train_seed", "setup")
 
 #: The known-answer set-up (used when no plant is given).
 KNOWN_ANSWER: dict[str, Any] = {
@@ -91,6 +93,8 @@ class Params(ParamsMixin, TrainingParams):
         Tolerances of the integrator (saturated or nonlinear loops only).
     max_steps : int
         Trial-step cap per run of the integrator.
+    setup : str
+        Derived, not a config key: :func:`setup_label` of the other values.
     """
 
     HOLDOUT_OFF: ClassVar[Mapping[str, Any]] = MappingProxyType({"holdout_x0": (),
@@ -117,17 +121,50 @@ class Params(ParamsMixin, TrainingParams):
     rtol: float = 1e-10
     atol: float = 1e-12
     max_steps: int = 100_000
+    setup: str = ""
+
+
+#: Reports split cells by :attr:`Params.setup` alone (one short label per plant and cost
+#: definition) instead of listing every plant matrix that differs from the defaults.
+VARIANT_IGNORE = tuple(f.name for f in fields(Params) if f.name != "setup")
+
+
+def setup_label(values: Mapping[str, Any]) -> str:
+    """Short label of a plant and cost definition: its source and a digest of every
+    objective-defining value (e.g. ``dynamics=cartpole:dynamics#3f2a9c1b``); ``""`` for the
+    built-in known-answer set-up."""
+    import hashlib
+    import json
+
+    defining = {k: v for k, v in values.items() if k not in NOT_SETUP}
+    if defining == {k: v for k, v in _known_answer_values().items() if k not in NOT_SETUP}:
+        return ""
+    digest = hashlib.sha256(json.dumps(defining, sort_keys=True, default=str).encode())
+    if values.get("dynamics") is not None:
+        source = f"dynamics={values['dynamics']}"
+    elif values.get("plant") is not None:
+        source = f"plant={values['plant']}"
+    elif values.get("plant_file") is not None:
+        source = f"plant_file={Path(str(values['plant_file'])).name}"
+    else:
+        source = "A,B"
+    return f"{source}#{digest.hexdigest()[:8]}"
+
+
+def _known_answer_values() -> dict[str, Any]:
+    return asdict(replace(Params(), **{k: _nested(v) for k, v in KNOWN_ANSWER.items()}))
 
 
 def build_params(case: str, overrides: Mapping[str, Any]) -> Params:
     """Defaults → (known-answer set-up when no plant is given) → ``overrides``."""
-    names = {f.name for f in fields(Params)}
+    names = {f.name for f in fields(Params)} - {"setup"}
     unknown = sorted(set(overrides) - names)
     if unknown:
         raise ConfigError(f"{PREFIX}.{unknown[0]}", "unknown parameter", allowed=sorted(names))
     user_plant = any(overrides.get(k) is not None for k in PLANT_KEYS)
     merged = {**({} if user_plant else KNOWN_ANSWER), **dict(overrides)}
-    return replace(Params(), **{k: _nested(v) for k, v in merged.items()})
+    params = replace(Params(), **{k: _nested(v) for k, v in merged.items()})
+    return replace(params, setup=setup_label(asdict(params)))
 
 
 def _number(key: str, value: Any, positive: bool = True) -> float:
@@ -219,5 +256,5 @@ def scalars(p: Params) -> None:
 
 
 __all__ = ["CASES", "DEFAULT_CASE", "KNOWN_ANSWER", "PLANT_KEYS", "PREFIX", "Params",
-           "VARIANT_IGNORE", "bounds", "build_params", "limits", "scalars", "states",
+           "VARIANT_IGNORE", "bounds", "build_params", "setup_label", "limits", "scalars", "states",
            "weight"]

@@ -69,3 +69,12 @@ def test_evaluate_command(folder):
                 "optimum"):
         assert key in result
     assert result["cost"] >= result["optimum"]  # J* bounds the infinite-horizon cost; tail ~0
+
+
+def test_known_answer_commands(folder):
+    for line in blocks("sh")[2].strip().splitlines():
+        run(line.strip(), folder)
+    out = folder / "outputs" / "known_answer"
+    assert set(read_results(out)["param"]) == {"diagonal", "full"}
+    text = (out / "report" / "report.md").read_text()
+    assert "Improvement: best-known full vs best-known diagonal" in text

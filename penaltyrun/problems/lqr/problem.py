@@ -16,15 +16,18 @@ Cost of one start (P = the failure penalty scale, r = ‖x(T)‖ / ‖x0‖):
 * ``converged``: J;
 * ``not_settled`` (``settle_tol`` set and r > settle_tol): J + P (1 + r / (1 + r));
 * ``diverged`` (‖x‖ > ``x_bound``) or ``step_failure`` at time t_f:
-  P (2 + (T − t_f) / T) + min(J(t_f), P) (the earlier, the worse);
-* ``nonfinite``: 10 P;
+  J(t_f) + P (2 + (T − t_f) / T) (the earlier, the worse);
+* ``nonfinite``: 10 P + the finite part of J;
 * ``care_failure`` (no stabilizing Riccati solution): 10 P (1 + s / (1 + s)), s the
   relative residual of the best solution found (monotone in the failure's size);
-* ``cutoff`` (exact cutoff, integrated loops only): the mean of the partial J, above the
-  candidate's threshold.
+* ``cutoff`` (exact cutoff, integrated loops only): the partial J of a start stopped once
+  the sum of its candidate's J over the starts exceeded the number of starts × the
+  threshold.
 
-A candidate's cost is the mean over its starts, its status the worst one (in the order
-above) and it converged only if every start did. J(cQ, cR) = J(Q, R) for every c > 0 (the
+Every graded cost is at least the start's J, so a cut candidate's mean cost is above its
+threshold and at most its uncut cost. A candidate's cost is the mean over its starts, its
+status the worst one (in the order above; ``cutoff`` whenever a start was cut) and it
+converged only if every start did. J(cQ, cR) = J(Q, R) for every c > 0 (the
 gain does not change), so one direction of the search space is redundant.
 """
 
@@ -46,9 +49,10 @@ from penaltyrun.problems.lqr.riccati import lqr_gains
 
 logger = logging.getLogger(__name__)
 
-#: Statuses from best to worst (a candidate takes the worst of its starts).
-STATUSES = ("converged", "cutoff", "not_settled", "diverged", "step_failure", "nonfinite",
-            "care_failure")
+#: Statuses from best to worst: a candidate takes the worst of its starts, except that a
+#: candidate with a start cut by the exact cutoff is ``cutoff`` (its cost is a bound).
+STATUSES = ("converged", "not_settled", "diverged", "step_failure", "nonfinite",
+            "care_failure", "cutoff")
 HARD_FACTOR = 10.0
 #: Relative margin by which the summed J must exceed a threshold before a candidate is cut.
 CUT_MARGIN = 1e-9
@@ -157,8 +161,10 @@ class LQRProblem:
             cost = np.where(codes == "not_settled", J + P * (1.0 + ratio / (1.0 + ratio)), J)
             late = (self.t_max - t_end) / self.t_max
             cost = np.where(np.isin(codes, ("diverged", "step_failure")),
-                            P * (2.0 + late) + np.minimum(J, P), cost)
-        cost = np.where(np.isfinite(cost) & (codes != "nonfinite"), cost, HARD_FACTOR * P)
+                            J + P * (2.0 + late), cost)
+        finite_J = np.where(np.isfinite(J), J, 0.0)
+        cost = np.where(np.isfinite(cost) & (codes != "nonfinite"), cost,
+                        HARD_FACTOR * P + finite_J)
         finite = np.isfinite(failure)
         size = np.ones_like(failure)
         size[finite] = failure[finite] / (1.0 + failure[finite])

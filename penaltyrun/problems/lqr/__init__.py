@@ -6,7 +6,8 @@ tuned (Q, R); the cost is the closed-loop performance ∫ (xᵀ W_x x + uᵀ W_u
 over the training starts ``x0``. Modules: :mod:`~penaltyrun.problems.lqr.plant` (sources
 and their checks), :mod:`~penaltyrun.problems.lqr.params` (parameters, the known-answer
 set-up), :mod:`~penaltyrun.problems.lqr.riccati` (batched gains),
-:mod:`~penaltyrun.problems.lqr.problem` (the problem object) and
+:mod:`~penaltyrun.problems.lqr.problem` (the problem object),
+:mod:`~penaltyrun.problems.lqr.plots` (figures) and
 :mod:`~penaltyrun.problems.lqr.reference` (independent scipy references).
 """
 
@@ -26,6 +27,7 @@ from penaltyrun.problems.lqr.params import (
     build_params,
 )
 from penaltyrun.problems.lqr.plant import load
+from penaltyrun.problems.lqr.plots import plot_histories
 from penaltyrun.problems.lqr.problem import STATUSES, LQRProblem
 
 logger = logging.getLogger(__name__)
@@ -56,4 +58,4 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> LQRProblem:
 
 
 __all__ = ["CASES", "DEFAULT_CASE", "KNOWN_ANSWER", "STATUSES", "VARIANT_IGNORE",
-           "LQRProblem", "Params", "make_problem"]
+           "LQRProblem", "Params", "make_problem", "plot_histories"]

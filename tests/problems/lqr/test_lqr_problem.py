@@ -25,6 +25,17 @@ def test_registered_and_follows_the_protocol():
     assert sim["J"][:, -1].mean() == pytest.approx(final["cost"], rel=1e-7)
 
 
+def test_plot_histories(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    prob = lqr.make_problem("default", {"u_max": 0.8})
+    paths = {label: prob.simulate({"Q": Q, "R": np.eye(2)}, n_points=60)
+             for label, Q in (("identity", np.eye(3)), ("weights", 3 * np.eye(3)))}
+    lqr.plot_histories(paths, out=tmp_path / "h.png")
+    assert (tmp_path / "h.png").stat().st_size > 0
+
+
 def test_riccati_failures_are_graded_by_their_size(monkeypatch):
     prob = lqr.make_problem("default", {})
     P = prob.penalty

@@ -71,6 +71,7 @@ def test_evaluate_command(folder):
     assert result["cost"] >= result["optimum"]  # J* bounds the infinite-horizon cost; tail ~0
 
 
+@pytest.mark.slow
 def test_known_answer_commands(folder):
     for line in blocks("sh")[2].strip().splitlines():
         run(line.strip(), folder)

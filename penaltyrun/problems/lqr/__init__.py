@@ -57,5 +57,34 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> LQRProblem:
     return LQRProblem(case, params, plant)
 
 
+def report_info(case: str, params: Mapping[str, Any]) -> Any:
+    """Report hook (``penaltyrun.problems.report_hooks``): the cost, its unit
+    (``cost_unit``) and what the held-out starts are.
+
+    Returns
+    -------
+    penaltyrun.problems.base.ReportInfo
+    """
+    from penaltyrun.problems.base import ReportInfo
+
+    p = build_params(case, params)
+    if p.holdout_x0 is not None:
+        holdout = f"{len(p.holdout_x0)} initial states given in holdout_x0"
+    elif p.holdout_n:
+        holdout = (f"{p.holdout_n} initial states drawn uniformly (seed {p.holdout_seed}) on "
+                   "the sphere whose radius is the mean norm of the training states x0")
+    else:
+        holdout = ""
+    return ReportInfo(cost_name="J = mean over x0 of ∫₀ᵀ (xᵀW_x x + uᵀW_u u) dt",
+                      cost_unit=str(p.cost_unit), holdout_description=holdout)
+
+
+def report_plots(sims: Mapping[str, Mapping[str, Any]], case: str,
+                 params: Mapping[str, Any]) -> dict[str, Any]:
+    """Report hook: state and input norms of every training start (:func:`plot_histories`)."""
+    return {"closed-loop state and input norms, every training start": plot_histories(sims)}
+
+
 __all__ = ["CASES", "DEFAULT_CASE", "KNOWN_ANSWER", "STATUSES", "VARIANT_IGNORE",
-           "LQRProblem", "Params", "make_problem", "plot_histories"]
+           "LQRProblem", "Params", "make_problem", "plot_histories", "report_info",
+           "report_plots"]

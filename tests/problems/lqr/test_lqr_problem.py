@@ -101,3 +101,14 @@ def test_multi_scenario_tuning_and_disjoint_holdout():
     with pytest.raises(ConfigError, match="held-out"):
         problems.make("lqr", None, {"holdout_x0": [[1, 1, 1]],
                                     "train_scenarios": [{"x0": [[1, 1, 1]]}]})
+
+
+def test_report_hooks():
+    from penaltyrun.problems import base
+
+    if not hasattr(base, "ReportInfo"):
+        pytest.skip("the report-hook protocol (ReportInfo) is not on this branch")
+    info = lqr.report_info("default", {"A": A, "B": B, "cost_unit": "m^2 s"})
+    assert isinstance(info, base.ReportInfo) and info.cost_unit == "m^2 s"
+    assert "16 initial states" in info.holdout_description
+    assert lqr.report_info("default", {"holdout_n": 0}).holdout_description == ""

@@ -78,4 +78,4 @@ def test_known_answer_commands(folder):
     out = folder / "outputs" / "known_answer"
     assert set(read_results(out)["param"]) == {"diagonal", "full"}
     text = (out / "report" / "report.md").read_text()
-    assert "Improvement: best-known full vs best-known diagonal" in text
+    assert "Best-known optima" in text

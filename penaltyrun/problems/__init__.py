@@ -36,6 +36,7 @@ REGISTRY: dict[str, str] = {
     "lyapunov_transfer": "penaltyrun.problems.lowthrust.lyapunov_transfer",
     "qlaw": "penaltyrun.problems.lowthrust.qlaw",
     "mpc_rendezvous": "penaltyrun.problems.mpc.rendezvous",
+    "lqr": "penaltyrun.problems.lqr",
 }
 ENTRY_POINT_GROUP = "penaltyrun.problems"
 #: What a problem module must define (see :mod:`penaltyrun.problems.base`).

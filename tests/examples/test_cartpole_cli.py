@@ -57,13 +57,14 @@ def copied(tmp_path_factory):
 def test_readme_optimize_and_report_commands(copied):
     out = copied / "outputs" / "cartpole"
     df = read_results(out)
-    assert set(df["problem"]) == {"cartpole"} and set(df["param"]) == {"diagonal", "full"}
+    assert set(df["problem"]) == {"lqr"} and set(df["param"]) == {"diagonal", "full"}
     assert set(df["status"]) <= {"ok", "diverged"}
     text = (out / "report" / "report.md").read_text()
-    assert "| cartpole | far |" in text and "unresolved" not in text
+    assert "| lqr | default | setup=dynamics=cartpole:dynamics#" in text
+    assert "unresolved" not in text
     for _, row in df.iterrows():
-        stem = f"cartpole_far_pso_{row['param']}"
-        mat = loadmat(out / "export" / f"{stem}.mat")
+        (mat_file,) = (out / "export").glob(f"lqr_default_*_pso_{row['param']}.mat")
+        mat = loadmat(mat_file)
         mats = decode_json(row["matrices"])
         np.testing.assert_array_equal(mat["Q"], np.asarray(mats["Q"]))
         np.testing.assert_array_equal(mat["R"], np.asarray(mats["R"]))
@@ -75,17 +76,16 @@ def test_readme_study_commands(copied):
         run_documented(line, copied)
     out = copied / "outputs" / "study"
     df = read_results(out)
-    assert set(zip(df["case"], df["param"])) == {(c, p) for c in ("far", "near")
-                                                 for p in ("diagonal", "full")}
-    assert len(list((out / "export").glob("*.mat"))) == 4
-    assert "| cartpole | near |" in (out / "report" / "report.md").read_text()
+    assert set(zip(df["case"], df["param"])) == {("default", p) for p in ("diagonal", "full")}
+    assert len(list((out / "export").glob("*.mat"))) == 2
+    assert "| lqr | default |" in (out / "report" / "report.md").read_text()
 
 
 def test_readme_evaluate_command(copied):
     line = next(ln for block in readme_blocks("sh") for ln in block.splitlines()
                 if "mode=evaluate" in ln)
     result = json.loads(run_documented(line, copied).stdout.strip().splitlines()[-1])
-    assert result["problem"] == "cartpole" and len(result["gain"]) == 4
+    assert result["problem"] == "lqr" and np.shape(result["gain"]) == (1, 4)
     assert np.isfinite(result["cost"])
 
 

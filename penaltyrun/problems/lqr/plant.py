@@ -1,0 +1,256 @@
+"""The user's plant, from the config: matrices, a file, a python-control system, or a
+nonlinear vectorized model with its Jacobians at the origin.
+
+Sources (keys of ``problem.params``), checked in this order:
+
+* ``A`` (n × n) and ``B`` (n × m) as nested lists (a flat list of n numbers is a single
+  input column);
+* ``plant_file``: a ``.mat`` (MATLAB, read by :func:`scipy.io.loadmat`) or ``.npz`` file
+  holding arrays ``A`` and ``B``;
+* ``plant: module:attribute``: a continuous-time python-control ``StateSpace`` (any object
+  with ``A`` and ``B`` and ``dt`` 0 or ``None``) or an ``(A, B)`` pair;
+* ``dynamics: module:function``: a vectorized nonlinear model f(X, U) → Ẋ (X: (R, n),
+  U: (R, m)) with the origin as equilibrium. A, B then come from one of the sources above
+  when one is given, else from central differences of f at the origin (step
+  :data:`FD_STEP` relative to 1; truncation error O(h²) ≈ 4e-11 times the third
+  derivatives, round-off ≈ 1e-11 times the size of f).
+
+Every malformed input is a :class:`~penaltyrun.errors.ConfigError` naming its key.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from penaltyrun.errors import ConfigError
+
+PREFIX = "problem.params"
+#: Central-difference step of the Jacobians of ``dynamics`` at the origin.
+FD_STEP = 6e-6
+
+
+@dataclass(frozen=True)
+class Plant:
+    """A validated plant.
+
+    Attributes
+    ----------
+    A : ndarray, shape (n, n)
+    B : ndarray, shape (n, m)
+    f : callable
+        Vectorized dynamics f(X, U) → Ẋ used for the closed loop (the linear one when no
+        ``dynamics`` is given).
+    linear : bool
+        Whether ``f`` is the linear model itself.
+    source : str
+        Config key the linear model came from (``A``, ``plant_file``, ``plant`` or
+        ``dynamics`` for Jacobians), used in error messages.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    f: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    linear: bool
+    source: str
+
+    @property
+    def n_states(self) -> int:
+        return int(self.A.shape[0])
+
+    @property
+    def n_inputs(self) -> int:
+        return int(self.B.shape[1])
+
+
+def _matrix(key: str, value: Any) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(key, f"not a numeric matrix ({' '.join(str(exc).split())})") from None
+    if not np.all(np.isfinite(arr)):
+        raise ConfigError(key, "matrix has non-finite entries")
+    return arr
+
+
+def check_pair(A: Any, B: Any, key_a: str, key_b: str) -> tuple[np.ndarray, np.ndarray]:
+    """Shapes of A (n × n) and B (n × m, or a flat column of n numbers)."""
+    A = _matrix(key_a, A)
+    if A.ndim != 2 or A.shape[0] != A.shape[1] or A.shape[0] == 0:
+        raise ConfigError(key_a, f"A must be a square n x n matrix, got shape {A.shape}")
+    B = _matrix(key_b, B)
+    if B.ndim == 1:
+        B = B[:, None]
+    if B.ndim != 2 or B.shape[0] != A.shape[0] or B.shape[1] == 0:
+        raise ConfigError(key_b, f"B must have n = {A.shape[0]} rows (one per state of A), "
+                          f"got shape {B.shape}")
+    return A, B
+
+
+def check_stabilizable(A: np.ndarray, B: np.ndarray, key: str) -> None:
+    """PBH test: every eigenvalue λ of A with Re λ ≥ 0 has rank [A − λI, B] = n."""
+    n = A.shape[0]
+    scale = max(1.0, float(np.linalg.norm(np.hstack([A, B]))))
+    for lam in np.linalg.eigvals(A):
+        if lam.real < -1e-9 * scale:
+            continue
+        sv = np.linalg.svd(np.hstack([A - lam * np.eye(n), B.astype(complex)]),
+                           compute_uv=False)
+        if sv[n - 1] < 1e-9 * scale:
+            raise ConfigError(key, f"(A, B) is not stabilizable: the mode of A at "
+                              f"{lam.real:.4g}{lam.imag:+.4g}j is not reachable through B, "
+                              "so no Q, R gives a stabilizing gain")
+
+
+def resolve(spec: Any, key: str) -> Any:
+    """The object named by ``module:attribute`` (dotted attributes allowed)."""
+    if not isinstance(spec, str) or spec.count(":") != 1 or not all(spec.split(":")):
+        raise ConfigError(key, f"expected 'module:attribute', got {spec!r}")
+    mod_name, attr = spec.split(":")
+    try:
+        obj: Any = importlib.import_module(mod_name)
+    except ImportError as exc:
+        raise ConfigError(key, f"cannot import module {mod_name!r}: {exc} (is its folder on "
+                          "PYTHONPATH?)") from None
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ConfigError(key, f"module {mod_name!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    return obj
+
+
+def _from_file(path: Any, key: str) -> tuple[Any, Any]:
+    file = Path(str(path)).expanduser()
+    if not file.is_file():
+        raise ConfigError(key, f"no such file: {file}")
+    suffix = file.suffix.lower()
+    try:
+        if suffix == ".mat":
+            from scipy.io import loadmat
+
+            data: Mapping[str, Any] = loadmat(file)
+        elif suffix == ".npz":
+            data = dict(np.load(file, allow_pickle=False))
+        else:
+            raise ConfigError(key, f"unsupported file type {suffix!r} (use .mat or .npz)")
+    except ConfigError:
+        raise
+    except Exception as exc:  # a damaged file: scipy / numpy raise many kinds
+        raise ConfigError(key, f"cannot read {file}: {' '.join(str(exc).split())}") from None
+    for name in ("A", "B"):
+        if name not in data:
+            raise ConfigError(key, f"{file.name} has no variable {name!r} (need A and B)")
+    return data["A"], data["B"]
+
+
+def _from_object(spec: Any, key: str) -> tuple[Any, Any]:
+    obj = resolve(spec, key)
+    if hasattr(obj, "A") and hasattr(obj, "B"):
+        dt = getattr(obj, "dt", 0)
+        if dt not in (0, None) and not (isinstance(dt, (int, float)) and dt == 0):
+            raise ConfigError(key, f"{spec} is a discrete-time system (dt = {dt}); a "
+                              "continuous-time plant is needed")
+        return obj.A, obj.B
+    if isinstance(obj, (tuple, list)) and len(obj) == 2:
+        return obj[0], obj[1]
+    raise ConfigError(key, f"{spec} is a {type(obj).__name__}, not a StateSpace or an "
+                      "(A, B) pair")
+
+
+def jacobians(f: Callable[[np.ndarray, np.ndarray], np.ndarray], n: int, m: int
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """A = ∂f/∂x and B = ∂f/∂u at the origin by central differences (step :data:`FD_STEP`)."""
+    h = FD_STEP
+    E = np.eye(n + m)
+    Z = np.vstack([h * E, -h * E])
+    F = np.asarray(f(Z[:, :n], Z[:, n:]), dtype=float)
+    J = (F[: n + m] - F[n + m:]).T / (2.0 * h)
+    return J[:, :n], J[:, n:]
+
+
+def _check_dynamics(f: Any, n: int | None, m: int | None, key: str) -> tuple[int, int]:
+    if not callable(f):
+        raise ConfigError(key, f"{type(f).__name__} is not callable; need f(X, U)")
+    if n is None or m is None:
+        raise ConfigError(key, "the sizes n, m are unknown: give A and B (or plant / "
+                          "plant_file) with dynamics, or the state size through x0 and the "
+                          "input size through input_weight")
+    try:
+        out = np.asarray(f(np.zeros((2, n)), np.zeros((2, m))), dtype=float)
+    except Exception as exc:  # the user's function: any error is a config error
+        raise ConfigError(key, f"f(X, U) failed on X = 0 ({n} states), U = 0 ({m} inputs): "
+                          f"{type(exc).__name__}: {' '.join(str(exc).split())}") from None
+    if out.shape != (2, n):
+        raise ConfigError(key, f"f(X, U) must return shape (R, {n}) for X (R, {n}), "
+                          f"U (R, {m}); got {out.shape} for R = 2")
+    if not np.all(np.isfinite(out)) or np.max(np.abs(out)) > 1e-9:
+        raise ConfigError(key, f"f(0, 0) = {out[0].tolist()}: the origin must be an "
+                          "equilibrium (shift the state so that it is)")
+    return n, m
+
+
+def load(params: Mapping[str, Any], n_hint: int | None = None, m_hint: int | None = None
+         ) -> Plant:
+    """Build the plant from ``problem.params`` keys (see the module docstring).
+
+    Parameters
+    ----------
+    params : mapping
+        ``A``, ``B``, ``plant_file``, ``plant``, ``dynamics`` (absent or None when unused).
+    n_hint, m_hint : int, optional
+        State and input sizes from other keys (``x0``, ``input_weight``), needed only for a
+        ``dynamics`` without any linear model.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key: conflicting or missing sources, bad shapes, unreadable files,
+        missing module attributes, a non-stabilizable (A, B), a bad ``dynamics``.
+    """
+    given = [k for k in ("A", "plant_file", "plant") if params.get(k) is not None]
+    if params.get("B") is not None and "A" not in given:
+        raise ConfigError(f"{PREFIX}.A", "B is given without A")
+    if len(given) > 1:
+        raise ConfigError(f"{PREFIX}.{given[1]}", f"give one plant source, not both "
+                          f"{given[0]} and {given[1]}")
+    source = given[0] if given else "dynamics"
+    key = f"{PREFIX}.{source}"
+    if source == "A":
+        if params.get("B") is None:
+            raise ConfigError(f"{PREFIX}.B", "missing: A is given, B (n x m) is needed too")
+        A, B = check_pair(params["A"], params["B"], f"{PREFIX}.A", f"{PREFIX}.B")
+    elif source == "plant_file":
+        A, B = check_pair(*_from_file(params["plant_file"], key), key, key)
+    elif source == "plant":
+        A, B = check_pair(*_from_object(params["plant"], key), key, key)
+    elif params.get("dynamics") is None:
+        raise ConfigError(f"{PREFIX}.A", "no plant: give A and B, plant_file, plant or "
+                          "dynamics")
+    dyn_key = f"{PREFIX}.dynamics"
+    if params.get("dynamics") is None:
+        check_stabilizable(A, B, f"{PREFIX}.B" if source == "A" else key)
+
+        def f_lin(X: np.ndarray, U: np.ndarray) -> np.ndarray:
+            return X @ A.T + U @ B.T
+
+        return Plant(A, B, f_lin, True, source)
+    f = resolve(params["dynamics"], dyn_key)
+    if source == "dynamics":
+        _check_dynamics(f, n_hint, m_hint, dyn_key)
+        A, B = jacobians(f, int(n_hint), int(m_hint))  # type: ignore[arg-type]
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+            raise ConfigError(dyn_key, "the Jacobians of f at the origin are not finite")
+        check_stabilizable(A, B, dyn_key)
+    else:
+        _check_dynamics(f, A.shape[0], B.shape[1], dyn_key)
+        check_stabilizable(A, B, f"{PREFIX}.B" if source == "A" else key)
+    return Plant(A, B, f, False, source)
+
+
+__all__ = ["FD_STEP", "PREFIX", "Plant", "check_pair", "check_stabilizable", "jacobians",
+           "load", "resolve"]

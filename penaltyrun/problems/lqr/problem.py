@@ -1,0 +1,350 @@
+"""The ``problem=lqr`` object: LQR gains of the tuned Q, R on the user's plant, and the
+performance cost of the closed loop.
+
+Per candidate (Q, R): K = R⁻¹BᵀP from the Riccati equation of (A, B, Q, R)
+(:mod:`~penaltyrun.problems.lqr.riccati`), u = sat(−K x), and the cost
+
+    J = mean over x0 ∈ ``x0`` of ∫₀ᵀ (xᵀ W_x x + uᵀ W_u u) dt.
+
+A linear plant without input limits is evaluated in closed form
+(:func:`penaltyrun.dynamics.linear.quadratic_cost` with W = W_x + Kᵀ W_u K); input limits
+or a nonlinear ``dynamics`` go through the vectorized integrator
+:func:`penaltyrun.dynamics.linear_feedback.simulate`.
+
+Cost of one start (P = the failure penalty scale, r = ‖x(T)‖ / ‖x0‖):
+
+* ``converged``: J;
+* ``not_settled`` (``settle_tol`` set and r > settle_tol): J + P (1 + r / (1 + r));
+* ``diverged`` (‖x‖ > ``x_bound``) or ``step_failure`` at time t_f:
+  J(t_f) + P (2 + (T − t_f) / T) (the earlier, the worse);
+* ``nonfinite``: 10 P + the finite part of J;
+* ``care_failure`` (no stabilizing Riccati solution): 10 P (1 + s / (1 + s)), s the
+  relative residual of the best solution found (monotone in the failure's size);
+* ``cutoff`` (exact cutoff, integrated loops only): the partial J of a start stopped once
+  the sum of its candidate's J over the starts exceeded the number of starts × the
+  threshold.
+
+Every graded cost is at least the start's J, so a cut candidate's mean cost is above its
+threshold and at most its uncut cost. A candidate's cost is the mean over its starts, its
+status the worst one (in the order above; ``cutoff`` whenever a start was cut) and it
+converged only if every start did. J(cQ, cR) = J(Q, R) for every c > 0 (the
+gain does not change), so one direction of the search space is redundant.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from penaltyrun.dynamics import linear_feedback as loop
+from penaltyrun.dynamics.linear import quadratic_cost
+from penaltyrun.errors import ConfigError
+from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec, check_spd
+from penaltyrun.problems.lqr import params as pm
+from penaltyrun.problems.lqr.plant import Plant
+from penaltyrun.problems.lqr.riccati import lqr_gains
+
+logger = logging.getLogger(__name__)
+
+#: Statuses from best to worst: a candidate takes the worst of its starts, except that a
+#: candidate with a start cut by the exact cutoff is ``cutoff`` (its cost is a bound).
+STATUSES = ("converged", "not_settled", "diverged", "step_failure", "nonfinite",
+            "care_failure", "cutoff")
+HARD_FACTOR = 10.0
+#: Relative margin by which the summed J must exceed a threshold before a candidate is cut.
+CUT_MARGIN = 1e-9
+_LOOP_STATUS = {loop.HORIZON: "converged", loop.DIVERGED: "diverged",
+                loop.STEP_FAILURE: "step_failure", loop.NONFINITE: "nonfinite",
+                loop.CUTOFF: "cutoff"}
+
+
+class LQRProblem:
+    """LQR tuning on a plant from the config; tuned matrices ``Q`` (n × n), ``R`` (m × m).
+
+    Parameters
+    ----------
+    case : str
+        Case name.
+    params : Params
+        Parameters (validated here).
+    plant : Plant
+        The validated plant.
+    """
+
+    name = "lqr"
+
+    def __init__(self, case: str, params: pm.Params, plant: Plant) -> None:
+        self.case = case
+        self.params = params
+        self.plant = plant
+        n, m = plant.n_states, plant.n_inputs
+        p = params
+        self.x0 = pm.states("x0", np.eye(n) if p.x0 is None else p.x0, n)
+        self.Wx = pm.weight("state_weight", p.state_weight, n, definite=False)
+        self.Wu = pm.weight("input_weight", p.input_weight, m, definite=True)
+        self.u_max = pm.limits(p.u_max, m)
+        self.t_max = float(p.t_max)
+        self.matrices = (MatrixSpec("Q", n, pm.bounds("q_bounds", p.q_bounds)),
+                         MatrixSpec("R", m, pm.bounds("r_bounds", p.r_bounds)))
+        self.scalars: tuple[ScalarSpec, ...] = ()
+        self.closed_form = plant.linear and self.u_max is None
+        self.optimum = self._optimum()
+        self.penalty = float(p.failure_penalty) if p.failure_penalty is not None else \
+            1000.0 * (self.optimum if np.isfinite(self.optimum) and self.optimum > 0 else 1.0)
+        self.holdout_states()  # validate the held-out set now (bad input: exit 2)
+
+    @property
+    def cost_unit(self) -> str:
+        """Unit of the cost (``cost_unit``), for reports."""
+        return str(self.params.cost_unit)
+
+    def _optimum(self) -> float:
+        """J* = mean x0ᵀ P(W_x, W_u) x0: the cost of the LQR of the performance weights on
+        the linear model over an infinite horizon (NaN when W_x gives no stabilizing
+        solution); the global optimum of an unsaturated linear plant as T → ∞."""
+        from scipy.linalg import solve_continuous_are
+
+        try:
+            P = solve_continuous_are(self.plant.A, self.plant.B, self.Wx, self.Wu)
+        except (np.linalg.LinAlgError, ValueError):
+            return float("nan")
+        return float(np.mean(np.einsum("ki,ij,kj->k", self.x0, P, self.x0)))
+
+    # -- evaluation -----------------------------------------------------------------------
+    def rows(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray,
+             thresholds: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Every candidate from every start: per-start results of shape (C, k).
+
+        Returns
+        -------
+        dict
+            ``cost`` (graded), ``J`` (raw), ``status`` (str), ``t_final``, ``x_final``
+            (C, k, n), ``K`` (C, m, n), ``ok`` (C,) Riccati success.
+        """
+        n_c, n_k = Q.shape[0], X0.shape[0]
+        K, ok, failure = lqr_gains(self.plant.A, self.plant.B, Q, R)
+        J = np.zeros((n_c, n_k))
+        t_end = np.full((n_c, n_k), self.t_max)
+        x_final = np.zeros((n_c, n_k, self.plant.n_states))
+        codes = np.full((n_c, n_k), "converged", dtype=object)
+        good = np.flatnonzero(ok)
+        if good.size and self.closed_form:
+            A_cl = self.plant.A - self.plant.B @ K[good]
+            W = self.Wx + np.swapaxes(K[good], 1, 2) @ self.Wu @ K[good]
+            J[good], x_final[good] = quadratic_cost(A_cl, W, X0, self.t_max)
+        elif good.size:
+            cand = np.repeat(good, n_k)
+            cut = None
+            if thresholds is not None:
+                thr = np.asarray(thresholds, dtype=float)[good]
+                allowed = thr < HARD_FACTOR * self.penalty  # NaN: False
+                cut = np.where(allowed, n_k * (thr + CUT_MARGIN * np.abs(thr)), np.inf)
+            bound = self.params.x_bound or 1e4 * float(np.max(np.linalg.norm(X0, axis=1)))
+            run = loop.simulate(self.plant.f, K[cand], np.tile(X0, (good.size, 1)), self.Wx,
+                                self.Wu, self.u_max, self.t_max, self.params.rtol,
+                                self.params.atol, self.params.max_steps, bound,
+                                np.repeat(np.arange(good.size), n_k), cut)
+            J[good] = run["cost"].reshape(good.size, n_k)
+            t_end[good] = run["t_end"].reshape(good.size, n_k)
+            x_final[good] = run["x_final"].reshape(good.size, n_k, -1)
+            codes[good] = np.asarray([_LOOP_STATUS[int(s)] for s in run["status"]],
+                                     dtype=object).reshape(good.size, n_k)
+        ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
+        tol = self.params.settle_tol
+        if tol is not None:
+            codes[(codes == "converged") & ~(ratio <= tol)] = "not_settled"
+        P = self.penalty
+        with np.errstate(all="ignore"):
+            cost = np.where(codes == "not_settled", J + P * (1.0 + ratio / (1.0 + ratio)), J)
+            late = (self.t_max - t_end) / self.t_max
+            cost = np.where(np.isin(codes, ("diverged", "step_failure")),
+                            J + P * (2.0 + late), cost)
+        finite_J = np.where(np.isfinite(J), J, 0.0)
+        cost = np.where(np.isfinite(cost) & (codes != "nonfinite"), cost,
+                        HARD_FACTOR * P + finite_J)
+        finite = np.isfinite(failure)
+        size = np.ones_like(failure)
+        size[finite] = failure[finite] / (1.0 + failure[finite])
+        cost[~ok] = (HARD_FACTOR * P * (1.0 + size[~ok]))[:, None]
+        codes[~ok] = "care_failure"
+        return {"cost": cost, "J": J, "status": codes, "t_final": t_end, "x_final": x_final,
+                "K": K, "ok": ok}
+
+    @staticmethod
+    def _aggregate(res: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        rank = np.vectorize(STATUSES.index, otypes=[int])(res["status"])
+        worst = np.asarray([STATUSES[r] for r in rank.max(axis=1)], dtype=object)
+        return res["cost"].mean(axis=1), worst == "converged", worst
+
+    def evaluate_batch(self, mats: Mapping[str, np.ndarray],
+                       scalars: Mapping[str, np.ndarray] | None = None,
+                       thresholds: np.ndarray | None = None) -> BatchEvaluation:
+        """Costs of C candidates: ``mats["Q"]`` (C, n, n), ``mats["R"]`` (C, m, m).
+
+        ``thresholds`` (C,): exact cutoff of integrated loops (``inf``: none); the closed
+        form ignores it (it has no partial cost to stop at).
+        """
+        Q = np.asarray(mats["Q"], dtype=float)
+        R = np.asarray(mats["R"], dtype=float)
+        res = self.rows(Q, R, self.x0, thresholds)
+        cost, converged, status = self._aggregate(res)
+        return BatchEvaluation(cost=cost, converged=converged, status=status)
+
+    def _check(self, mats: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+        out = []
+        for spec in self.matrices:
+            if mats.get(spec.name) is None:
+                raise ConfigError(f"matrices.{spec.name}", f"missing matrix ({spec.size}x"
+                                  f"{spec.size})")
+            out.append(check_spd(f"matrices.{spec.name}", mats[spec.name], spec.size))
+        return out[0], out[1]
+
+    def evaluate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                 ) -> dict[str, Any]:
+        """Detailed evaluation of one (Q, R); JSON-serializable.
+
+        Returns
+        -------
+        dict
+            ``problem``, ``case``, ``cost`` (objective, ``cost_unit``), ``converged``,
+            ``status``, ``t_final`` (largest end time), ``t_max``, ``optimum`` (J* of the
+            linear model, infinite horizon), ``cost_unit``, ``method`` (``closed_form`` or
+            ``integrated``), ``gain`` (m × n, u = −gain x), ``closed_loop_poles`` (real,
+            imaginary parts), ``failure_penalty``, and per start: ``start_costs``,
+            ``start_status``, ``final_state_ratio`` (‖x(T)‖ / ‖x0‖).
+        """
+        Q, R = self._check(mats)
+        res = self.rows(Q[None], R[None], self.x0)
+        cost, converged, status = self._aggregate(res)
+        K = res["K"][0]
+        poles = np.linalg.eigvals(self.plant.A - self.plant.B @ K) if res["ok"][0] else []
+        ratio = np.linalg.norm(res["x_final"][0], axis=1) / np.linalg.norm(self.x0, axis=1)
+        return {
+            "problem": self.name, "case": self.case, "cost": float(cost[0]),
+            "converged": bool(converged[0]), "status": str(status[0]),
+            "t_final": float(res["t_final"][0].max()), "t_max": self.t_max,
+            "optimum": self.optimum, "cost_unit": self.cost_unit,
+            "method": "closed_form" if self.closed_form else "integrated",
+            "gain": K.tolist(),
+            "closed_loop_poles": [[float(z.real), float(z.imag)] for z in poles],
+            "failure_penalty": self.penalty,
+            "start_costs": res["cost"][0].tolist(),
+            "start_status": [str(s) for s in res["status"][0]],
+            "final_state_ratio": ratio.tolist(),
+        }
+
+    def simulate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None,
+                 n_points: int = 400) -> dict[str, np.ndarray]:
+        """Closed-loop histories of one (Q, R) from every training start (scipy DOP853
+        dense output at the problem's tolerances), for plots.
+
+        Returns
+        -------
+        dict
+            ``t`` (n_points,), ``x`` (k, n_points, n), ``u`` (k, n_points, m), ``J``
+            (k, n_points) running cost.
+        """
+        from scipy.integrate import solve_ivp
+
+        Q, R = self._check(mats)
+        K, ok, _ = lqr_gains(self.plant.A, self.plant.B, Q[None], R[None])
+        if not ok[0]:
+            raise ConfigError("matrices", "no stabilizing Riccati solution for these Q, R")
+        K = K[0]
+        n = self.plant.n_states
+        t = np.linspace(0.0, self.t_max, n_points)
+        xs, us, js = [], [], []
+        for x0 in self.x0:
+            def rhs(_t: float, y: np.ndarray) -> np.ndarray:
+                x = y[None, :n]
+                u = loop.feedback_input(K[None], x, self.u_max)
+                dx = np.asarray(self.plant.f(x, u), dtype=float)[0]
+                return np.append(dx, x[0] @ self.Wx @ x[0] + u[0] @ self.Wu @ u[0])
+
+            sol = solve_ivp(rhs, (0.0, self.t_max), np.append(x0, 0.0), t_eval=t,
+                            method="DOP853", rtol=self.params.rtol, atol=self.params.atol)
+            x = np.full((n_points, n), np.nan)
+            x[: sol.y.shape[1]] = sol.y[:n].T
+            J = np.full(n_points, np.nan)
+            J[: sol.y.shape[1]] = sol.y[n]
+            xs.append(x)
+            us.append(loop.feedback_input(np.repeat(K[None], n_points, 0), x, self.u_max))
+            js.append(J)
+        return {"t": t, "x": np.asarray(xs), "u": np.asarray(us), "J": np.asarray(js)}
+
+    # -- scenarios --------------------------------------------------------------------------
+    def training_scenario(self) -> dict[str, Any]:
+        """The scenario Q, R are tuned on: the training starts."""
+        return {"scenario": "x0", "x0": self.x0.tolist()}
+
+    def scenario_key(self) -> tuple:
+        """Hashable key of the training scenario (its starts rounded to 1e-9)."""
+        return tuple(tuple(np.round(x, 9).tolist()) for x in self.x0)
+
+    def holdout_keys(self) -> set[tuple]:
+        """Keys (as :meth:`scenario_key`) of the held-out starts, one start each."""
+        return {(tuple(np.round(x, 9).tolist()),) for x in self.holdout_states()}
+
+    def _sphere(self, n_points: int, seed: int) -> np.ndarray:
+        rng = np.random.default_rng(int(seed))
+        z = rng.normal(size=(n_points, self.plant.n_states))
+        radius = float(np.mean(np.linalg.norm(self.x0, axis=1)))
+        return radius * z / np.linalg.norm(z, axis=1, keepdims=True)
+
+    def sample_training(self, n: int, seed: int) -> list[dict[str, Any]]:
+        """``n`` seeded training scenarios, one start each, uniform on the sphere of radius
+        mean ‖x0‖ (a different stream from the held-out one: ``seed`` is the train seed)."""
+        return [{"x0": [x.tolist()]} for x in self._sphere(n, seed + 7919)]
+
+    def holdout_states(self) -> np.ndarray:
+        """Held-out starts (k', n): ``holdout_x0``, or ``holdout_n`` seeded ones.
+
+        Raises
+        ------
+        ConfigError
+            A given held-out start that is also a training start.
+        """
+        p = self.params
+        n = self.plant.n_states
+        if p.holdout_x0 is not None:
+            if len(p.holdout_x0) == 0:
+                return np.zeros((0, n))
+            held = pm.states("holdout_x0", p.holdout_x0, n)
+            for x in held:
+                if np.any(np.all(np.isclose(self.x0, x, rtol=0.0, atol=1e-9), axis=1)):
+                    raise ConfigError(f"{pm.PREFIX}.holdout_x0", f"start {x.tolist()} is also "
+                                      "a training start; held-out starts must differ")
+            return held
+        return self._sphere(p.holdout_n, p.holdout_seed)
+
+    def holdout_scenarios(self) -> dict[str, np.ndarray]:
+        """``scenario`` labels and ``x0`` (k', n) of the held-out set."""
+        held = self.holdout_states()
+        return {"scenario": np.asarray([f"x0[{i}]" for i in range(len(held))], dtype=object),
+                "x0": held}
+
+    def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                ) -> dict[str, np.ndarray] | None:
+        """One (Q, R) on every held-out start (runner hook); ``None`` when the set is empty.
+
+        Returns
+        -------
+        dict of ndarray
+            Per start: ``scenario``, ``x0``, ``cost`` (graded), ``J``, ``converged``,
+            ``status``, ``t_final``.
+        """
+        sc = self.holdout_scenarios()
+        if not len(sc["scenario"]):
+            return None
+        Q, R = self._check(mats)
+        res = self.rows(Q[None], R[None], sc["x0"])
+        return {**sc, "cost": res["cost"][0], "J": res["J"][0],
+                "converged": res["status"][0] == "converged",
+                "status": np.asarray(res["status"][0], dtype=object),
+                "t_final": res["t_final"][0]}
+
+
+__all__ = ["CUT_MARGIN", "HARD_FACTOR", "STATUSES", "LQRProblem"]

@@ -407,7 +407,7 @@ def run_pso_matlab(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
             best = float(pbest_cost.min())
             state = adapt(state, best < bests[-1], min_size, max_size, w_range, every)
             bests.append(best)
-            history.append(best)
+            history.append(counted.best_cost)  # in the recorded cost (J), whatever the form
             if stalled(bests, settings.max_stall_iterations, settings.function_tolerance,
                        settings.stall_test):
                 stop = "ftol"

@@ -201,6 +201,9 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
         scenarios = list(scenarios or []) + base.sample_training(n_sample, seed)
     if scenarios is None:
         return base
+    if getattr(getattr(base, "params", None), "objective_form", "cost") != "cost":
+        raise ConfigError("problem.params.objective_form", "multi-scenario tuning aggregates "
+                          "recorded costs: use objective_form=cost")
     if not scenarios:
         raise ConfigError("problem.params.train_scenarios",
                           "need a non-empty list of parameter overrides (use {} for the "

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun import __version__, problems
+from penaltyrun.errors import ConfigError
 from penaltyrun.penalty.layout import DecisionLayout
 from penaltyrun.problems.base import Problem, accepts_thresholds
 from penaltyrun.runner.plan import Job, config_hash
@@ -109,7 +110,8 @@ class LocalEvaluation:
         def evaluate(Z: np.ndarray, thresholds: np.ndarray | None = None) -> Any:
             mats, scalars = layout.split(Z)
             if thresholds is None:
-                return prob.evaluate_batch(mats, scalars or None).cost
+                res = prob.evaluate_batch(mats, scalars or None)
+                return res if getattr(res, "objective", None) is not None else res.cost
             return prob.evaluate_batch(mats, scalars or None, thresholds=thresholds)
 
         evaluate.accepts_thresholds = bool(getattr(job, "cutoff", True)) and \
@@ -184,7 +186,11 @@ def evaluate_chunk(key: str, Z: np.ndarray) -> tuple[np.ndarray, float]:
     prob, layout = cached(key)
     c0 = time.thread_time()
     mats, scalars = layout.split(np.asarray(Z, float))
-    cost = np.asarray(prob.evaluate_batch(mats, scalars or None).cost, dtype=float)
+    res = prob.evaluate_batch(mats, scalars or None)
+    if getattr(res, "objective", None) is not None:
+        raise ConfigError("problem.params.objective_form", "only 'cost' is supported with "
+                          "swarm-level Dask evaluation")
+    cost = np.asarray(res.cost, dtype=float)
     return cost, time.thread_time() - c0
 
 

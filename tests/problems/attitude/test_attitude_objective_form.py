@@ -138,3 +138,15 @@ def test_seeded_run_stops_where_the_stall_test_on_neg_reciprocal_predicts():
     assert rec.n_evals == 12 * (predicted + 1)
     assert not any(stalled(bests[:k + 1], 20, 1e-6, "code") for k in range(len(bests)))
     assert plain.n_evals > rec.n_evals
+
+
+@pytest.mark.slow
+def test_companion_diagonal_cell_spends_the_authors_evaluations():
+    """Issue acceptance: with their objective form, MATLAB defaults (swarm 60, stall 1e-6
+    over 20) and seeded starts, the median evaluation count is within a factor 1.5 of the
+    authors' 12 450 (their range 4 560–35 160). (Under J the same cell spent about twice
+    theirs; the seeded short run above shows the direction.)"""
+    runs = [_run(True, "neg_reciprocal", {}, seed=seed)[0] for seed in range(7)]
+    assert all(r.stop_reason == "ftol" for r in runs)
+    median = float(np.median([r.n_evals for r in runs]))
+    assert 12450 / 1.5 <= median <= 12450 * 1.5

@@ -106,6 +106,30 @@ def first_dip(gains: np.ndarray, n_points: int = 35001) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def summarize(table: pd.DataFrame) -> pd.DataFrame:
+    """Per detector and candidate set: how many candidates converge under the reference
+    and under the detector, how many change outcome, J and event-time changes."""
+    summary = []
+    for (name, source), g in table.groupby(["detector", "source"], sort=False):
+        lost = g["converged_first_crossing"] & ~g["converged"]
+        later = g["converged"] & (g["t_change_s"] > DT)
+        summary.append({
+            "detector": name, "candidates": source, "n": len(g),
+            "n_converged_first_crossing": int(g["converged_first_crossing"].sum()),
+            "n_converged_this_detector": int(g["converged"].sum()),
+            "n_outcome_differs": int(g["outcome_differs"].sum()),
+            "n_converged_becomes_failed": int(lost.sum()),
+            "n_failed_becomes_converged": int((~g["converged_first_crossing"]
+                                               & g["converged"]).sum()),
+            "n_later_crossing": int(later.sum()),
+            "max_rel_J_change_converged": float(g.loc[g["converged"], "rel_J_change"].max()),
+            "max_t_change_s": float(g["t_change_s"].max()),
+            "median_first_dip_duration_s": float(g["dip_duration_s"].median()),
+            "median_first_dip_depth": float(g["dip_depth"].median()),
+        })
+    return pd.DataFrame(summary)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", nargs="+", help="results.parquet of companion diagonal runs")
@@ -115,7 +139,14 @@ def main() -> None:
     ap.add_argument("--scipy-max", type=int, default=60,
                     help="scipy detectors on the first this many candidates (slow)")
     ap.add_argument("--seed", type=int, default=20250422)
+    ap.add_argument("--from-csv", action="store_true",
+                    help="only rebuild the summary from OUT/event_detectors_candidates.csv")
     args = ap.parse_args()
+    out = Path(args.out)
+    if args.from_csv:
+        table = pd.read_csv(out / "event_detectors_candidates.csv")
+        summarize(table).to_csv(out / "event_detectors_summary.csv", index=False)
+        return
     cand = candidates(args.runs, args.n_perturb, args.rel, args.seed)
     gains = np.stack(cand["gains"].to_numpy())
     detectors = {
@@ -151,26 +182,11 @@ def main() -> None:
     dips = first_dip(gains[best])
     dips.insert(0, "candidate", cand["job_id"].to_numpy()[best])
     table = table.merge(dips, on="candidate", how="left")
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     table.to_csv(out / "event_detectors_candidates.csv", index=False)
-    summary = []
-    for (name, source), g in table.groupby(["detector", "source"], sort=False):
-        lost = g["converged_first_crossing"] & ~g["converged"]
-        later = g["converged"] & (g["t_change_s"] > DT)
-        summary.append({
-            "detector": name, "candidates": source, "n": len(g),
-            "n_outcome_differs": int(g["outcome_differs"].sum()),
-            "n_converged_becomes_failed": int(lost.sum()),
-            "n_later_crossing": int(later.sum()),
-            "median_rel_J_change": float(g["rel_J_change"].median()),
-            "max_rel_J_change_converged": float(g.loc[g["converged"], "rel_J_change"].max()),
-            "max_t_change_s": float(g["t_change_s"].max()),
-            "median_first_dip_duration_s": float(g["dip_duration_s"].median()),
-            "median_first_dip_depth": float(g["dip_depth"].median()),
-        })
-    pd.DataFrame(summary).to_csv(out / "event_detectors_summary.csv", index=False)
-    print(pd.DataFrame(summary).to_string(index=False))
+    summary = summarize(table)
+    summary.to_csv(out / "event_detectors_summary.csv", index=False)
+    print(summary.to_string(index=False))
 
 
 if __name__ == "__main__":

@@ -17,7 +17,7 @@ event detector the optimizer saw), ``starts``, evaluation counts (median, min, m
 ratio of the median to the authors' 12 450), J as recorded (``J_recorded_*``) and J of the
 same gains under the production kernel (``J_production_*``: best, median, mean, worst;
 NaN for a start whose best does not converge there, counted in
-``n_fail_production``), then the authors' values.
+``n_fail_production``), then the authors' values (companion diagonal cell only, else NaN).
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ def summarize(label: str, run_dir: Path) -> tuple[dict, pd.DataFrame]:
            "evals_median": float(df["n_evals"].median()),
            "evals_min": int(df["n_evals"].min()), "evals_max": int(df["n_evals"].max()),
            "evals_median_over_authors": float(df["n_evals"].median())
-           / AUTHORS["evals_median"],
+           / AUTHORS["evals_median"] if case == "schaub_detumble" else np.nan,
            "n_stopped_by_stall": int((df["stop_reason"] == "ftol").sum())}
     for name, values in (("J_recorded", rec.to_numpy()), ("J_production", prod)):
         ok = values[np.isfinite(values)]
@@ -71,7 +71,8 @@ def summarize(label: str, run_dir: Path) -> tuple[dict, pd.DataFrame]:
                     f"{name}_mean": ok.mean() if ok.size else np.nan,
                     f"{name}_worst": ok.max() if ok.size else np.nan})
     row["n_fail_production"] = int(np.sum(~np.isfinite(prod)))
-    row.update({f"authors_{k}": v for k, v in AUTHORS.items()})
+    companion = case == "schaub_detumble" and set(df["param"]) == {"diagonal"}
+    row.update({f"authors_{k}": v if companion else np.nan for k, v in AUTHORS.items()})
     starts = pd.DataFrame({"run": label, "start": df["start"], "seed": df["seed"],
                            "n_evals": df["n_evals"], "stop_reason": df["stop_reason"],
                            "J_recorded": rec.to_numpy(), "J_production": prod,

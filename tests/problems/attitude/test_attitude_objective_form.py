@@ -40,7 +40,11 @@ def test_on_by_default_in_the_companion_presets_only():
     with pytest.raises(ConfigError, match="objective_form"):
         make("attitude_lyapunov", CASE, {"objective_form": "reciprocal"})
     with pytest.raises(ConfigError, match="objective_form"):
-        make("attitude_lyapunov", CASE, {"train_scenarios": [{}]})
+        make("attitude_lyapunov", CASE, {"train_scenarios": [{}],
+                                         "objective_form": "neg_reciprocal"})
+    multi = make("attitude_lyapunov", CASE, {"train_scenarios": [{}, {"t_max": 300.0}]})
+    assert multi.base.params.objective_form == "cost"
+    assert all(p.params.objective_form == "cost" for p in multi.scenarios)
 
 
 def test_values_are_the_authors_and_costs_are_unchanged():

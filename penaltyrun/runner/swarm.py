@@ -25,7 +25,6 @@ from typing import Any
 import numpy as np
 
 from penaltyrun import __version__, problems
-from penaltyrun.errors import ConfigError
 from penaltyrun.penalty.layout import DecisionLayout
 from penaltyrun.problems.base import Problem, accepts_thresholds
 from penaltyrun.runner.plan import Job, config_hash
@@ -178,8 +177,9 @@ def evaluate_chunk(key: str, Z: np.ndarray) -> tuple[np.ndarray, float]:
 
     Returns
     -------
-    ndarray, shape (b,)
-        Costs, as the local batch objective returns them.
+    ndarray, shape (b,), or BatchEvaluation
+        Costs, as the local batch objective returns them (the whole evaluation when the
+        problem's ``objective`` values differ from its costs).
     float
         CPU seconds of this thread spent evaluating (without building the problem).
     """
@@ -187,9 +187,8 @@ def evaluate_chunk(key: str, Z: np.ndarray) -> tuple[np.ndarray, float]:
     c0 = time.thread_time()
     mats, scalars = layout.split(np.asarray(Z, float))
     res = prob.evaluate_batch(mats, scalars or None)
-    if getattr(res, "objective", None) is not None:
-        raise ConfigError("problem.params.objective_form", "only 'cost' is supported with "
-                          "swarm-level Dask evaluation")
+    if getattr(res, "objective", None) is not None:  # an objective form: keep both arrays
+        return res, time.thread_time() - c0
     cost = np.asarray(res.cost, dtype=float)
     return cost, time.thread_time() - c0
 

@@ -154,3 +154,36 @@ def test_companion_diagonal_cell_spends_the_authors_evaluations():
     assert all(r.stop_reason == "ftol" for r in runs)
     median = float(np.median([r.n_evals for r in runs]))
     assert 12450 / 1.5 <= median <= 12450 * 1.5
+
+
+class _SyncEvaluation:
+    """Stands in for a DaskEvaluation: chunks run at once in this process."""
+
+    auto = False
+    client = SimpleNamespace(submit=lambda fn, *args, pure=False: fn(*args))
+
+    def chunk_cap(self):
+        return 3
+
+    def gather(self, futures):
+        return futures
+
+
+def test_swarm_level_chunks_keep_the_objective_values():
+    pytest.importorskip("distributed")
+    from penaltyrun.runner import swarm
+    from penaltyrun.runner.dask_swarm import DaskBatch
+
+    spec = swarm.ProblemSpec("attitude_lyapunov", CASE, "diagonal")
+    prob, layout = spec.build()
+    lb, ub = layout.bounds()
+    Z = lb + np.random.default_rng(4).random((7, lb.size)) * (ub - lb)
+    whole = prob.evaluate_batch(*layout.split(Z))
+    swarm.register(spec)
+    try:
+        got = DaskBatch(_SyncEvaluation(), spec.key)(Z)
+    finally:
+        swarm.forget(spec.key)
+    np.testing.assert_array_equal(got.cost, whole.cost)
+    np.testing.assert_array_equal(got.objective, whole.objective)
+    assert list(got.status) == list(whole.status)

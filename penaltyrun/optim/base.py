@@ -232,7 +232,8 @@ class CountingObjective:
         return value
 
     def scalar(self, z: np.ndarray) -> float:
-        """Cost of one decision vector (for scipy local searches)."""
+        """Value of one decision vector as the optimizer sees it (for scipy local
+        searches)."""
         return float(self(np.asarray(z, float)[None, :])[0])
 
     def result(self, history: list[float], n_iters: int, stop_reason: str) -> OptimResult:

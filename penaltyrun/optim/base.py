@@ -6,6 +6,12 @@ wraps it in a :class:`CountingObjective`, which counts evaluations, enforces the
 search), keeps the best candidate ever evaluated and records the anytime trace (best-so-far
 cost against cumulative evaluations). Every optimizer returns an :class:`OptimResult`.
 
+Objective forms: an objective may return, instead of the bare costs, a result with ``cost``
+and ``objective`` arrays (:class:`~penaltyrun.problems.base.BatchEvaluation`). The optimizer
+then sees ``objective`` (e.g. −1/J, whose scale drives a stall test), while the best, the
+trace and the result keep ``cost``; the two must order converged candidates alike.
+Thresholds are in the optimizer's units (the objective converts them).
+
 Exact cutoff: an objective with the attribute ``accepts_thresholds = True`` is called as
 ``func(Z, thresholds)`` when the optimizer hands thresholds (one per candidate, ``inf``: none)
 to :meth:`CountingObjective.__call__`; it may then return, for a candidate whose cost exceeds
@@ -161,6 +167,9 @@ class CountingObjective:
         self.best_z: np.ndarray | None = None
         self.trace_evals: list[int] = []
         self.trace_best: list[float] = []
+        self.transformed = False  # objective values differ from the costs
+        self.best_value = float("inf")
+        self.value_costs: dict[float, float] = {}  # each new best value → its cost
 
     @property
     def remaining(self) -> float:
@@ -173,7 +182,10 @@ class CountingObjective:
         return bool(getattr(self.func, "accepts_thresholds", False))
 
     def __call__(self, Z: np.ndarray, thresholds: np.ndarray | None = None) -> np.ndarray:
-        """Costs of the batch ``Z`` (B, dim), shape (B,) (fewer if the budget cuts it).
+        """Values of the batch ``Z`` (B, dim) for the optimizer, shape (B,) (fewer if the
+        budget cuts it): the costs, or the objective's ``objective`` values when it returns
+        a result carrying them (a problem's objective form; the best and the trace keep
+        the costs).
 
         ``thresholds`` (shape (B,), optional) are passed on when the objective accepts them
         (:attr:`cutoff`) and dropped otherwise.
@@ -187,16 +199,28 @@ class CountingObjective:
             Z = Z[:int(left)]
         if thresholds is not None and self.cutoff:
             thr = np.asarray(thresholds, dtype=float).reshape(-1)[:Z.shape[0]]
-            cost = np.asarray(self.func(Z, thr), dtype=float).reshape(Z.shape[0])
+            out = self.func(Z, thr)
         else:
-            cost = np.asarray(self.func(Z), dtype=float).reshape(Z.shape[0])
-        bad = ~np.isfinite(cost)
+            out = self.func(Z)
+        value = getattr(out, "objective", None)
+        cost = np.asarray(getattr(out, "cost", out), dtype=float).reshape(Z.shape[0])
+        if value is None:
+            value = cost
+        else:
+            value = np.asarray(value, float).reshape(Z.shape[0])
+            self.transformed = True
+        bad = ~(np.isfinite(cost) & np.isfinite(value))
         if bad.any():
             self.n_nonfinite += int(bad.sum())
             logger.warning("%d non-finite costs replaced by %g", int(bad.sum()),
                            self.nonfinite_cost)
             cost = np.where(bad, self.nonfinite_cost, cost)
+            value = np.where(bad, self.nonfinite_cost, value)
         self.n_evals += Z.shape[0]
+        j = int(np.argmin(value))
+        if value[j] < self.best_value:
+            self.best_value = float(value[j])
+            self.value_costs[self.best_value] = float(cost[j])
         i = int(np.argmin(cost))
         if cost[i] < self.best_cost:
             self.best_cost = float(cost[i])
@@ -205,16 +229,22 @@ class CountingObjective:
             self.trace_best.append(self.best_cost)
         if cut:
             raise BudgetExhaustedError
-        return cost
+        return value
 
     def scalar(self, z: np.ndarray) -> float:
-        """Cost of one decision vector (for scipy local searches)."""
+        """Value of one decision vector as the optimizer sees it (for scipy local
+        searches)."""
         return float(self(np.asarray(z, float)[None, :])[0])
 
     def result(self, history: list[float], n_iters: int, stop_reason: str) -> OptimResult:
-        """The run's :class:`OptimResult`: best evaluated candidate, counts and trace."""
+        """The run's :class:`OptimResult`: best evaluated candidate, counts and trace.
+
+        ``history`` may hold the optimizer's own best values: with an objective form they
+        are mapped back to the costs of the candidates that set them."""
         if self.best_z is None:
             raise RuntimeError("no candidate was evaluated")
+        if self.transformed:
+            history = [self.value_costs.get(float(h), h) for h in history]
         trace_evals, trace_best = list(self.trace_evals), list(self.trace_best)
         if trace_evals[-1] != self.n_evals:  # close the step function at the last evaluation
             trace_evals.append(self.n_evals)

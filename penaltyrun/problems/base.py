@@ -92,11 +92,15 @@ class BatchEvaluation:
         Whether the terminal condition was met.
     status : ndarray of str, shape (B,)
         Per-candidate status name (``"converged"`` or a problem-specific failure name).
+    objective : ndarray, shape (B,), optional
+        The values the optimizer minimizes when they differ from ``cost`` (a problem's
+        objective form, e.g. −1/J); ``None``: ``cost``. Records keep ``cost``.
     """
 
     cost: np.ndarray
     converged: np.ndarray
     status: np.ndarray
+    objective: np.ndarray | None = None
 
 
 @runtime_checkable

@@ -201,6 +201,13 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
         scenarios = list(scenarios or []) + base.sample_training(n_sample, seed)
     if scenarios is None:
         return base
+    if getattr(getattr(base, "params", None), "objective_form", "cost") != "cost":
+        # the aggregate is of recorded costs: a case's objective form does not carry over
+        if "objective_form" in overrides:
+            raise ConfigError("problem.params.objective_form", "multi-scenario tuning "
+                              "minimizes the aggregate cost: use objective_form=cost")
+        rest = {**rest, "objective_form": "cost"}
+        base = mod.make_problem(case, rest)
     if not scenarios:
         raise ConfigError("problem.params.train_scenarios",
                           "need a non-empty list of parameter overrides (use {} for the "

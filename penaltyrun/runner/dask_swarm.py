@@ -35,6 +35,7 @@ import distributed
 import numpy as np
 
 from penaltyrun.errors import RunAbortedError
+from penaltyrun.problems.base import BatchEvaluation
 from penaltyrun.runner import swarm
 from penaltyrun.runner.dask_backend import (
     POLL_S,
@@ -186,7 +187,11 @@ class DaskBatch:
         wall = time.perf_counter() - t0
         cpu = np.array([r[1] for r in results])
         self.calibrate(Z.shape[0], float(cpu.sum()), float(cpu.max()), wall)
-        return np.concatenate([r[0] for r in results])
+        parts = [r[0] for r in results]
+        if isinstance(parts[0], BatchEvaluation):  # a problem's objective form
+            return BatchEvaluation(*(np.concatenate([getattr(p, f) for p in parts])
+                                     for f in ("cost", "converged", "status", "objective")))
+        return np.concatenate(parts)
 
     def calibrate(self, n: int, cpu_s: float, max_cpu_s: float, wall_s: float) -> None:
         """Fold one batch of ``n`` candidates into the means and totals."""

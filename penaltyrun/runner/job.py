@@ -93,7 +93,7 @@ class Heartbeat:
             logger.info("%s: running, %s (%d stopped early by the cutoff) in %.0f s, best "
                         "cost so far %.6g", self.label, self.progress(now - self.t0),
                         self.n_cutoff, now - self.t0, self.best)
-        return cost
+        return res if getattr(res, "objective", None) is not None else cost
 
     def progress(self, elapsed_s: float) -> str:
         """``120 of 2500 evaluations (4.8 %, ≤ 95 s left at this pace)``."""

@@ -109,7 +109,8 @@ class LocalEvaluation:
         def evaluate(Z: np.ndarray, thresholds: np.ndarray | None = None) -> Any:
             mats, scalars = layout.split(Z)
             if thresholds is None:
-                return prob.evaluate_batch(mats, scalars or None).cost
+                res = prob.evaluate_batch(mats, scalars or None)
+                return res if getattr(res, "objective", None) is not None else res.cost
             return prob.evaluate_batch(mats, scalars or None, thresholds=thresholds)
 
         evaluate.accepts_thresholds = bool(getattr(job, "cutoff", True)) and \
@@ -176,15 +177,19 @@ def evaluate_chunk(key: str, Z: np.ndarray) -> tuple[np.ndarray, float]:
 
     Returns
     -------
-    ndarray, shape (b,)
-        Costs, as the local batch objective returns them.
+    ndarray, shape (b,), or BatchEvaluation
+        Costs, as the local batch objective returns them (the whole evaluation when the
+        problem's ``objective`` values differ from its costs).
     float
         CPU seconds of this thread spent evaluating (without building the problem).
     """
     prob, layout = cached(key)
     c0 = time.thread_time()
     mats, scalars = layout.split(np.asarray(Z, float))
-    cost = np.asarray(prob.evaluate_batch(mats, scalars or None).cost, dtype=float)
+    res = prob.evaluate_batch(mats, scalars or None)
+    if getattr(res, "objective", None) is not None:  # an objective form: keep both arrays
+        return res, time.thread_time() - c0
+    cost = np.asarray(res.cost, dtype=float)
     return cost, time.thread_time() - c0
 
 

@@ -111,6 +111,9 @@ def test_bad_settings_through_the_cli_one_line_exit_2(tmp_path, override, key):
     ("pso_matlab_fidelity", [("attitude_lyapunov", c, m)
                              for c in ("schaub_detumble", "schaub_detumble_sat")
                              for m in ("diagonal", "givens", "cayley")], None),
+    ("pso_matlab_fidelity_stepend", [("attitude_lyapunov", c, m)
+                                     for c in ("schaub_detumble", "schaub_detumble_sat")
+                                     for m in ("diagonal", "givens", "cayley")], None),
 ])
 def test_experiment_profiles_build_every_cell(profile, cells, swarm):
     from hydra import compose, initialize_config_dir
@@ -119,7 +122,7 @@ def test_experiment_profiles_build_every_cell(profile, cells, swarm):
     from penaltyrun import problems
     from penaltyrun.cli import _setup
 
-    if profile == "pso_matlab_fidelity":
+    if profile.startswith("pso_matlab_fidelity"):
         try:
             problems.make("attitude_lyapunov", "schaub_detumble")
         except ConfigError:
@@ -137,5 +140,9 @@ def test_experiment_profiles_build_every_cell(profile, cells, swarm):
         assert isinstance(settings, PSOMatlabSettings)
         assert settings.swarm_size == swarm
         assert settings.max_iterations == (10000 if swarm else None)
-        assert cfg.runner.n_starts == (20 if profile == "pso_matlab_fidelity" else 10)
+        assert cfg.runner.n_starts == (20 if profile.startswith("pso_matlab_fidelity") else 10)
     assert sorted(sweep["param"].split(",")) == sorted({c[2] for c in cells})
+    if profile == "pso_matlab_fidelity":
+        assert sweep["problem.params.objective_form"] == "neg_reciprocal,cost"
+    if profile == "pso_matlab_fidelity_stepend":
+        assert (cfg.problem.params.max_step, cfg.problem.params.n_event_samples) == (35.0, 1)

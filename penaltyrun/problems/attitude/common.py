@@ -22,6 +22,10 @@ Cost of a candidate (always finite):
   thresholds at or above ``1000 · failure_penalty`` (the flat cost of non-finite runs) cut
   nothing.
 
+The optimizer minimizes this cost or, with ``objective_form: neg_reciprocal``, the
+companion study's −1/J (:mod:`~penaltyrun.problems.attitude.objective`); thresholds are
+converted to J before the kernel sees them, and records keep the cost above.
+
 The pieces live in :mod:`~penaltyrun.problems.attitude.params` (parameters, cases),
 :mod:`~penaltyrun.problems.attitude.frames` (attitude representations, held-out states),
 :mod:`~penaltyrun.problems.attitude.reference` (scipy references) and
@@ -49,6 +53,7 @@ from penaltyrun.problems.attitude.frames import (
     perturbed_states,
     robustness_grid,
 )
+from penaltyrun.problems.attitude.objective import cost_thresholds, optimizer_values
 from penaltyrun.problems.attitude.params import (
     CASE_PARAMS,
     CASES,
@@ -182,9 +187,10 @@ class AttitudeProblem(AttitudeScenarios):
     def _finish(self, G: np.ndarray, ok: np.ndarray, y0: np.ndarray | None,
                 d0: Any, thresholds: np.ndarray | None = None) -> dict[str, np.ndarray]:
         n = max(G.shape[0], 1 if y0 is None else y0.shape[0])
+        form = self.params.objective_form
         cutoff = None
         if thresholds is not None:
-            cutoff = kernel_cutoffs(thresholds, ok,
+            cutoff = kernel_cutoffs(cost_thresholds(form, thresholds), ok,
                                     HARD_FAILURE_FACTOR * self.params.failure_penalty)
         t_end, energy, dist, status = self.run(np.where(ok[:, None, None], G, 0.0), y0,
                                                cutoff)
@@ -193,7 +199,9 @@ class AttitudeProblem(AttitudeScenarios):
         cost = np.where(ok_full, cost, HARD_FAILURE_FACTOR * self.params.failure_penalty)
         converged = ok_full & (status == integrate.EVENT)
         return {"cost": cost, "converged": converged, "status": status_strings(status, ok_full),
-                "energy": energy, "t_final": t_end, "final_distance": dist}
+                "energy": energy, "t_final": t_end, "final_distance": dist,
+                "objective": optimizer_values(form, cost, energy, dist, self.params.tol,
+                                              status, ok_full)}
 
     def evaluate_batch(
         self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, np.ndarray] | None = None,
@@ -207,7 +215,7 @@ class AttitudeProblem(AttitudeScenarios):
         G, ok = self.gains(mats)
         res = self._finish(G, ok, None, self.d0, thresholds)
         return BatchEvaluation(cost=res["cost"], converged=res["converged"],
-                               status=res["status"])
+                               status=res["status"], objective=res["objective"])
 
     def _check(self, mats: Mapping[str, Any]) -> dict[str, np.ndarray]:
         from penaltyrun.problems.base import check_spd
@@ -243,7 +251,8 @@ class AttitudeProblem(AttitudeScenarios):
         dict
             ``problem``, ``case``, ``cost`` (objective), ``energy`` (J at the end, N²·m²·s),
             ``converged``, ``status``, ``t_final`` (s), ``t_max`` (s), ``final_distance``,
-            ``initial_distance``, ``gain`` (3×6 nested list, u = −gain·(q_v, ω)).
+            ``initial_distance``, ``gain`` (3×6 nested list, u = −gain·(q_v, ω)),
+            ``objective_form`` and ``objective`` (the value the optimizer saw).
         """
         checked = self._check(mats)
         G, ok = self.gains({k: v[None] for k, v in checked.items()})
@@ -262,6 +271,9 @@ class AttitudeProblem(AttitudeScenarios):
             "tol": float(self.params.tol),
             "event_weights": list(self.params.event_weights()),
             "gain": G[0].tolist(),
+            "objective_form": self.params.objective_form,
+            "objective": float(res["cost"][0] if res["objective"] is None
+                               else res["objective"][0]),
         }
 
     def simulate(
@@ -306,6 +318,7 @@ class AttitudeProblem(AttitudeScenarios):
         y0[:, :4] = normalize_quaternion(y0[:, :4])
         d0 = self.params.event_distance(y0)
         res = self._finish(G[None], np.ones(1, dtype=bool), y0, d0)
+        res.pop("objective")
         res.update({"initial_distance": d0, "y0": y0})
         return res
 

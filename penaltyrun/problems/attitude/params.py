@@ -11,7 +11,8 @@ Cases
   ω0 = (0.70, 0.20, −0.15) rad/s, t_max = 350 s, event ‖(10·q_v, ω)‖ ≤ 1e-3 (weights
   (0, 10, 1): q0 = ±1 both accepted), eigenvalue bounds [1e-8, 20]; ``_sat`` adds the
   per-axis torque limit |u_i| ≤ 1 N·m. Their held-out set is seeded perturbations of that
-  initial attitude and those rates (no Euler grid).
+  initial attitude and those rates (no Euler grid). Both minimize the authors' objective
+  form ``neg_reciprocal`` (see :mod:`penaltyrun.problems.attitude.objective`).
 
 Initial quaternions are normalized to unit length with q0 ≥ 0.
 """
@@ -28,6 +29,7 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.attitude.frames import ATTITUDE_TYPES, attitude_to_quaternion
+from penaltyrun.problems.attitude.objective import OBJECTIVE_FORMS
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.multiscenario import TrainingParams
 
@@ -39,7 +41,7 @@ _SCHAUB: dict[str, Any] = {
     "inertia": (140.0, 100.0, 80.0), "attitude_type": "mrp", "attitude": (0.6, -0.4, 0.2),
     "omega0": (0.70, 0.20, -0.15), "t_max": 350.0, "tol": 1e-3, "event_weight_q0": 0.0,
     "event_weight_qv": 10.0, "event_weight_w": 1.0, "eig_bounds": (1e-8, 20.0),
-    "holdout_n": 0, "holdout_n_perturbed": 32,
+    "holdout_n": 0, "holdout_n_perturbed": 32, "objective_form": "neg_reciprocal",
 }
 CASES = ("detumble", "rest_to_rest", "schaub_detumble", "schaub_detumble_sat")
 DEFAULT_CASE = "detumble"
@@ -90,6 +92,11 @@ class Params(ParamsMixin, TrainingParams):
         Eigenvalue (or diagonal-entry) bounds of every tuned matrix.
     failure_penalty : float
         Scale of the graded penalty of runs whose event does not fire (N²·m²·s).
+    objective_form : str
+        What the optimizer minimizes: ``cost`` (the recorded cost) or ``neg_reciprocal``
+        (−1/J if converged, else the final error d − tol; the companion study's form).
+        Records and reports always hold J (see
+        :mod:`penaltyrun.problems.attitude.objective`).
     holdout_n : int
         Held-out robustness grid: yaw, pitch and roll each take ``holdout_n`` values in
         linspace(holdout_lo_deg, holdout_hi_deg) → holdout_n³ rest-to-rest starts
@@ -127,6 +134,7 @@ class Params(ParamsMixin, TrainingParams):
     max_steps: int = 1_000_000
     eig_bounds: tuple = (1e-8, 10.0)
     failure_penalty: float = 1000.0
+    objective_form: str = "cost"
     holdout_n: int = 6
     holdout_lo_deg: float = 10.0
     holdout_hi_deg: float = 350.0
@@ -209,6 +217,9 @@ def validate(params: Params) -> Params:
             raise ConfigError(f"problem.{key}", f"must be a positive number, got {value!r}")
     if params.u_max is not None and not (isinstance(params.u_max, Real) and params.u_max > 0):
         raise ConfigError("problem.u_max", "must be null (off) or a positive torque (N·m)")
+    if params.objective_form not in OBJECTIVE_FORMS:
+        raise ConfigError("problem.objective_form", f"unknown form {params.objective_form!r}",
+                          allowed=OBJECTIVE_FORMS)
     for key in ("n_event_samples", "max_steps"):
         value = getattr(params, key)
         if not (isinstance(value, Integral) and value >= 1):

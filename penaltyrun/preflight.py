@@ -67,20 +67,39 @@ def preflight(argv: list[str]) -> str:
     multirun = "-m" in argv or "--multirun" in argv
     with userconf.hydra_context(source):
         _check_choices(parsed, source, hydra_overrides, searchpath)
-        cfg = _compose_dry(parsed, source, hydra_overrides, multirun=multirun)
-        if multirun:
-            profile = _profile_sweeps(cfg, parsed, parser)
-            if profile:
-                try:
-                    _check_choices(parsed + profile, source, hydra_overrides, searchpath)
-                    _compose_dry(parsed + profile, source, hydra_overrides, multirun=True)
-                except ConfigError as exc:
-                    raise ConfigError(exc.key, f"{exc.message} (a sweep value of the config's "
-                                      "hydra.sweeper.params)", allowed=exc.allowed) from None
+        profile = _profile_sweeps(_compose_groups(parsed, source, hydra_overrides), parsed,
+                                  parser) if multirun else []
+        from_profile = {o.key_or_group for o in profile}
+        try:
+            _check_choices(parsed + profile, source, hydra_overrides, searchpath)
+            cfg = _compose_dry(parsed + profile, source, hydra_overrides, multirun=multirun)
+        except ConfigError as exc:
+            if exc.key not in from_profile:
+                raise
+            raise ConfigError(exc.key, f"{exc.message} (a sweep value of the config's "
+                              "hydra.sweeper.params)", allowed=exc.allowed) from None
         return str(cfg.mode)
 
 
-def _profile_sweeps(cfg: DictConfig, parsed: list[Any], parser: Any) -> list[Any]:
+def _compose_groups(parsed: list[Any], source: userconf.ConfigSource,
+                    hydra_overrides: list[str]) -> DictConfig | None:
+    """The config composed from the command line's group choices alone (with its ``hydra``
+    node), to read an experiment profile's sweeps before the values are checked; ``None``
+    when it does not compose (the full check then names the mistake)."""
+    from hydra import compose
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    groups = [o.input_line for o in parsed
+              if o.key_or_group.lstrip("+") in GROUPS and not o.is_sweep_override()]
+    try:
+        return compose(config_name=source.config_name, overrides=groups + hydra_overrides,
+                       return_hydra_config=True)
+    except (HydraException, OmegaConfBaseException):
+        return None
+
+
+def _profile_sweeps(cfg: DictConfig | None, parsed: list[Any], parser: Any) -> list[Any]:
     """The sweeps of the composed config's ``hydra.sweeper.params`` (an experiment
     profile's) as parsed overrides, leaving out keys the command line sets itself (those
     win, as in Hydra's basic sweeper).
@@ -92,7 +111,7 @@ def _profile_sweeps(cfg: DictConfig, parsed: list[Any], parser: Any) -> list[Any
     """
     from hydra.errors import HydraException
 
-    params = OmegaConf.select(cfg, "hydra.sweeper.params")
+    params = OmegaConf.select(cfg, "hydra.sweeper.params") if cfg is not None else None
     if not isinstance(params, DictConfig):
         return []
     given = {o.key_or_group for o in parsed}

@@ -74,3 +74,15 @@ def test_matrix_entries_must_be_numbers():
     for bad in ([[True, False], [False, True]], [[1, "a"], [0, 1]], True):
         with pytest.raises(ConfigError, match="matrices.K: entries must be numbers"):
             checks.check_matrix_entries({"K": bad}, "matrices")
+
+
+def test_command_line_values_are_checked_against_the_profiles_problems():
+    """A profile that sweeps ``problem`` with a command-line ``case`` list: the cases are
+    checked against the profile's problems, not against the default problem."""
+    from penaltyrun.preflight import preflight
+
+    assert preflight(["-m", "+experiment=lowthrust_baseline", "case=A,C"]) == "optimize"
+    with pytest.raises(ConfigError, match="case: unknown case 'Z' for problem"):
+        preflight(["-m", "+experiment=lowthrust_baseline", "case=A,Z"])
+    with pytest.raises(ConfigError, match="param: unknown choice 'bogus'"):
+        preflight(["-m", "+experiment=referee_zermelo", "param=diagonal,bogus"])

@@ -24,7 +24,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__, cells, checks, userconf
+from penaltyrun import __version__, cells, checks, cliargs, clihelp, userconf
 from penaltyrun.errors import (
     ConfigError,
     ResultsUnreadableError,
@@ -167,6 +167,10 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
         scalars[spec.name] = float(scalars_cfg[spec.name])
     result = prob.evaluate(given, scalars or None)
     print(json.dumps(result, default=str), flush=True)
+    hydra_cfg = HydraConfig.get()
+    if hydra_cfg.output_subdir is not None:  # --keep or hydra.run.dir given
+        print(f"penaltyrun: evaluate: Hydra's config and log kept in "
+              f"{hydra_cfg.runtime.output_dir}", file=sys.stderr, flush=True)
     return result
 
 
@@ -242,7 +246,11 @@ def _hydra_main(cfg: DictConfig) -> None:
             _discard_run_dir()
             raise
 
-    _guard(dispatch)
+    try:
+        _guard(dispatch)
+    except Exception as exc:  # a bug in penaltyrun: a traceback, not a Hydra error line
+        cliargs.mark_task_error(exc)
+        raise
 
 
 def _print_cell_plan(cfg: DictConfig) -> None:
@@ -262,18 +270,35 @@ def print_version(argv: list[str]) -> bool:
 def main() -> None:
     """Entry point of ``penaltyrun``: check the command line, then run the Hydra app.
 
+    ``--help`` is penaltyrun's own (:mod:`penaltyrun.clihelp`), ``--hydra-help`` Hydra's.
     Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
     """
-    if print_version(sys.argv[1:]):
+    argv = sys.argv[1:]
+    if print_version(argv):
+        return
+    if "--hydra-help" in argv:
+        return _hydra_main()
+    if clihelp.wants_help(argv):
+        print(clihelp.render(argv))
         return
     install_signal_handlers()
-    if _guard(lambda: preflight(sys.argv[1:])) == "plan":
+    argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(argv)))
+    args = _guard(lambda: cliargs.check_options(argv))
+    parsed = _guard(lambda: cliargs.check_sweeps(args.overrides, args.multirun))
+    mode = _guard(lambda: preflight(argv))
+    if mode == "plan":
         from penaltyrun import planmode
 
-        if planmode.intercepts(sys.argv[1:]):  # forecast only: Hydra runs nothing
-            return _guard(lambda: planmode.run(sys.argv[1:]))
-    sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
-    _guard(_hydra_main)
+        if planmode.intercepts(argv):  # forecast only: Hydra runs nothing
+            return _guard(lambda: planmode.run(argv))
+    extra: list[str] = []
+    if mode == "evaluate" and not (args.cfg or args.info or args.shell_completion):
+        extra, line = cliargs.evaluate_overrides(parsed, args.multirun, keep)
+        if line:
+            print(line, file=sys.stderr, flush=True)
+    sys.argv = [sys.argv[0], *argv, *extra]
+    with cliargs.hydra_errors():
+        _guard(_hydra_main)
     if FAILED_RUNS:
         sys.exit(EXIT_JOBS_FAILED)
 

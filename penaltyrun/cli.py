@@ -285,19 +285,19 @@ def main() -> None:
     argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(argv)))
     args = _guard(lambda: cliargs.check_options(argv))
     parsed = _guard(lambda: cliargs.check_sweeps(args.overrides, args.multirun))
-    mode = _guard(lambda: preflight(argv))
-    if mode == "plan":
-        from penaltyrun import planmode
+    with cliargs.hydra_errors():  # Hydra's errors, also from the preflight's composition
+        mode = _guard(lambda: preflight(argv))
+        if mode == "plan":
+            from penaltyrun import planmode
 
-        if planmode.intercepts(argv):  # forecast only: Hydra runs nothing
-            return _guard(lambda: planmode.run(argv))
-    extra: list[str] = []
-    if mode == "evaluate" and not (args.cfg or args.info or args.shell_completion):
-        extra, line = cliargs.evaluate_overrides(parsed, args.multirun, keep)
-        if line:
-            print(line, file=sys.stderr, flush=True)
-    sys.argv = [sys.argv[0], *argv, *extra]
-    with cliargs.hydra_errors():
+            if planmode.intercepts(argv):  # forecast only: Hydra runs nothing
+                return _guard(lambda: planmode.run(argv))
+        extra: list[str] = []
+        if mode == "evaluate" and not (args.cfg or args.info or args.shell_completion):
+            extra, line = cliargs.evaluate_overrides(parsed, args.multirun, keep)
+            if line:
+                print(line, file=sys.stderr, flush=True)
+        sys.argv = [sys.argv[0], *argv, *extra]
         _guard(_hydra_main)
     if FAILED_RUNS:
         sys.exit(EXIT_JOBS_FAILED)

@@ -193,6 +193,10 @@ def _one_line(exc: BaseException) -> str:
     if missing and options is not None:
         group, name = missing.groups()
         return str(ConfigError(group, f"unknown choice {name!r}", allowed=sorted(options)))
+    for err in (exc, exc.__cause__):  # OmegaConf's own: "<full_key>: <message>"
+        key, msg = getattr(err, "full_key", None), getattr(err, "msg", None)
+        if key and msg:
+            return f"{key}: {' '.join(str(msg).split('full_key:')[0].split())}"
     text = " ".join(ln for ln in lines if not ln.startswith("Available options")
                     and ln not in (options or ()))
     cause = exc.__cause__

@@ -133,6 +133,8 @@ def test_hydra_help_is_hydras(tmp_path):
     (["foo"], ["foo: malformed override 'foo'"]),
     (["optimizer.iters=[1"], ["optimizer.iters: malformed override"]),
     (["hydra/launcher=bogus"], ["hydra/launcher: unknown choice 'bogus' (allowed: basic"]),
+    (["hydra.job.chdir=maybe"], ["hydra.job.chdir: Value 'maybe' is not a valid bool"]),
+    (["-m", "hydra/sweeper=foo", "mode=plan"], ["hydra/sweeper: unknown choice 'foo'"]),
 ])
 def test_hydra_mistakes_are_one_line(tmp_path, args, fragments):
     line = one_error_line(cli(*args, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path))

@@ -39,8 +39,7 @@ OPTIONS = (
     ("-m, --multirun", "run every combination of the comma lists (sweeps)"),
     ("--config-dir DIR", "add your own groups (problems, experiments) from DIR/<group>/"),
     ("--keep", "mode=evaluate: keep Hydra's run directory (.hydra/ config and log)"),
-    ("--cfg job", "print the composed config and exit"),
-    ("--version", "penaltyrun's version;  --hydra-help: Hydra's own help"),
+    ("--cfg job", "print the composed config;  --version;  --hydra-help: Hydra's own help"),
 )
 
 
@@ -127,16 +126,43 @@ def _literal_cases(module: str, depth: int = 3) -> tuple[str, ...] | None:
     return None
 
 
-def _problem_cases(path: Path) -> tuple[str, tuple[str, ...] | None]:
+def _registry() -> dict[str, str]:
+    """penaltyrun's problem registry (``penaltyrun.problems.REGISTRY``), read from the
+    package's source so that numpy is not imported for the help."""
+    path = Path(__file__).resolve().parent / "problems" / "__init__.py"
+    try:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, SyntaxError):
+        tree = ast.Module(body=[], type_ignores=[])
+    for node in tree.body:
+        target = node.target if isinstance(node, ast.AnnAssign) else \
+            node.targets[0] if isinstance(node, ast.Assign) else None
+        if isinstance(target, ast.Name) and target.id == "REGISTRY" and node.value:
+            try:
+                return {str(k): str(v) for k, v in ast.literal_eval(node.value).items()}
+            except (ValueError, AttributeError):
+                break
+    from penaltyrun.problems import REGISTRY  # computed: import it
+
+    return dict(REGISTRY)
+
+
+def _problem_cases(path: Path, registry: dict[str, str]) -> tuple[str, tuple[str, ...] | None]:
     """Problem name and cases of one problem config file."""
     data = _read_yaml(path)
     name = str(data.get("name") or path.stem)
-    module = data.get("module")
-    if not module:
-        from penaltyrun.problems import REGISTRY
-
-        module = REGISTRY.get(name)
+    module = data.get("module") or registry.get(name) or _entry_point(name)
     return name, _literal_cases(str(module)) if module else None
+
+
+def _entry_point(name: str) -> str | None:
+    """Module of a problem registered by an installed package (entry points)."""
+    import importlib.metadata
+
+    for ep in importlib.metadata.entry_points(group="penaltyrun.problems"):
+        if ep.name == name:
+            return ep.value.split(":")[0]
+    return None
 
 
 def _wrapped(label: str, text: str, indent: int = INDENT) -> list[str]:
@@ -171,7 +197,8 @@ def render(argv: list[str]) -> str:
             names.insert(0, defaults[group] + "*")
         lines += _wrapped(group, ", ".join(names) or "(none)")
     lines += ["", "cases (case=NAME; * default, case=null → the default):"]
-    problems = [_problem_cases(path) for path in _choices(dirs, "problem").values()]
+    registry = _registry()
+    problems = [_problem_cases(path, registry) for path in _choices(dirs, "problem").values()]
     indent = 3 + max((len(name) for name, _ in problems), default=0) + 1
     for name, cases in problems:
         text = ", ".join([cases[0] + "*", *cases[1:]]) if cases else "see its module's CASES"
@@ -189,7 +216,6 @@ def render(argv: list[str]) -> str:
         "  same command plus runner.resume=true. mode=evaluate writes nothing unless --keep",
         "  or hydra.run.dir is given. A mistake is one line on stderr and exit code 2.",
         "",
-        "Every config key, problem parameter and exit code: the documentation (docs/,",
-        "`make docs`).",
+        "Every config key, problem parameter and exit code: the documentation (docs/, make docs).",
     ]
     return "\n".join(lines)

@@ -83,14 +83,29 @@ def check_report_options(options: Mapping[str, Any]) -> None:
 
 
 def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
-    """Check that directory ``path`` exists or can be created (nothing is left behind).
+    """Check that directory ``path`` exists or can be created (nothing is left behind),
+    that no other run is using it and that its ``results.parquet`` can be written.
 
     Raises
     ------
     ConfigError
-        If a part of the path is a file, or the first existing parent is not writable.
+        If a part of the path is a file or a dangling symbolic link, the first existing
+        parent is not writable, ``results.parquet`` there is not a file, or another
+        penaltyrun run holds the directory (:mod:`penaltyrun.runner.lock`).
     """
+    from penaltyrun.runner.lock import check_not_locked
+
     path = Path(path).expanduser()
+    for part in (path, *path.parents):
+        if part.is_symlink() and not part.exists():
+            raise ConfigError(key, f"{part} is a symbolic link to {os.readlink(part)}, which "
+                                   "does not exist")
+    if path.is_dir():
+        results = path / "results.parquet"
+        if results.exists() and not results.is_file():
+            raise ConfigError(key, f"{results} exists and is not a file (penaltyrun writes "
+                                   "its results there)")
+        check_not_locked(path, key)
     if path.exists():
         if not path.is_dir():
             raise ConfigError(key, f"{path} exists and is not a directory")
@@ -106,6 +121,40 @@ def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
     except OSError as exc:
         raise ConfigError(key, f"cannot create {path}: {exc.strerror or exc} in "
                                f"{anchor}") from None
+
+
+def check_output_dir(path: str | Path | None, key: str = "report.output") -> None:
+    """Check that the report folder ``path`` (None: the default) is not a file and can be
+    created.
+
+    Raises
+    ------
+    ConfigError
+        If ``path`` or one of its parents is a file, or it cannot be created.
+    """
+    if path is None:
+        return
+    out = Path(path).expanduser()
+    if out.exists() and not out.is_dir():
+        raise ConfigError(key, f"{out} is a file; the report is a folder: pass a folder "
+                               "path")
+    check_run_dir(out, key)
+
+
+def check_matrix_entries(values: Mapping[str, Any], prefix: str) -> None:
+    """Refuse entries of ``matrices.*`` / ``scalars.*`` that are not numbers (booleans
+    included: ``true`` is no matrix entry)."""
+    for name, value in values.items():
+        if value is None:
+            continue
+        stack = [value]
+        while stack:
+            item = stack.pop()
+            if isinstance(item, list):
+                stack.extend(item)
+            elif not _is_number(item):
+                raise ConfigError(f"{prefix}.{name}", f"entries must be numbers, got "
+                                  f"{item!r}")
 
 
 def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
@@ -184,8 +233,12 @@ def check_config(cfg: DictConfig, connect: bool = True,
     check_report_options(plain(cfg.get("report")) or {})
     runner.check_runner_options(plain(cfg.get("runner")) or {},
                                 connect=connect and mode == "optimize")
+    check_output_dir((plain(cfg.get("report")) or {}).get("output"))
     if mode == "report":
         return
+    if mode == "evaluate":
+        for group in FREE_KEYS:
+            check_matrix_entries(plain(cfg.get(group)) or {}, group)
     if mode in JOB_MODES:
         optim.make_settings(cfg.optimizer.name, _options(cfg, "optimizer"))
         if cfg.param.name not in penalty.KINDS:

@@ -22,18 +22,30 @@ from typing import Any
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
+from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun import __version__, cells, checks, cliargs, clihelp, userconf
 from penaltyrun.errors import (
     ConfigError,
+    EnvironmentProblemError,
     ResultsUnreadableError,
     RunAbortedError,
     RunInterruptedError,
     SignalInterrupt,
+    describe_os_error,
     signal_name,
 )
 from penaltyrun.preflight import preflight
+from penaltyrun.streams import (
+    EXIT_ENVIRONMENT,
+    ensure_utf8_mode,
+    flush_stdout,
+    print_error,
+    stdout_broken,
+    stdout_error_line,
+    watch_stdout,
+)
 
 logger = logging.getLogger("penaltyrun")
 
@@ -47,10 +59,14 @@ EXIT_INTERRUPTED = 130
 EXIT_CODES = {
     EXIT_OK: "success (every job recorded ok or diverged)",
     1: "internal error (a bug: please report the traceback)",
-    EXIT_USAGE: "bad command line or config, or no readable results (one line on stderr)",
+    EXIT_USAGE: "bad command line or config, a run directory in use by another run, or no "
+                "readable results (one line on stderr)",
     EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed`",
     EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
                   "runner.worker_timeout s); finished jobs are kept",
+    EXIT_ENVIRONMENT: "the machine refused a file operation (disk full, no permission, "
+                      "read-only file system, output not writable): one line naming the "
+                      "path; finished jobs are kept",
     128 + signal.SIGINT: "stopped by Ctrl-C (SIGINT); finished jobs are kept",
     128 + signal.SIGTERM: "stopped by SIGTERM; finished jobs are kept",
     128 + signal.SIGHUP: "stopped by SIGHUP; finished jobs are kept",
@@ -102,7 +118,8 @@ def run_optimize(cfg: DictConfig) -> Path:
                        max_retries=rc.get("max_retries", 1),
                        worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected,
                        evaluate_on=rc.get("evaluate_on", "local"),
-                       chunks=rc.get("chunks", "auto"))
+                       chunks=rc.get("chunks", "auto"),
+                       stall_timeout=float(rc.get("stall_timeout", 600)))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
@@ -197,12 +214,22 @@ def _guard(func: Callable[[], Any]) -> Any:
     and exit code 128 + signal number (finished jobs are on disk already)."""
     try:
         return func()
+    except HydraException:  # (MissingConfigException is an OSError): one line by cliargs
+        raise
     except (ConfigError, FileNotFoundError, ResultsUnreadableError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
     except RunAbortedError as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_ABORTED)
+    except EnvironmentProblemError as exc:
+        print_error(str(exc))
+        sys.exit(EXIT_ENVIRONMENT)
+    except OSError as exc:  # any other file operation the machine refused
+        broken = stdout_broken()
+        print_error(stdout_error_line(broken) if broken is not None
+                     else describe_os_error(exc, doing="use"))
+        sys.exit(EXIT_ENVIRONMENT)
     except RunInterruptedError as exc:
         print(f"penaltyrun: {exc}", file=sys.stderr)
         sys.exit(128 + exc.signum)
@@ -273,14 +300,17 @@ def main() -> None:
     ``--help`` is penaltyrun's own (:mod:`penaltyrun.clihelp`), ``--hydra-help`` Hydra's.
     Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
     """
+    ensure_utf8_mode(sys.argv)
+    logging.raiseExceptions = False  # a broken stdout is one line at the end, not tracebacks
+    watch_stdout()
     argv = sys.argv[1:]
-    if print_version(argv):
-        return
+    if _guard(lambda: print_version(argv)):
+        return flush_stdout()
     if "--hydra-help" in argv:
         return _hydra_main()
     if clihelp.wants_help(argv):
         print(clihelp.render(argv))
-        return
+        return flush_stdout()
     install_signal_handlers()
     argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(argv)))
     args = _guard(lambda: cliargs.check_options(argv))
@@ -291,7 +321,8 @@ def main() -> None:
             from penaltyrun import planmode
 
             if planmode.intercepts(argv):  # forecast only: Hydra runs nothing
-                return _guard(lambda: planmode.run(argv))
+                _guard(lambda: planmode.run(argv))
+                return flush_stdout()
         extra: list[str] = []
         if mode == "evaluate" and not (args.cfg or args.info or args.shell_completion):
             extra, line = cliargs.evaluate_overrides(parsed, args.multirun, keep)
@@ -299,6 +330,7 @@ def main() -> None:
                 print(line, file=sys.stderr, flush=True)
         sys.argv = [sys.argv[0], *argv, *extra]
         _guard(_hydra_main)
+    flush_stdout()
     if FAILED_RUNS:
         sys.exit(EXIT_JOBS_FAILED)
 
@@ -316,6 +348,9 @@ def report_main(argv: list[str] | None = None) -> None:
                         help="also write each cell's best matrices to DIR as JSON and MATLAB "
                              ".mat files (with index.csv)")
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
+    if argv is None:
+        ensure_utf8_mode(sys.argv)
+    watch_stdout()
     args = parser.parse_args(argv)
     from penaltyrun import report
 
@@ -326,6 +361,7 @@ def report_main(argv: list[str] | None = None) -> None:
     def build() -> None:
         if not src.exists():
             raise ConfigError("input", f"{src} does not exist")
+        checks.check_output_dir(args.output, "-o")
         out = Path(args.output) if args.output else \
             (src.parent if src.is_file() else src) / "report"
         report.build_report(src, out, paper=not args.no_paper)
@@ -334,6 +370,7 @@ def report_main(argv: list[str] | None = None) -> None:
             _export(src, Path(args.export))
 
     _guard(build)
+    flush_stdout()
 
 
 def _export(src: Path, out: Path) -> None:

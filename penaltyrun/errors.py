@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
 
 
 class ConfigError(ValueError):
@@ -20,6 +21,7 @@ class ConfigError(ValueError):
 
     def __init__(self, key: str, message: str, allowed: Iterable[str] | None = None) -> None:
         self.key = key
+        self.message = message
         self.allowed = tuple(allowed) if allowed is not None else None
         text = f"{key}: {message}"
         if self.allowed:
@@ -83,3 +85,59 @@ def signal_name(signum: int) -> str:
         return signal.Signals(signum).name
     except ValueError:
         return f"signal {signum}"
+
+
+class EnvironmentProblemError(OSError):
+    """The machine refused an operation the run needs (disk full, no permission, a
+    read-only file system, a path of the wrong kind): one line naming the path; records
+    already written stay on disk for ``runner.resume=true``.
+
+    Parameters
+    ----------
+    message : str
+        The whole line (see :func:`describe_os_error`).
+    """
+
+
+def free_space(path: Any) -> str:
+    """Free space of the file system holding ``path`` (or its first existing parent),
+    e.g. ``"12.3 MB free"``; ``"free space unknown"`` when it cannot be read."""
+    import shutil
+    from pathlib import Path
+
+    here = Path(path)
+    while not here.exists() and here != here.parent:
+        here = here.parent
+    try:
+        free = shutil.disk_usage(here).free
+    except OSError:
+        return "free space unknown"
+    for unit, size in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if free >= size:
+            return f"{free / size:.1f} {unit} free"
+    return f"{free} bytes free"
+
+
+def describe_os_error(exc: OSError, path: Any = None, doing: str = "write") -> str:
+    """One line for an OSError: what could not be done to which path, and why.
+
+    A full disk (``ENOSPC``, ``EDQUOT``) also names the free space left; a permission or
+    read-only error says so.
+
+    Parameters
+    ----------
+    exc : OSError
+    path : path-like, optional
+        The path concerned (default the error's own ``filename``).
+    doing : str
+        Verb of the failed operation (``write``, ``read``, ``create``).
+    """
+    import errno
+
+    where = path if path is not None else (exc.filename or "a file")
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    line = f"cannot {doing} {where}: {reason}"
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        line += f" ({free_space(where)}); free some space and rerun with runner.resume=true " \
+                f"(finished jobs are kept)"
+    return line

@@ -41,7 +41,9 @@ def preflight(argv: list[str]) -> str:
     Parses the overrides (syntax), checks config-group choices against the files Hydra
     will search (penaltyrun's ``conf/`` and the user's directories), checks the YAML of
     the chosen user files, then composes the config once (first value of each sweep) to
-    catch unknown keys and type errors. Returns the composed ``mode``.
+    catch unknown keys and type errors, and once per further sweep value. With ``-m`` the
+    sweeps of the config's ``hydra.sweeper.params`` (an experiment profile's) are checked
+    exactly as those of the command line. Returns the composed ``mode``.
 
     Raises
     ------
@@ -62,10 +64,49 @@ def preflight(argv: list[str]) -> str:
             key = arg.split("=", 1)[0].lstrip("+~")
             raise ConfigError(key, f"malformed override {arg!r}: {_first_line(exc)}") from None
     hydra_overrides, searchpath = _searchpath(parsed)
+    multirun = "-m" in argv or "--multirun" in argv
     with userconf.hydra_context(source):
         _check_choices(parsed, source, hydra_overrides, searchpath)
-        return _compose_dry(parsed, source, hydra_overrides,
-                            multirun="-m" in argv or "--multirun" in argv)
+        cfg = _compose_dry(parsed, source, hydra_overrides, multirun=multirun)
+        if multirun:
+            profile = _profile_sweeps(cfg, parsed, parser)
+            if profile:
+                try:
+                    _check_choices(parsed + profile, source, hydra_overrides, searchpath)
+                    _compose_dry(parsed + profile, source, hydra_overrides, multirun=True)
+                except ConfigError as exc:
+                    raise ConfigError(exc.key, f"{exc.message} (a sweep value of the config's "
+                                      "hydra.sweeper.params)", allowed=exc.allowed) from None
+        return str(cfg.mode)
+
+
+def _profile_sweeps(cfg: DictConfig, parsed: list[Any], parser: Any) -> list[Any]:
+    """The sweeps of the composed config's ``hydra.sweeper.params`` (an experiment
+    profile's) as parsed overrides, leaving out keys the command line sets itself (those
+    win, as in Hydra's basic sweeper).
+
+    Raises
+    ------
+    ConfigError
+        A sweep that is not valid override syntax.
+    """
+    from hydra.errors import HydraException
+
+    params = OmegaConf.select(cfg, "hydra.sweeper.params")
+    if not isinstance(params, DictConfig):
+        return []
+    given = {o.key_or_group for o in parsed}
+    out = []
+    for key, value in OmegaConf.to_container(params, resolve=False).items():
+        if key in given or str(key).startswith("hydra"):
+            continue
+        line = f"{key}={value}"
+        try:
+            out.extend(parser.parse_overrides([line]))
+        except HydraException as exc:
+            raise ConfigError(f"hydra.sweeper.params.{key}", f"malformed sweep {line!r}: "
+                              f"{_first_line(exc)}") from None
+    return out
 
 
 def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
@@ -86,9 +127,9 @@ def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
 
 
 def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
-                 hydra_overrides: list[str], multirun: bool = False) -> str:
-    """Compose once (first value of each sweep) to catch unknown keys and type errors;
-    returns the composed ``mode``."""
+                 hydra_overrides: list[str], multirun: bool = False) -> DictConfig:
+    """Compose once (first value of each sweep) to catch unknown keys and type errors,
+    then each further sweep value; returns the config composed (with its ``hydra`` node)."""
     from hydra import compose
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
@@ -123,4 +164,4 @@ def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
     checks.check_composed(cfg, base, multirun=multirun)
     for variant in checks.sweep_variants(parsed, dry):
         checks.check_variant(compose, variant, config_name=name)
-    return str(cfg.mode)
+    return cfg

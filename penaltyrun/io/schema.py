@@ -1,7 +1,8 @@
 """The one Parquet schema of penaltyrun results: one row per job.
 
-Nested values that differ per problem (matrices, metrics, settings, the resolved config)
-are stored as JSON text columns, so every problem shares one flat schema.
+Nested values that differ per problem (matrices, metrics, settings, the resolved config,
+the package versions) are stored as JSON text columns, so every problem shares one flat
+schema. Reading results back (dedupe, checks, older versions): :mod:`penaltyrun.io.read`.
 """
 
 from __future__ import annotations
@@ -14,17 +15,23 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from penaltyrun.errors import ResultsUnreadableError
+from penaltyrun.errors import EnvironmentProblemError, describe_os_error
+from penaltyrun.runner import lock
+from penaltyrun.runner.records import CORRUPT_DIR, load_record, quarantine_with_warning
+from penaltyrun.runner.validate import SCHEMA_VERSION
 
 logger = logging.getLogger(__name__)
 
-#: 3: anytime traces and warm start; 4: ``started_at`` / ``finished_at`` are timestamp
-#: columns (UTC) — earlier versions stored ISO text, read back as timestamps.
-SCHEMA_VERSION = 4
+#: Versions of :data:`SCHEMA` (``SCHEMA_VERSION`` lives with the record checks,
+#: :mod:`penaltyrun.runner.validate`). 3: anytime traces and warm start; 4: ``started_at`` /
+#: ``finished_at`` are timestamp columns (UTC) — earlier versions stored ISO text, read back
+#: as timestamps; 5: ``packages`` (provenance), and the job id covers the root seed and the
+#: held-out setting — earlier files read back with ``packages`` null.
+SCHEMA_HISTORY = {3: "anytime traces, warm start", 4: "timestamp columns",
+                  5: "packages column; job id covers runner.seed and runner.holdout"}
 RESULTS_FILE = "results.parquet"
 
 #: Column name → (arrow type, description). JSON columns hold text.
@@ -72,13 +79,16 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "config": (pa.string(), "resolved config (YAML)"),
     "package_version": (pa.string(), "penaltyrun version"),
     "git_commit": (pa.string(), "git commit of the code (or 'unknown')"),
+    "packages": (pa.string(), "JSON: versions of python, numpy, scipy, numba, pyswarms, cma, "
+                              "pandas, pyarrow (dask, distributed where used), penaltyrun "
+                              "and its git commit"),
     "started_at": (pa.timestamp("us", tz="UTC"), "when the job started (UTC)"),
     "finished_at": (pa.timestamp("us", tz="UTC"), "when the job finished (UTC)"),
     "schema_version": (pa.int64(), "version of this schema"),
 }
 SCHEMA = pa.schema([pa.field(name, typ) for name, (typ, _) in COLUMNS.items()])
 JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "warm_start",
-                "optimizer_settings", "problem_params", "param_options")
+                "optimizer_settings", "problem_params", "param_options", "packages")
 TIMESTAMP_COLUMNS = ("started_at", "finished_at")
 
 
@@ -121,13 +131,24 @@ def to_table(records: Iterable[dict[str, Any]], run_id: str = "") -> pa.Table:
 def collect(run_dir: Path, job_ids: Iterable[str] | None = None) -> Path:
     """Gather ``run_dir/jobs/*.json`` into ``run_dir/results.parquet``; returns its path.
 
+    Every record is checked (:func:`penaltyrun.runner.validate.record_problem`); one that
+    fails is moved to ``jobs/corrupt/`` with a warning naming it and the reason (a resume
+    runs its job again). Releases this process's lock of ``run_dir``
+    (:mod:`penaltyrun.runner.lock`) once the file is written.
+
     Parameters
     ----------
     run_dir : Path
         Run directory.
     job_ids : iterable of str, optional
-        Only these jobs (the run's plan). Records of other jobs in the folder, e.g. from an
-        earlier call with other settings, stay on disk but are left out of the table.
+        Only these jobs (the run's plan). Records of other jobs in the folder (another
+        configuration: other settings, seed or held-out setting) stay on disk but are left
+        out of the table, with one warning saying how many.
+
+    Raises
+    ------
+    EnvironmentProblemError
+        The file cannot be written (a full disk, ``results.parquet`` being a directory).
     """
     run_dir = Path(run_dir)
     files = sorted((run_dir / "jobs").glob("*.json"))
@@ -135,84 +156,64 @@ def collect(run_dir: Path, job_ids: Iterable[str] | None = None) -> Path:
         wanted = set(job_ids)
         kept = [f for f in files if f.stem in wanted]
         if len(kept) < len(files):
-            logger.info("left out %d job records of other settings in %s",
-                        len(files) - len(kept), run_dir / "jobs")
+            logger.warning("left out %d job records of another configuration (other "
+                           "settings, runner.seed or runner.holdout) found in %s; they stay "
+                           "on disk", len(files) - len(kept), run_dir / "jobs")
         files = kept
     records = []
     for f in files:
-        try:
-            records.append(json.loads(f.read_text()))
-        except (OSError, ValueError) as exc:
-            logger.warning("skipped unreadable job record %s (%s); rerun with "
-                           "runner.resume=true to run its job again", f, exc)
+        record, reason = load_record(f)
+        if record is None:
+            quarantine_with_warning(f, reason, what="collect")
+            continue
+        records.append(record)
     path = run_dir / RESULTS_FILE
     write_table_atomic(to_table(records, run_id=run_dir.name), path)
     logger.info("wrote %d job records to %s", len(records), path)
+    lock.release(run_dir)
     return path
 
 
 def write_table_atomic(table: pa.Table, path: Path) -> Path:
     """Write ``table`` as Parquet to a temporary name beside ``path``, then rename it, so
-    a reader never sees a half-written file."""
+    a reader never sees a half-written file.
+
+    Raises
+    ------
+    EnvironmentProblemError
+        The write or the rename failed (one line naming ``path``, with the free space on a
+        full disk); the temporary file is removed and an earlier ``path`` stays intact.
+    """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         pq.write_table(table, tmp)
         os.replace(tmp, path)
+    except OSError as exc:
+        raise EnvironmentProblemError(describe_os_error(exc, path)) from None
     finally:
-        tmp.unlink(missing_ok=True)
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
     return path
 
 
 def find_results(path: Path) -> list[Path]:
-    """Result files at ``path``: the file itself, or every results.parquet below a folder."""
+    """Result files at ``path``: the file itself, or every results.parquet file below a
+    folder (not inside ``jobs/corrupt``; a directory of that name is no result file)."""
     path = Path(path)
     if path.is_file():
         return [path]
-    return sorted(path.rglob(RESULTS_FILE))
+    return sorted(p for p in path.rglob(RESULTS_FILE)
+                  if p.is_file() and CORRUPT_DIR not in p.parts)
 
 
-def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
-    """All results under ``path`` (file, folder, or several) as one DataFrame.
+def read_results(path: Path | Iterable[Path]) -> Any:
+    """All results under ``path``: see :func:`penaltyrun.io.read.read_results`."""
+    from penaltyrun.io.read import read_results as read
 
-    JSON columns stay text; use :func:`decode_json` to parse them. A file that cannot be
-    read as Parquet (truncated, garbage) is skipped with a warning naming it.
-
-    Raises
-    ------
-    FileNotFoundError
-        If there is no results file under ``path``.
-    ResultsUnreadableError
-        If there are results files but none of them can be read.
-    """
-    paths = find_results(path) if isinstance(path, (str, Path)) else [Path(p) for p in path]
-    if not paths:
-        raise FileNotFoundError(f"no {RESULTS_FILE} found under {path}")
-    frames = []
-    unreadable = []
-    for p in paths:
-        try:
-            frame = pq.read_table(p).to_pandas()
-        except (OSError, pa.ArrowException) as exc:  # ArrowInvalid: truncated or not Parquet
-            logger.warning("skipped unreadable results file %s: %s", p,
-                           str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
-            unreadable.append(p)
-            continue
-        for name in COLUMNS:  # files of older schema versions lack newer columns
-            if name not in frame:
-                frame[name] = None
-        for name in TIMESTAMP_COLUMNS:  # schema <= 3 stored ISO text
-            if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
-                frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
-        frame["optimizer_settings"] = [
-            _upgrade_settings(opt, settings)
-            for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
-        frames.append(frame[list(COLUMNS)])
-    if not frames:
-        raise ResultsUnreadableError(
-            f"no readable results under {path}: {len(unreadable)} unreadable file(s) "
-            f"({', '.join(str(p) for p in unreadable[:3])}{' ...' if len(unreadable) > 3 else ''})")
-    return pd.concat(frames, ignore_index=True)
+    return read(path)
 
 
 #: Settings that older records lack, with the behaviour the code had before they existed.

@@ -3,13 +3,15 @@
 Ẋ = U + d(X), d(X) = (−x cos y sin x, −y cos y sin x), U = −d(X) − KᵀX, so the closed loop
 is Ẋ = −KᵀX and V = ½XᵀX decreases for every PD K. Cost J = ∫½UᵀU dt up to the first time
 ‖X‖ = ``event_radius``; a run whose event does not fire before ``t_max`` fails and gets
-the graded penalty ``J(t_max) + failure_penalty · (1 + ‖X(t_max)‖ / ‖X0‖)``.
+the graded penalty ``J(t_max) + failure_penalty · (1 + ‖X(t_max)‖ / ‖X0‖)``, at most
+:data:`GRADED_CEILING` (which a run whose state blows up also costs), so the penalty never
+decreases as the failure grows.
 
 Exact cutoff (``evaluate_batch(..., thresholds=...)``, status ``cutoff``): a run stops at the
 end of the first integration step where J exceeds its threshold by the relative margin
 :data:`CUT_MARGIN` and costs that J, a bound above the threshold (J̇ = ½UᵀU ≥ 0, so J at the
 event, or J plus the failure penalty, is never below it up to the integrator's round-off).
-Thresholds at or above ``10 · failure_penalty`` (the flat cost of non-finite runs) cut nothing.
+Thresholds at or above ``10 · failure_penalty`` (the flat cost of a NaN cost) cut nothing.
 
 Training scenario: the start ``x0``. Held-out set: starts on circles around the origin
 (``holdout_radii`` × ``holdout_n_angles`` equally spaced angles), any start equal to ``x0``
@@ -50,6 +52,8 @@ VARIANT_IGNORE = ("holdout_radii", "holdout_n_angles", "holdout_angle_offset_deg
 CUT_MARGIN = 1e-9
 #: Cost multiple of ``failure_penalty`` for runs whose graded cost is not finite.
 HARD_FAILURE_FACTOR = 10.0
+#: Largest graded penalty: failures whose penalty would exceed it (or overflow) cost this.
+GRADED_CEILING = 1e300
 
 #: The paper's best matrices (diagonal K1, full K2).
 PAPER_K_DIAGONAL = np.diag([0.8094, 0.1611])
@@ -149,7 +153,12 @@ class Zermelo:
     def _graded(self, t_end: np.ndarray, cost: np.ndarray, dist: np.ndarray,
                 status: np.ndarray, d0: float) -> BatchEvaluation:
         converged = status == integrate.EVENT
-        penalty = cost + self.params.failure_penalty * (1.0 + dist / d0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            penalty = cost + self.params.failure_penalty * (1.0 + dist / d0)
+        # monotone in the failure's size: a failure too large for a float, or a run whose
+        # state blew up, costs the ceiling, never less than a smaller failure
+        penalty = np.where(np.isposinf(penalty) | (status == integrate.NONFINITE),
+                           GRADED_CEILING, np.minimum(penalty, GRADED_CEILING))
         graded = np.where(converged | (status == integrate.CUTOFF), cost, penalty)
         graded = np.where(np.isfinite(graded), graded,
                           HARD_FAILURE_FACTOR * self.params.failure_penalty)

@@ -212,4 +212,4 @@ def _write_report(src: Path, df: pd.DataFrame, out: Path, paper: bool) -> None:
         except Exception as exc:  # one family's study must not lose the rest of the report
             logger.warning("%s study sections failed: %s", family, exc)
             lines += [f"({family} study sections failed: {exc!r})", ""]
-    (out / "report.md").write_text("\n".join(lines) + "\n")
+    (out / "report.md").write_text("\n".join(lines) + "\n", encoding="utf-8")

@@ -87,7 +87,7 @@ def export_best(src: Path, out: Path) -> list[Path]:
                "problem_params": decode_json(row["problem_params"]),
                "git_commit": row["git_commit"], "package_version": row["package_version"]}
         json_path = out / f"{stem}.json"
-        json_path.write_text(json.dumps(doc, indent=1, default=str) + "\n")
+        json_path.write_text(json.dumps(doc, indent=1, default=str) + "\n", encoding="utf-8")
         mdict: dict[str, Any] = {_matlab_name(k): v for k, v in mats.items()}
         mdict.update({_matlab_name(k): float(v) for k, v in scalars.items()})
         mdict.update({("case_name" if k == "case" else k): v for k, v in cell.items()})

@@ -38,5 +38,5 @@ def write_table(df: pd.DataFrame, out_dir: Path, stem: str,
     out_dir.mkdir(parents=True, exist_ok=True)
     df.to_csv(out_dir / f"{stem}.csv", index=False)
     text = markdown(df, columns, headers)
-    (out_dir / f"{stem}.md").write_text(text + "\n")
+    (out_dir / f"{stem}.md").write_text(text + "\n", encoding="utf-8")
     return text

@@ -1,13 +1,35 @@
-"""Plan jobs, run them (process pool or dask), one record file per finished job."""
+"""Plan jobs, run them (process pool or dask), one record file per finished job.
 
-from penaltyrun.runner.execute import BACKENDS, check_settings, execute
-from penaltyrun.runner.forecast import forecast_cell, log_forecast
-from penaltyrun.runner.job import JOB_STATUSES, run_job
-from penaltyrun.runner.options import check_runner_options
-from penaltyrun.runner.plan import Job, config_hash, job_seed, plan_jobs
-from penaltyrun.runner.records import job_path, pending_jobs, read_record
-from penaltyrun.runner.setup import build, build_layout
+The names below are imported on first use, so that a light module of this package (record
+checks, the run lock) can be used without importing the optimizers and problems.
+"""
 
-__all__ = ["BACKENDS", "JOB_STATUSES", "Job", "build", "build_layout", "check_runner_options",
-           "check_settings", "config_hash", "execute", "forecast_cell", "job_path", "job_seed",
-           "log_forecast", "pending_jobs", "plan_jobs", "read_record", "run_job"]
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_NAMES = {
+    "BACKENDS": "execute", "check_settings": "execute", "execute": "execute",
+    "forecast_cell": "forecast", "log_forecast": "forecast",
+    "JOB_STATUSES": "validate", "run_job": "job",
+    "check_runner_options": "options",
+    "Job": "plan", "config_hash": "plan", "job_seed": "plan", "plan_jobs": "plan",
+    "job_path": "records", "pending_jobs": "records", "read_record": "records",
+    "build": "setup", "build_layout": "setup",
+}
+
+__all__ = sorted(_NAMES)
+
+
+def __getattr__(name: str) -> Any:
+    module = _NAMES.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_NAMES))

@@ -4,7 +4,11 @@ dask already re-runs the task of a worker that died on another worker; a task th
 ``runner.max_retries + 1`` workers ends with ``KilledWorker`` and is recorded ``failed``
 (for a LocalCluster; a remote scheduler applies its own ``allowed-failures``). A run whose
 cluster has had no worker for ``worker_timeout`` seconds stops with
-:class:`~penaltyrun.errors.RunAbortedError` instead of waiting for ever.
+:class:`~penaltyrun.errors.RunAbortedError` instead of waiting for ever, and so does a run
+whose scheduler is lost (killed, unreachable): its cancelled tasks are not recorded, the
+finished jobs stay for ``runner.resume=true``. A LocalCluster's scheduler removes a worker
+that has not answered for ``runner.stall_timeout`` seconds (dask's ``worker-ttl``) and runs
+its tasks again elsewhere.
 """
 
 from __future__ import annotations
@@ -28,12 +32,29 @@ CONNECT_TIMEOUT_S = 10.0
 _DASK_LOGGERS = ("distributed", "dask", "bokeh", "tornado")
 
 
+class OneLineDaskLogs(logging.Filter):
+    """Drop the tracebacks of dask's own log records (e.g. every failed reconnection to a
+    lost scheduler): their message stays, one line each."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.name.split(".", 1)[0] in _DASK_LOGGERS:
+            record.exc_info, record.exc_text, record.stack_info = None, None, None
+        return True
+
+
 def quiet_dask_logs() -> None:
-    """dask's own logs at WARNING, unless penaltyrun runs verbose (``hydra.verbose``)."""
+    """dask's own logs at WARNING and without tracebacks, unless penaltyrun runs verbose
+    (``hydra.verbose``)."""
     if logging.getLogger("penaltyrun").isEnabledFor(logging.DEBUG):
         return
     for name in _DASK_LOGGERS:
         logging.getLogger(name).setLevel(logging.WARNING)
+    names = ["", *(n for n in list(logging.root.manager.loggerDict)
+                   if n.split(".", 1)[0] in _DASK_LOGGERS)]
+    handlers = [h for name in names for h in logging.getLogger(name).handlers]
+    for handler in handlers:
+        if not any(isinstance(f, OneLineDaskLogs) for f in handler.filters):
+            handler.addFilter(OneLineDaskLogs())
 
 
 def import_distributed() -> Any:
@@ -47,12 +68,41 @@ def import_distributed() -> Any:
     return distributed
 
 
-def _result_or_failure(job: Job, fut: Any) -> dict[str, Any]:
+def scheduler_lost(client: Any) -> bool:
+    """Whether the client has lost its scheduler (closed, reconnecting or not answering)."""
+    if getattr(client, "status", "running") != "running":
+        return True
+    try:
+        client.scheduler_info()
+    except Exception:  # any failure to reach the scheduler
+        return True
+    return False
+
+
+def lost_scheduler_error(client: Any, jobs_left: int) -> RunAbortedError:
+    """The one line of a run whose scheduler went away."""
+    where = getattr(getattr(client, "scheduler", None), "address", None) or "the scheduler"
+    return RunAbortedError(f"lost the dask scheduler ({where}) with {jobs_left} jobs left; "
+                           "finished jobs are kept: restart the scheduler and rerun with "
+                           "runner.resume=true")
+
+
+def _result_or_failure(client: Any, job: Job, fut: Any, jobs_left: int) -> dict[str, Any]:
     """The record of a finished task; a task that raised (e.g. ``KilledWorker``) is a
-    failed job, not a crashed run."""
+    failed job, not a crashed run.
+
+    Raises
+    ------
+    RunAbortedError
+        The task was cancelled because the scheduler is gone.
+    """
+    if fut.status == "cancelled" or (fut.status != "finished" and scheduler_lost(client)):
+        raise lost_scheduler_error(client, jobs_left)
     try:
         return fut.result()
     except Exception as exc:
+        if scheduler_lost(client):
+            raise lost_scheduler_error(client, jobs_left) from None
         return failure_record(job, f"worker: {exc!r}")
 
 
@@ -99,8 +149,8 @@ class WorkerWatchdog:
                 f"(finished jobs are kept)")
 
 
-def open_client(workers: int, scheduler: str | None, max_retries: int = 1
-                ) -> tuple[Any, Any]:
+def open_client(workers: int, scheduler: str | None, max_retries: int = 1,
+                stall_timeout: float | None = None) -> tuple[Any, Any]:
     """A client of the scheduler at ``scheduler``, or of a new LocalCluster.
 
     Parameters
@@ -111,6 +161,9 @@ def open_client(workers: int, scheduler: str | None, max_retries: int = 1
         Address of a running scheduler, e.g. ``tcp://127.0.0.1:8786``.
     max_retries : int
         LocalCluster only: times a task may kill its worker before it fails.
+    stall_timeout : float, optional
+        LocalCluster only: seconds without a heartbeat after which the scheduler removes a
+        worker (``distributed.scheduler.worker-ttl``); a remote scheduler keeps its own.
 
     Returns
     -------
@@ -129,7 +182,10 @@ def open_client(workers: int, scheduler: str | None, max_retries: int = 1
     try:
         if scheduler:
             return distributed.Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
-        with dask.config.set({"distributed.scheduler.allowed-failures": int(max_retries)}):
+        settings: dict[str, Any] = {"distributed.scheduler.allowed-failures": int(max_retries)}
+        if stall_timeout is not None:
+            settings["distributed.scheduler.worker-ttl"] = f"{float(stall_timeout):g}s"
+        with dask.config.set(settings):
             cluster = distributed.LocalCluster(
                 n_workers=workers, threads_per_worker=1, processes=True,
                 dashboard_address=None, silence_logs=logging.WARNING)
@@ -140,7 +196,8 @@ def open_client(workers: int, scheduler: str | None, max_retries: int = 1
 
 
 def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: int = 1,
-             worker_timeout: float = 60.0) -> Iterator[tuple[Job, dict[str, Any]]]:
+             worker_timeout: float = 60.0, stall_timeout: float | None = None
+             ) -> Iterator[tuple[Job, dict[str, Any]]]:
     """Run ``jobs`` as dask tasks; yield ``(job, record)`` as each finishes.
 
     Parameters
@@ -155,15 +212,17 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
         LocalCluster only: times a task may kill its worker before it fails.
     worker_timeout : float
         Seconds without any worker after which the run stops (s).
+    stall_timeout : float, optional
+        LocalCluster: seconds without a heartbeat before a worker is removed (s).
 
     Raises
     ------
     RunAbortedError
-        If the scheduler cannot be reached or the cluster has no worker for
+        If the scheduler cannot be reached or is lost, or the cluster has no worker for
         ``worker_timeout`` seconds.
     """
     distributed = import_distributed()
-    client, cluster = open_client(workers, scheduler, max_retries)
+    client, cluster = open_client(workers, scheduler, max_retries, stall_timeout)
     futures: dict[Any, Job] = {}
     try:
         futures = {client.submit(run_job, job, pure=False, key=f"penaltyrun-{job.job_id}",
@@ -177,12 +236,28 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
                                                  return_when="FIRST_COMPLETED")
             except (TimeoutError, distributed.TimeoutError):
                 done = set()
+            except Exception:  # the connection broke under the wait
+                if scheduler_lost(client):
+                    raise lost_scheduler_error(client, len(pending)) from None
+                raise
             for fut in done:
-                yield futures[fut], _result_or_failure(futures[fut], fut)
+                yield futures[fut], _result_or_failure(client, futures[fut], fut,
+                                                       len(pending) + len(done))
             watchdog.check(bool(done), len(pending))
     finally:
-        for fut in futures:
-            fut.cancel()
-        client.close()
+        close_quietly(client, futures)
         if cluster is not None:
             cluster.close()
+
+
+def close_quietly(client: Any, futures: Any = ()) -> None:
+    """Cancel ``futures`` and close ``client``; a scheduler that is gone is no error here."""
+    try:
+        for fut in futures:
+            fut.cancel()
+    except Exception as exc:  # scheduler gone: nothing to cancel
+        logger.debug("cancel failed: %s", exc)
+    try:
+        client.close(timeout=5)
+    except Exception as exc:  # scheduler gone
+        logger.debug("client close failed: %s", exc)

@@ -36,7 +36,14 @@ import numpy as np
 
 from penaltyrun.errors import RunAbortedError
 from penaltyrun.runner import swarm
-from penaltyrun.runner.dask_backend import POLL_S, WorkerWatchdog, open_client
+from penaltyrun.runner.dask_backend import (
+    POLL_S,
+    WorkerWatchdog,
+    close_quietly,
+    lost_scheduler_error,
+    open_client,
+    scheduler_lost,
+)
 from penaltyrun.runner.job import run_job
 from penaltyrun.runner.plan import Job
 
@@ -320,8 +327,8 @@ def cluster_threads(client: Any, timeout_s: float) -> int:
 
 
 def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries: int = 1,
-              worker_timeout: float = 60.0, chunks: int | str = "auto"
-              ) -> Iterator[tuple[Job, dict[str, Any]]]:
+              worker_timeout: float = 60.0, chunks: int | str = "auto",
+              stall_timeout: float | None = None) -> Iterator[tuple[Job, dict[str, Any]]]:
     """Run ``jobs`` with their batches on Dask workers; yield ``(job, record)`` as each ends.
 
     Parameters
@@ -337,14 +344,17 @@ def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries:
         Seconds without any worker after which the run stops (s).
     chunks : int or "auto"
         ``runner.chunks`` (see :func:`shares`).
+    stall_timeout : float, optional
+        LocalCluster: seconds without a heartbeat before a worker is removed (s).
 
     Raises
     ------
     RunAbortedError
-        If the scheduler cannot be reached or the cluster has no worker for
-        ``worker_timeout`` seconds.
+        If the scheduler cannot be reached or is lost (the starts finished before it was
+        lost have been yielded; the others are not recorded), or the cluster has no worker
+        for ``worker_timeout`` seconds.
     """
-    client, cluster = open_client(workers, scheduler, max_retries)
+    client, cluster = open_client(workers, scheduler, max_retries, stall_timeout)
     evaluation = None
     pool = None
     try:
@@ -359,8 +369,15 @@ def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries:
         watchdog = WorkerWatchdog(client, worker_timeout)
         while pending:
             done, pending = cf.wait(pending, timeout=POLL_S, return_when=cf.FIRST_COMPLETED)
-            for fut in done:
-                yield futures[fut], fut.result()
+            lost = 0
+            for fut in done:  # the starts finished before a loss are kept
+                record = fut.result()
+                if record.get("status") == "failed" and scheduler_lost(client):
+                    lost += 1
+                    continue
+                yield futures[fut], record
+            if lost:
+                raise lost_scheduler_error(client, len(pending) + lost)
             watchdog.check(bool(done), len(pending))
     finally:
         if evaluation is not None:
@@ -369,6 +386,6 @@ def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries:
             pool.shutdown(wait=True, cancel_futures=True)
         if evaluation is not None:
             evaluation.close()
-        client.close()
+        close_quietly(client)
         if cluster is not None:
             cluster.close()

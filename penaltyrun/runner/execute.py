@@ -3,8 +3,10 @@
 Every finished job is written at once to ``<run_dir>/jobs/<job_id>.json`` (atomically:
 temporary file + rename), so a killed run loses at most the jobs in flight, and
 ``resume=True`` skips the jobs whose record exists (see :mod:`penaltyrun.runner.records`).
-A worker that dies fails only the job it was running, which is run again up to
-``max_retries`` times (see :mod:`penaltyrun.runner.pool`).
+A worker that dies or stalls fails only the job it was running, which is run again up to
+``max_retries`` times (see :mod:`penaltyrun.runner.pool`). Before the first job the run
+directory is locked for this process (:mod:`penaltyrun.runner.lock`): a second run into it
+is refused.
 """
 
 from __future__ import annotations
@@ -17,12 +19,13 @@ from pathlib import Path
 from typing import Any
 
 from penaltyrun.errors import ConfigError, RunInterruptedError
+from penaltyrun.runner import lock
 from penaltyrun.runner.dask_backend import import_distributed, run_dask
 from penaltyrun.runner.job import run_job
 from penaltyrun.runner.options import BACKENDS, RUNNER_OPTIONS, check_value, resolve_workers
 from penaltyrun.runner.plan import Job, order_longest_first
-from penaltyrun.runner.pool import run_pool
-from penaltyrun.runner.records import JOBS_DIR, pending_jobs, write_record
+from penaltyrun.runner.pool import STALL_TIMEOUT_S, run_pool
+from penaltyrun.runner.records import JOBS_DIR, pending_jobs, remove_leftovers, write_record
 
 logger = logging.getLogger(__name__)
 
@@ -33,13 +36,14 @@ def _serial(jobs: list[Job]) -> Iterator[tuple[Job, dict[str, Any]]]:
 
 
 def _swarm_stream(todo: list[Job], workers: int, scheduler: str | None, max_retries: int,
-                  worker_timeout: float, chunks: int | str
+                  worker_timeout: float, chunks: int | str, stall_timeout: float
                   ) -> Iterator[tuple[Job, dict[str, Any]]]:
     """:func:`~penaltyrun.runner.dask_swarm.run_swarm` (imported here: it needs dask)."""
     import_distributed()
     from penaltyrun.runner.dask_swarm import run_swarm
 
-    return run_swarm(todo, workers, scheduler, max_retries, worker_timeout, chunks)
+    return run_swarm(todo, workers, scheduler, max_retries, worker_timeout, chunks,
+                     stall_timeout)
 
 
 def check_settings(workers: Any, backend: Any, evaluate_on: Any = "local",
@@ -66,7 +70,7 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
             retry_failed: bool = False, on_record: Callable[[dict[str, Any]], None] | None = None,
             max_retries: int = 1, worker_timeout: float = 60.0,
             expected_s: Mapping[str, float] | None = None, evaluate_on: str = "local",
-            chunks: int | str = "auto") -> list[Path]:
+            chunks: int | str = "auto", stall_timeout: float = STALL_TIMEOUT_S) -> list[Path]:
     """Run ``jobs`` and write one record file per finished job.
 
     Parameters
@@ -95,6 +99,9 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
         the dask workers, several starts at once (see :mod:`penaltyrun.runner.dask_swarm`).
     chunks : int or "auto"
         Chunks per batch with ``evaluate_on="dask"``.
+    stall_timeout : float
+        Seconds a worker may go without a heartbeat (local pool) or without answering the
+        scheduler (dask LocalCluster) before it is killed and its job retried (s).
 
     Returns
     -------
@@ -107,20 +114,30 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
         On Ctrl-C (SIGINT), SIGTERM or SIGHUP: queued jobs are cancelled, workers stopped,
         and every record written so far stays on disk for ``resume``.
     RunAbortedError
-        dask: the scheduler is unreachable or the cluster lost its last worker.
+        dask: the scheduler is unreachable or lost, or the cluster lost its last worker.
+    ConfigError
+        Another process runs in ``run_dir`` (see :mod:`penaltyrun.runner.lock`).
+    EnvironmentProblemError
+        A record could not be written (e.g. a full disk); records written before stay.
     """
     check_settings(workers, backend, evaluate_on, chunks)
     workers = resolve_workers(workers)
+    lock.acquire(run_dir)  # held until the results are collected (or the process ends)
+    jobs_dir = Path(run_dir, JOBS_DIR)
+    jobs_dir.mkdir(parents=True, exist_ok=True)
+    if remove_leftovers(jobs_dir):
+        logger.info("removed temporary files of an interrupted write in %s", jobs_dir)
     todo = order_longest_first(pending_jobs(jobs, run_dir, resume, retry_failed), expected_s)
-    Path(run_dir, JOBS_DIR).mkdir(parents=True, exist_ok=True)
     if evaluate_on == "dask":
-        stream = _swarm_stream(todo, workers, scheduler, max_retries, worker_timeout, chunks)
+        stream = _swarm_stream(todo, workers, scheduler, max_retries, worker_timeout, chunks,
+                               stall_timeout)
     elif backend == "dask":
-        stream = run_dask(todo, workers, scheduler, max_retries, worker_timeout)
+        stream = run_dask(todo, workers, scheduler, max_retries, worker_timeout,
+                          stall_timeout)
     elif workers == 1 or len(todo) <= 1:
         stream = _serial(todo)
     else:
-        stream = run_pool(todo, workers, max_retries)
+        stream = run_pool(todo, workers, max_retries, stall_timeout=stall_timeout)
     written = []
     t0 = time.perf_counter()
     try:

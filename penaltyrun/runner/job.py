@@ -16,12 +16,12 @@ from penaltyrun.problems.base import CUTOFF_STATUS
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
 from penaltyrun.runner.swarm import LocalEvaluation
+from penaltyrun.runner.validate import JOB_STATUSES
+
+__all__ = ["HEARTBEAT_S", "JOB_STATUSES", "Heartbeat", "run_job"]
 
 logger = logging.getLogger(__name__)
 
-#: Job-level statuses: ``ok`` (best candidate converged), ``diverged`` (the optimizer's
-#: best candidate did not meet the terminal condition), ``failed`` (the job raised).
-JOB_STATUSES = ("ok", "diverged", "failed")
 #: Seconds between the progress lines of a long job (see :class:`Heartbeat`).
 HEARTBEAT_S = 60.0
 
@@ -102,6 +102,33 @@ class Heartbeat:
         left = max(0, self.total - self.n_evals) * elapsed_s / max(1, self.n_evals)
         return (f"{self.n_evals} of {self.total} evaluations "
                 f"({100.0 * self.n_evals / self.total:.1f} %, ≤ {left:.0f} s left at this pace)")
+
+
+def numba_cache_dir() -> str:
+    """Where numba keeps penaltyrun's compiled kernels: ``NUMBA_CACHE_DIR`` if set, else
+    the ``__pycache__`` folders of :mod:`penaltyrun.dynamics`."""
+    import os
+    from pathlib import Path
+
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return os.environ["NUMBA_CACHE_DIR"]
+    from penaltyrun import dynamics
+
+    return str(Path(dynamics.__file__).parent)
+
+
+def describe_job_error(exc: BaseException) -> str:
+    """First line of a failed job's error: ``Type: message``; an error raised while numba
+    loads its on-disk cache (a damaged ``.nbi`` / ``.nbc`` file) names the cache directory
+    and how to clear it."""
+    text = f"{type(exc).__name__}: {exc}"
+    frames = traceback.extract_tb(exc.__traceback__)
+    if any("numba" in f.filename and "caching" in f.filename for f in frames):
+        where = numba_cache_dir()
+        text += (f" (numba's cache of compiled kernels under {where} is damaged: clear it "
+                 f"with `find {where} -name '*.nbi' -delete -o -name '*.nbc' -delete`, then "
+                 "run the failed jobs again)")
+    return text
 
 
 def _objective(evaluation: Any, job: Job, prob: Any, layout: Any, param: str,
@@ -236,9 +263,9 @@ def run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
             "max_evals": getattr(settings, "max_evals", None),
         })
     except Exception as exc:  # a failing job is recorded, never crashes the run
-        logger.error("job %s failed: %s", job.job_id, exc)
-        record.update({"status": "failed",
-                       "error": f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"})
+        text = describe_job_error(exc)
+        logger.error("job %s failed: %s", job.job_id, text)
+        record.update({"status": "failed", "error": f"{text}\n{traceback.format_exc()}"})
     record["wall_time_s"] = time.perf_counter() - t0
     record["finished_at"] = datetime.now(timezone.utc).isoformat()
     return record

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.runner.plan import check_n_starts
 
 #: runner option → (kind, description of the allowed values).
 RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
@@ -24,6 +25,7 @@ RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "holdout": ("bool", "true or false"),
     "max_retries": ("nonneg_int", "a non-negative integer"),
     "worker_timeout": ("pos_float", "a positive number of seconds"),
+    "stall_timeout": ("pos_float", "a positive number of seconds"),
     "warm_start": ("bool", "true or false"),
     "warm_start_share": ("unit_open", "a number in (0, 1)"),
     "progress": ("progress", "auto, true or false"),
@@ -143,6 +145,8 @@ def check_runner_options(options: Mapping[str, Any], connect: bool = True) -> No
     for key, (kind, what) in RUNNER_OPTIONS.items():
         if key in options:
             check_value(key, kind, options[key], what)
+    if "n_starts" in options:
+        check_n_starts(options["n_starts"])
     if options.get("evaluate_on", "local") == "dask" and options.get("backend", "local") != "dask":
         raise ConfigError("runner.evaluate_on", "dask needs runner.backend=dask (a LocalCluster "
                           "of runner.workers processes, or runner.scheduler=tcp://host:port)")

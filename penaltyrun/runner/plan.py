@@ -16,6 +16,10 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 
+#: Most starts of one cell (``runner.n_starts``): a larger cell is refused with one line
+#: (its job list alone would fill the memory; split it into several seeds instead).
+MAX_N_STARTS = 100_000
+
 
 @dataclass(frozen=True)
 class Job:
@@ -47,6 +51,8 @@ class Job:
     cutoff : bool
         Exact cutoff (``runner.cutoff``): optimizers hand thresholds to problems that take
         them. Not part of :attr:`settings_hash`: the result is the same either way.
+    root_seed : int or None
+        ``runner.seed`` the job's seed derives from (part of :attr:`settings_hash`).
     """
 
     problem: str
@@ -63,15 +69,19 @@ class Job:
     warm_start_share: float = 0.0
     problem_module: str = ""
     cutoff: bool = True
+    root_seed: int | None = None
 
     @property
     def settings_hash(self) -> str:
-        """Hash of the settings that change the result (problem, map and optimizer options).
+        """Hash of everything that changes the result: problem, map and optimizer options,
+        the root seed (``runner.seed``), the held-out setting and the warm start.
 
         Part of :attr:`job_id`, so a resumed run never mistakes a job finished with other
-        settings for one of its own.
+        settings (another seed, without held-out data, ...) for one of its own.
         """
-        hashed: list[Any] = [self.problem_params, self.param_options, self.optimizer_options]
+        hashed: list[Any] = [self.problem_params, self.param_options, self.optimizer_options,
+                             {"root_seed": self.root_seed, "holdout": self.holdout,
+                              "problem_module": self.problem_module}]
         if self.warm_start_share:
             hashed.append({"warm_start_share": self.warm_start_share})
         return config_hash(hashed)[:8]
@@ -113,10 +123,9 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
     Raises
     ------
     ConfigError
-        If ``n_starts`` is not a positive integer.
+        If ``n_starts`` is not a positive integer of at most :data:`MAX_N_STARTS`.
     """
-    if not isinstance(n_starts, int) or isinstance(n_starts, bool) or n_starts < 1:
-        raise ConfigError("runner.n_starts", f"must be a positive integer, got {n_starts!r}")
+    check_n_starts(n_starts)
     jobs = []
     for start in range(n_starts):
         key = f"{problem}/{case}/{param}/{optimizer}/{start}"
@@ -124,8 +133,24 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
                         dict(problem_params or {}), dict(param_options or {}),
                         dict(optimizer_options or {}), dict(meta or {}), bool(holdout),
                         0.0 if param == "diagonal" else float(warm_start_share),
-                        str(problem_module or ""), bool(cutoff)))
+                        str(problem_module or ""), bool(cutoff), int(root_seed)))
     return jobs
+
+
+def check_n_starts(n_starts: Any) -> None:
+    """Refuse ``runner.n_starts`` unless it is an integer in [1, :data:`MAX_N_STARTS`].
+
+    Raises
+    ------
+    ConfigError
+        Naming the key and the bound.
+    """
+    if not isinstance(n_starts, int) or isinstance(n_starts, bool) or n_starts < 1:
+        raise ConfigError("runner.n_starts", f"must be a positive integer, got {n_starts!r}")
+    if n_starts > MAX_N_STARTS:
+        raise ConfigError("runner.n_starts", f"{n_starts} is above the limit of "
+                          f"{MAX_N_STARTS} starts per cell; split the cell into runs with "
+                          "different runner.seed values")
 
 
 def order_longest_first(jobs: Iterable[Job], expected_s: Mapping[str, float] | None = None

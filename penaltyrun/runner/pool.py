@@ -7,6 +7,12 @@ time over its own pipe, so the main process knows which job a dead worker was ru
 only that job is affected, the worker is replaced, and the job is run again up to
 ``max_retries`` times before it is recorded ``failed`` with the cause.
 
+A worker that stops answering (``kill -STOP``, a deadlock) is found too: each worker sends a
+heartbeat over its pipe every few seconds from a thread of its own, and the main process
+reads its CPU time (``/proc``, Linux). A worker with neither a heartbeat nor CPU progress
+for ``stall_timeout`` seconds is killed and its job retried like a dead worker's (a long
+compiled kernel holds Python's GIL and so delays heartbeats, but its CPU time advances).
+
 Workers never outlive the main process: on Linux the kernel sends them SIGKILL when it
 dies (``prctl(PR_SET_PDEATHSIG)``), and on every platform a watchdog thread in each worker
 exits it within :data:`WATCHDOG_S` seconds of noticing a new parent process id.
@@ -34,6 +40,10 @@ logger = logging.getLogger(__name__)
 
 #: Seconds between two parent checks of a worker's watchdog thread.
 WATCHDOG_S = 1.0
+#: Longest interval between two heartbeats of a worker (s); shorter for small timeouts.
+BEAT_S = 5.0
+#: Default of ``runner.stall_timeout`` (s).
+STALL_TIMEOUT_S = 600.0
 _PR_SET_PDEATHSIG = 1
 
 JobFunc = Callable[[Job], dict[str, Any]]
@@ -77,13 +87,31 @@ def own_fault_handler() -> None:
         faulthandler.disable()
 
 
-def _worker_main(conn: Connection, parent_pid: int, func: JobFunc) -> None:
-    """Loop of one worker: receive a job, send back its record; ``None`` ends the loop."""
+def _start_heartbeat(conn: Connection, lock: threading.Lock, interval_s: float) -> None:
+    """Daemon thread of a worker sending ``("beat", None)`` every ``interval_s`` seconds."""
+    def beat() -> None:
+        while True:
+            time.sleep(interval_s)
+            try:
+                with lock:
+                    conn.send(("beat", None))
+            except (OSError, ValueError):  # pipe closed: the worker is ending
+                return
+
+    threading.Thread(target=beat, name="penaltyrun-heartbeat", daemon=True).start()
+
+
+def _worker_main(conn: Connection, parent_pid: int, func: JobFunc,
+                 beat_s: float = BEAT_S) -> None:
+    """Loop of one worker: receive a job, send back ``("record", record)``; ``None`` ends
+    the loop. A thread sends heartbeats meanwhile."""
     own_fault_handler()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the main process stops us
     for signum in (signal.SIGTERM, signal.SIGHUP):  # not the main process's handlers
         signal.signal(signum, signal.SIG_DFL)
     die_with_parent(parent_pid)
+    lock = threading.Lock()
+    _start_heartbeat(conn, lock, beat_s)
     while True:
         try:
             job = conn.recv()
@@ -91,7 +119,23 @@ def _worker_main(conn: Connection, parent_pid: int, func: JobFunc) -> None:
             return
         if job is None:
             return
-        conn.send(func(job))
+        record = func(job)
+        with lock:
+            conn.send(("record", record))
+
+
+def cpu_ticks(pid: int) -> int | None:
+    """User + system CPU time of process ``pid`` in clock ticks (Linux ``/proc``), or
+    ``None`` where it cannot be read; a stopped process (state ``T``) gives ``None`` too,
+    so that it counts as making no progress."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as fh:
+            fields = fh.read().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    if fields[0] in ("T", "t"):
+        return None
+    return int(fields[11]) + int(fields[12])
 
 
 def describe_exit(exitcode: int | None) -> str:
@@ -117,19 +161,38 @@ def failure_record(job: Job, error: str) -> dict[str, Any]:
 
 
 class _Worker:
-    """One worker process and the job it is running (``None`` when idle)."""
+    """One worker process, the job it is running (``None`` when idle) and when it was last
+    seen alive (a heartbeat, a record or CPU progress)."""
 
-    def __init__(self, ctx: Any, func: JobFunc) -> None:
+    def __init__(self, ctx: Any, func: JobFunc, beat_s: float = BEAT_S) -> None:
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_main, args=(child, os.getpid(), func),
+        self.proc = ctx.Process(target=_worker_main, args=(child, os.getpid(), func, beat_s),
                                 daemon=True, name="penaltyrun-worker")
         self.proc.start()
         child.close()
         self.job: Job | None = None
+        self.seen = time.monotonic()
+        self.ticks = cpu_ticks(self.proc.pid)
 
-    def stop(self) -> None:
+    def assign(self, job: Job) -> None:
+        """Send ``job`` to the worker."""
+        self.job = job
+        self.seen = time.monotonic()
+        self.conn.send(job)
+
+    def silent_for(self) -> float:
+        """Seconds since the worker was last seen alive (CPU progress counts)."""
+        ticks = cpu_ticks(self.proc.pid)
+        if ticks is not None and ticks != self.ticks:
+            self.ticks = ticks
+            self.seen = time.monotonic()
+        return time.monotonic() - self.seen
+
+    def stop(self, kill: bool = False) -> None:
+        """End the worker: SIGTERM (SIGKILL with ``kill``, e.g. a stopped process), then
+        SIGKILL if it is still there after 5 s."""
         if self.proc.is_alive():
-            self.proc.terminate()
+            self.proc.kill() if kill else self.proc.terminate()
         self.proc.join(timeout=5)
         if self.proc.is_alive():
             self.proc.kill()
@@ -138,7 +201,8 @@ class _Worker:
 
 
 def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
-             func: JobFunc | None = None) -> Iterator[tuple[Job, dict[str, Any]]]:
+             func: JobFunc | None = None, stall_timeout: float = STALL_TIMEOUT_S
+             ) -> Iterator[tuple[Job, dict[str, Any]]]:
     """Run ``jobs`` on ``workers`` processes; yield ``(job, record)`` as each finishes.
 
     Parameters
@@ -147,9 +211,12 @@ def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
     workers : int
         Worker processes, ≥ 1.
     max_retries : int
-        Times a job whose worker died is run again before it is recorded ``failed``.
+        Times a job whose worker died or stalled is run again before it is recorded
+        ``failed``.
     func : callable, optional
         Job function (default :func:`penaltyrun.runner.job.run_job`); it must not raise.
+    stall_timeout : float
+        Seconds without a heartbeat or CPU progress after which a worker is killed (s).
 
     Yields
     ------
@@ -163,47 +230,71 @@ def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
 
         func = run_job
     ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else mp.get_context()
+    beat_s = max(0.05, min(BEAT_S, stall_timeout / 4))
     queue = deque(jobs)
-    deaths: dict[str, int] = {}
+    attempts: dict[str, int] = {}
     pool: list[_Worker] = []
+
+    def lost(i: int, cause: str, kill: bool = False) -> Iterator[tuple[Job, dict[str, Any]]]:
+        """Replace worker ``i`` whose job ended without a record; retry or record it."""
+        w = pool[i]
+        job = w.job
+        w.stop(kill)
+        pool[i] = _Worker(ctx, func, beat_s)
+        attempts[job.job_id] = attempts.get(job.job_id, 0) + 1
+        if attempts[job.job_id] <= max_retries:
+            logger.warning("job %s: %s; pool rebuilt, running it again (retry %d of %d)",
+                           job.job_id, cause, attempts[job.job_id], max_retries)
+            queue.appendleft(job)
+            return
+        logger.error("job %s: %s on each of %d attempts; recorded failed", job.job_id,
+                     cause, attempts[job.job_id])
+        kind = "WorkerStalled" if "no heartbeat" in cause else "WorkerDied"
+        yield job, failure_record(job, f"{kind}: {cause} on each of {attempts[job.job_id]} "
+                                       f"attempts (runner.max_retries={max_retries})")
+
     try:
-        pool = [_Worker(ctx, func) for _ in range(min(workers, len(queue)))]
+        pool = [_Worker(ctx, func, beat_s) for _ in range(min(workers, len(queue)))]
         while queue or any(w.job is not None for w in pool):
             for w in pool:
                 if w.job is None and queue:
-                    w.job = queue.popleft()
-                    w.conn.send(w.job)
+                    w.assign(queue.popleft())
             busy = [w for w in pool if w.job is not None]
-            ready = wait([w.conn for w in busy] + [w.proc.sentinel for w in busy])
+            ready = wait([w.conn for w in busy] + [w.proc.sentinel for w in busy],
+                         timeout=beat_s)
             for i, w in enumerate(pool):
                 if w.job is None:
+                    _receive(w)  # an idle worker's heartbeats must not fill its pipe
                     continue
                 if w.conn in ready:
-                    try:
-                        record = w.conn.recv()
-                    except (EOFError, OSError):
-                        record = None
+                    record = _receive(w)
                     if record is not None:
                         job, w.job = w.job, None
                         yield job, record
                         continue
                 if w.proc.sentinel in ready or not w.proc.is_alive():
                     w.proc.join(timeout=5)
-                    job, cause = w.job, describe_exit(w.proc.exitcode)
-                    w.stop()
-                    pool[i] = _Worker(ctx, func)
-                    deaths[job.job_id] = deaths.get(job.job_id, 0) + 1
-                    if deaths[job.job_id] <= max_retries:
-                        logger.warning("job %s: %s; pool rebuilt, running it again "
-                                       "(retry %d of %d)", job.job_id, cause,
-                                       deaths[job.job_id], max_retries)
-                        queue.appendleft(job)
-                    else:
-                        logger.error("job %s: %s on each of %d attempts; recorded failed",
-                                     job.job_id, cause, deaths[job.job_id])
-                        yield job, failure_record(
-                            job, f"WorkerDied: {cause} on each of {deaths[job.job_id]} "
-                                 f"attempts (runner.max_retries={max_retries})")
+                    yield from lost(i, describe_exit(w.proc.exitcode))
+                elif w.silent_for() > stall_timeout:
+                    yield from lost(i, f"worker process (pid {w.proc.pid}) gave no heartbeat "
+                                       f"and used no CPU for {stall_timeout:g} s "
+                                       "(runner.stall_timeout); killed", kill=True)
     finally:
         for w in pool:
             w.stop()
+
+
+def _receive(w: _Worker) -> dict[str, Any] | None:
+    """Read the worker's messages: heartbeats mark it alive; returns its record if one came
+    (``None``: only heartbeats, or the pipe broke)."""
+    record = None
+    try:
+        while w.conn.poll():
+            kind, payload = w.conn.recv()
+            w.seen = time.monotonic()
+            if kind == "record":
+                record = payload
+                break
+    except (EOFError, OSError):
+        return None
+    return record

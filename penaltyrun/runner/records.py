@@ -1,8 +1,12 @@
 """Job record files: ``<run_dir>/jobs/<job_id>.json``, one per finished job.
 
-Records are written atomically (temporary file + rename), so a killed run loses at most
-the jobs in flight. On resume a record that cannot be read (truncated, garbage, not a
-record) is named in a warning, moved to ``jobs/corrupt/`` and its job is run again.
+Records are written atomically (temporary file + rename), as UTF-8 whatever the locale, so a
+killed run loses at most the jobs in flight; a write that fails (a full disk) leaves no
+temporary file behind and ends the run with one line naming the path and the free space.
+On resume a record that cannot be taken as its job's result (truncated, garbage, another
+job's record, a wrong type, a NaN cost, an unknown schema version: see
+:func:`penaltyrun.runner.validate.record_problem`) is named in a warning with the reason,
+moved to ``jobs/corrupt/`` and its job is run again.
 """
 
 from __future__ import annotations
@@ -10,18 +14,23 @@ from __future__ import annotations
 import json
 import logging
 import os
+import sys
 import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from penaltyrun.runner.job import JOB_STATUSES
+from penaltyrun.errors import EnvironmentProblemError, describe_os_error
 from penaltyrun.runner.plan import Job
+from penaltyrun.runner.provenance import packages_json
+from penaltyrun.runner.validate import SCHEMA_VERSION, record_problem
 
 logger = logging.getLogger(__name__)
 
 JOBS_DIR = "jobs"
 CORRUPT_DIR = "corrupt"
+#: Suffix of the temporary files of atomic writes (``.<name>.<pid>.tmp``).
+TMP_SUFFIX = ".tmp"
 
 
 def job_path(run_dir: Path, job: Job) -> Path:
@@ -29,29 +38,68 @@ def job_path(run_dir: Path, job: Job) -> Path:
     return Path(run_dir) / JOBS_DIR / f"{job.job_id}.json"
 
 
-def write_record(run_dir: Path, job: Job, record: dict[str, Any]) -> Path:
-    """Write one job record atomically; returns its path."""
-    path = job_path(run_dir, job)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(record, default=str))
-    os.replace(tmp, path)
+def write_text_atomic(path: Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` through a temporary file and a rename.
+
+    Raises
+    ------
+    EnvironmentProblemError
+        The write failed (e.g. a full disk): one line naming ``path`` (and the free space);
+        the temporary file is removed and an earlier ``path`` is left as it was.
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}{TMP_SUFFIX}")
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise EnvironmentProblemError(describe_os_error(exc, path)) from None
+    finally:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:  # the directory went away: nothing left to clean
+            pass
     return path
 
 
-def read_record(path: Path) -> dict[str, Any] | None:
-    """The record in ``path``, or ``None`` if it is unreadable or not a job record."""
+def write_record(run_dir: Path, job: Job, record: dict[str, Any]) -> Path:
+    """Write one job record atomically, with its ``schema_version`` and ``packages``
+    (provenance: :func:`penaltyrun.runner.provenance.packages`); returns its path."""
+    path = job_path(run_dir, job)
     try:
-        record = json.loads(Path(path).read_text())
-    except (OSError, ValueError):  # JSONDecodeError and UnicodeDecodeError are ValueErrors
-        return None
-    if not isinstance(record, dict) or record.get("status") not in JOB_STATUSES:
-        return None
-    return record
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise EnvironmentProblemError(describe_os_error(exc, path.parent, "create")) from None
+    record = {**record}
+    record.setdefault("schema_version", SCHEMA_VERSION)
+    if "packages" not in record:
+        record["packages"] = packages_json(record.get("git_commit"))
+    return write_text_atomic(path, json.dumps(record, default=str))
+
+
+def load_record(path: Path) -> tuple[dict[str, Any] | None, str]:
+    """The record in ``path`` and ``""``, or ``None`` and why it cannot be used."""
+    path = Path(path)
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        return None, exc.strerror or type(exc).__name__
+    except ValueError as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
+        return None, f"unreadable ({str(exc).splitlines()[0][:80] if str(exc) else 'garbage'})"
+    problem = record_problem(record, path.stem)
+    if problem:
+        return None, problem
+    return record, ""
+
+
+def read_record(path: Path) -> dict[str, Any] | None:
+    """The record in ``path``, or ``None`` if it cannot be taken as its job's result."""
+    return load_record(path)[0]
 
 
 def quarantine(path: Path) -> Path:
-    """Move an unreadable record to ``jobs/corrupt/`` (time-stamped); returns the new path."""
+    """Move an unusable record to ``jobs/corrupt/`` (time-stamped); returns the new path."""
     path = Path(path)
     dest_dir = path.parent / CORRUPT_DIR
     dest_dir.mkdir(exist_ok=True)
@@ -60,9 +108,17 @@ def quarantine(path: Path) -> Path:
     return dest
 
 
+def quarantine_with_warning(path: Path, reason: str, what: str = "resume") -> Path:
+    """:func:`quarantine` and one warning naming the file and the reason."""
+    dest = quarantine(path)
+    logger.warning("%s: job record %s is not usable (%s); moved to %s, the job runs again",
+                   what, path, reason, dest)
+    return dest
+
+
 def pending_jobs(jobs: Iterable[Job], run_dir: Path, resume: bool,
                  retry_failed: bool = False) -> list[Job]:
-    """Jobs still to run: all of them, or with ``resume`` those without a readable record
+    """Jobs still to run: all of them, or with ``resume`` those without a valid record
     (and with ``retry_failed`` also those recorded ``failed``)."""
     jobs = list(jobs)
     if not resume:
@@ -73,13 +129,39 @@ def pending_jobs(jobs: Iterable[Job], run_dir: Path, resume: bool,
         if not path.exists():
             todo.append(job)
             continue
-        record = read_record(path)
+        record, reason = load_record(path)
         if record is None:
-            dest = quarantine(path)
-            logger.warning("resume: job record %s is unreadable (truncated or not a record); "
-                           "moved to %s, the job runs again", path, dest)
+            quarantine_with_warning(path, reason)
             todo.append(job)
         elif retry_failed and record["status"] == "failed":
             todo.append(job)
     logger.info("resume: %d of %d jobs already finished", len(jobs) - len(todo), len(jobs))
     return todo
+
+
+def remove_leftovers(folder: Path) -> int:
+    """Delete temporary files of atomic writes (``.*.<pid>.tmp``) of processes that are
+    gone (killed mid-write); returns how many were removed."""
+    removed = 0
+    for tmp in Path(folder).glob(f".*{TMP_SUFFIX}"):
+        pid = tmp.name.rsplit(".", 2)[-2] if tmp.name.count(".") >= 3 else ""
+        if pid.isdigit() and int(pid) != os.getpid() and _pid_alive(int(pid)):
+            continue
+        try:
+            tmp.unlink()
+            removed += 1
+        except OSError:
+            pass
+    return removed
+
+
+def _pid_alive(pid: int) -> bool:
+    if not sys.platform.startswith(("linux", "darwin")):
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

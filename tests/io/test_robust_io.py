@@ -14,7 +14,8 @@ def _run_dir(tmp_path, name="run", n=2):
     run = tmp_path / name
     (run / "jobs").mkdir(parents=True)
     for i in range(n):
-        record = {"job_id": f"j{i}", "problem": "zermelo", "case": "default", "status": "ok",
+        record = {"job_id": f"j{i}", "problem": "zermelo", "case": "default",
+                  "param": "diagonal", "optimizer": "pso", "seed": i, "status": "ok",
                   "best_cost": 1.0 + i, "start": i}
         (run / "jobs" / f"j{i}.json").write_text(json.dumps(record))
     return run
@@ -32,7 +33,9 @@ def test_collect_replaces_results_atomically(tmp_path, monkeypatch):
         raise OSError("disk full")
 
     monkeypatch.setattr(schema.pq, "write_table", broken)
-    (run / "jobs" / "j2.json").write_text(json.dumps({"job_id": "j2", "status": "ok"}))
+    (run / "jobs" / "j2.json").write_text(json.dumps(
+        {"job_id": "j2", "problem": "zermelo", "case": "default", "param": "diagonal",
+         "optimizer": "pso", "seed": 2, "start": 2, "status": "ok", "best_cost": 1.0}))
     with pytest.raises(OSError, match="disk full"):
         io.collect(run)
     assert len(pq.read_table(path)) == 2  # the previous file is intact
@@ -45,6 +48,7 @@ def test_collect_skips_unreadable_record(tmp_path, caplog):
     df = io.read_results(io.collect(run))
     assert list(df["job_id"]) == ["j0"]
     assert "j1.json" in caplog.text
+    assert (run / "jobs" / "corrupt").is_dir()  # moved aside, its job runs again on resume
 
 
 def test_read_results_skips_unreadable_files(tmp_path, caplog):

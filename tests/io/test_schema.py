@@ -105,7 +105,7 @@ def test_collect_and_read_back_file_and_folder(tmp_path):
     for source in (path, run, str(run)):
         df = read_results(source)
         assert len(df) == 2
-        assert list(df.columns) == list(COLUMNS)
+        assert list(df.columns) == [*COLUMNS, "status_known"]
     df = read_results(path).sort_values("start").reset_index(drop=True)
     assert (df["run_id"] == "run_a").all()
     assert df.loc[0, "best_cost"] == 1.5
@@ -136,7 +136,8 @@ def test_collect_only_the_planned_jobs(tmp_path):
 
 def test_nonfinite_floats_survive(tmp_path):
     run = tmp_path / "r"
-    write_run(run, [record(0, best_cost=float("inf"), history=[float("nan"), 1.0])])
+    write_run(run, [record(0, status="diverged", best_cost=float("inf"),
+                           history=[float("nan"), 1.0])])
     df = read_results(run)
     assert df.loc[0, "best_cost"] == float("inf")
     h = list(df.loc[0, "history"])
@@ -145,7 +146,8 @@ def test_nonfinite_floats_survive(tmp_path):
 
 def test_several_run_folders_concatenated(tmp_path):
     write_run(tmp_path / "multirun" / "r1", [record(0), record(1)])
-    write_run(tmp_path / "multirun" / "r2", [record(0, param="diagonal")])
+    write_run(tmp_path / "multirun" / "r2",
+              [record(0, param="diagonal", job_id="zermelo-default-diagonal-pso-s000")])
     (tmp_path / "multirun" / "r3" / "jobs").mkdir(parents=True)  # not collected: ignored
     found = find_results(tmp_path)
     assert [p.parent.name for p in found] == ["r1", "r2"]
@@ -163,7 +165,7 @@ def test_collect_without_jobs_writes_empty_table(tmp_path):
     (run / "jobs").mkdir(parents=True)
     path = collect(run)
     df = read_results(path)
-    assert len(df) == 0 and list(df.columns) == list(COLUMNS)
+    assert len(df) == 0 and list(df.columns) == [*COLUMNS, "status_known"]
 
 
 def test_read_results_on_empty_folder(tmp_path):

@@ -93,3 +93,19 @@ def test_config_hash():
     assert len(h) == 16 and int(h, 16) >= 0
     assert h == config_hash({"b": [1, 2], "a": 1})  # key order does not matter
     assert h != config_hash({"a": 2, "b": [1, 2]})
+
+
+def test_job_id_covers_the_root_seed_and_the_holdout_setting():
+    base = plan_jobs("zermelo", "default", "full", "pso", 2, 1)
+    other_seed = plan_jobs("zermelo", "default", "full", "pso", 2, 2)
+    no_holdout = plan_jobs("zermelo", "default", "full", "pso", 2, 1, holdout=False)
+    ids = [{j.job_id for j in jobs} for jobs in (base, other_seed, no_holdout)]
+    assert not ids[0] & ids[1] and not ids[0] & ids[2] and not ids[1] & ids[2]
+    assert {j.job_id for j in plan_jobs("zermelo", "default", "full", "pso", 2, 1)} == ids[0]
+
+
+def test_n_starts_bound():
+    from penaltyrun.runner.plan import MAX_N_STARTS
+
+    with pytest.raises(ConfigError, match=f"limit of {MAX_N_STARTS}"):
+        plan_jobs("zermelo", "default", "full", "pso", MAX_N_STARTS + 1, 1)

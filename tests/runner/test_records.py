@@ -2,25 +2,38 @@
 
 import json
 
+import numpy as np
+
 from penaltyrun.runner import pending_jobs, plan_jobs, read_record
 from penaltyrun.runner.records import CORRUPT_DIR, JOBS_DIR, job_path, write_record
+from penaltyrun.runner.validate import SCHEMA_VERSION
 
 
 def _jobs(n):
     return plan_jobs("zermelo", "default", "diagonal", "pso", n, 1, {}, {}, {}, {})
 
 
+def _record(job, **fields):
+    """A minimal valid record of ``job``."""
+    return {"job_id": job.job_id, "problem": job.problem, "case": job.case,
+            "param": job.param, "optimizer": job.optimizer, "start": job.start,
+            "seed": job.seed, "status": "ok", "best_cost": 1.0, **fields}
+
+
 def test_write_is_atomic_and_readable(tmp_path):
     job = _jobs(1)[0]
-    path = write_record(tmp_path, job, {"job_id": job.job_id, "status": "ok"})
-    assert read_record(path) == {"job_id": job.job_id, "status": "ok"}
+    path = write_record(tmp_path, job, _record(job))
+    back = read_record(path)
+    assert {k: back[k] for k in _record(job)} == _record(job)
+    assert back["schema_version"] == SCHEMA_VERSION
+    assert json.loads(back["packages"])["numpy"] == np.__version__
     assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary file left
 
 
 def test_unreadable_records_are_moved_aside_and_rerun(tmp_path, caplog):
     jobs = _jobs(4)
     for job in jobs:
-        write_record(tmp_path, job, {"job_id": job.job_id, "status": "ok"})
+        write_record(tmp_path, job, _record(job))
     truncated = job_path(tmp_path, jobs[0])
     truncated.write_text(truncated.read_text()[:10])
     job_path(tmp_path, jobs[1]).write_bytes(b"\x00\xff garbage")
@@ -30,6 +43,7 @@ def test_unreadable_records_are_moved_aside_and_rerun(tmp_path, caplog):
     corrupt = sorted(p.name for p in (tmp_path / JOBS_DIR / CORRUPT_DIR).iterdir())
     assert len(corrupt) == 3 and corrupt[0].startswith(jobs[0].job_id)
     assert str(truncated) in caplog.text and "unreadable" in caplog.text
+    assert "not a JSON object" in caplog.text
     assert not truncated.exists()
     # a second resume finds nothing corrupt any more
     assert pending_jobs(jobs, tmp_path, resume=True) == todo

@@ -16,6 +16,8 @@ from penaltyrun.problems.attitude.params import Params
 
 #: Cost multiple of ``failure_penalty`` for non-finite runs and Riccati failures.
 HARD_FAILURE_FACTOR = 1000.0
+#: Largest graded penalty: failures whose penalty would exceed it (or overflow) cost this.
+GRADED_CEILING = 1e300
 
 
 def graded_cost(energy: np.ndarray, dist: np.ndarray, d0: Any, status: np.ndarray,
@@ -42,6 +44,8 @@ def graded_cost(energy: np.ndarray, dist: np.ndarray, d0: Any, status: np.ndarra
     d0 = np.maximum(np.asarray(d0, dtype=float), 1e-300)
     with np.errstate(invalid="ignore", over="ignore"):
         failed = energy + failure_penalty * (1.0 + dist / d0)
+    # monotone in the failure's size: a penalty too large for a float costs the ceiling
+    failed = np.where(np.isposinf(failed), GRADED_CEILING, np.minimum(failed, GRADED_CEILING))
     cost = np.where((status == integrate.EVENT) | (status == integrate.CUTOFF), energy, failed)
     hard = (~np.isfinite(cost)) | (status == integrate.NONFINITE)
     return np.where(hard, HARD_FAILURE_FACTOR * failure_penalty, cost)

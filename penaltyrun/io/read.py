@@ -1,0 +1,239 @@
+"""Reading results back: every job counted once, every file checked, older versions upgraded.
+
+:func:`read_results` reads one ``results.parquet``, a folder searched recursively, or a list
+of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLUMNS` plus
+``status_known``. On the way:
+
+* a file that is not Parquet (truncated, garbage), is not penaltyrun output (the identity
+  columns are missing), is of a schema version newer than this code knows, or holds a
+  column whose values do not fit the schema's type (e.g. fractional ``n_evals``) is skipped
+  with one warning naming it and the reason;
+* the same job (same ``job_id`` and ``config_hash``) found in several files, e.g. a run
+  folder beside a copy of it, is kept once, with one warning naming the duplicate files;
+* a status other than ok / diverged / failed is kept but marked: ``status_known`` is False
+  for its rows and ``df.attrs["unknown_statuses"]`` maps each such status to its count, so
+  a report can say so instead of counting it;
+* reading many files shows a progress bar on a terminal (a log line every few seconds
+  elsewhere).
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from collections.abc import Iterable
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from penaltyrun.errors import ResultsUnreadableError
+from penaltyrun.io.schema import (
+    COLUMNS,
+    RESULTS_FILE,
+    SCHEMA_VERSION,
+    TIMESTAMP_COLUMNS,
+    _upgrade_settings,
+    find_results,
+    to_timestamp,
+)
+from penaltyrun.runner.validate import JOB_STATUSES
+
+logger = logging.getLogger(__name__)
+
+#: Columns without which a Parquet file is not penaltyrun results.
+IDENTITY_COLUMNS = ("job_id", "problem", "case", "param", "optimizer", "status")
+#: Column added on reading: False for rows whose status is not one of ok/diverged/failed.
+STATUS_KNOWN = "status_known"
+#: Files above which reading shows progress.
+PROGRESS_MIN_FILES = 50
+#: Seconds between two progress log lines (not on a terminal).
+PROGRESS_LOG_S = 5.0
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc)
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def check_table(table: pa.Table) -> str | None:
+    """Why ``table`` cannot be read as penaltyrun results (None: it can)."""
+    missing = [c for c in IDENTITY_COLUMNS if c not in table.column_names]
+    if missing:
+        return f"not penaltyrun results (no column {', '.join(missing)})"
+    if "schema_version" in table.column_names:
+        versions = [v for v in table.column("schema_version").to_pylist() if v is not None]
+        newer = sorted({v for v in versions if not isinstance(v, int) or v > SCHEMA_VERSION})
+        if newer:
+            return (f"unknown schema version {newer[0]} (this penaltyrun reads up to "
+                    f"{SCHEMA_VERSION}; upgrade penaltyrun)")
+    return None
+
+
+def conform(table: pa.Table) -> pa.Table:
+    """``table`` with each schema column cast to the schema's type where it differs.
+
+    Raises
+    ------
+    ValueError
+        A column cannot be cast without loss (e.g. ``n_evals`` with fractional values).
+    """
+    for name, (typ, _) in COLUMNS.items():
+        if name not in table.column_names or name in TIMESTAMP_COLUMNS:
+            continue  # missing columns are filled later; old text times are parsed later
+        column = table.column(name)
+        if column.type == typ or column.null_count == len(column):
+            continue
+        try:
+            cast = column.cast(typ, safe=True)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as exc:
+            raise ValueError(f"column {name} holds {column.type} values that are not "
+                             f"{typ} ({_first_line(exc)[:80]})") from None
+        table = table.set_column(table.column_names.index(name), name, cast)
+    return table
+
+
+def _read_one(path: Path) -> pd.DataFrame:
+    """One results file as a frame of exactly :data:`COLUMNS` (older versions upgraded).
+
+    Raises
+    ------
+    ValueError
+        The file cannot be used (see :func:`check_table`, :func:`conform`).
+    OSError, pyarrow.ArrowException
+        It cannot be read as Parquet.
+    """
+    table = pq.read_table(path)
+    problem = check_table(table)
+    if problem:
+        raise ValueError(problem)
+    frame = conform(table).to_pandas()
+    for name in COLUMNS:  # files of older schema versions lack newer columns
+        if name not in frame:
+            frame[name] = None
+    for name in TIMESTAMP_COLUMNS:  # schema <= 3 stored ISO text
+        if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
+            frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
+    frame["optimizer_settings"] = [
+        _upgrade_settings(opt, settings)
+        for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
+    frame = frame[list(COLUMNS)]
+    frame.attrs = {}
+    frame["_source"] = str(path)
+    return frame
+
+
+class _Progress:
+    """Progress over many files: a tqdm bar on a terminal, else a log line every
+    :data:`PROGRESS_LOG_S` seconds."""
+
+    def __init__(self, total: int) -> None:
+        self.total, self.done = total, 0
+        self.bar = None
+        self.last = time.monotonic()
+        if total < PROGRESS_MIN_FILES:
+            self.total = 0
+        elif sys.stderr is not None and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc="reading results", unit="file",
+                            file=sys.stderr, leave=False)
+        else:
+            logger.info("reading %d results files", total)
+
+    def step(self) -> None:
+        self.done += 1
+        if self.bar is not None:
+            self.bar.update(1)
+        elif self.total and time.monotonic() - self.last >= PROGRESS_LOG_S:
+            self.last = time.monotonic()
+            logger.info("read %d of %d results files", self.done, self.total)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _dedupe(df: pd.DataFrame) -> pd.DataFrame:
+    """Keep each (job_id, config_hash) once (the first file in path order); one warning
+    naming the files whose rows were left out and the files they duplicate."""
+    dup = df.duplicated(subset=["job_id", "config_hash"], keep="first")
+    if not dup.any():
+        return df
+    first = df[~dup].drop_duplicates(subset=["job_id", "config_hash"])
+    origin = {(j, c): s for j, c, s in zip(first["job_id"], first["config_hash"],
+                                           first["_source"])}
+    pairs = sorted({(s, origin[(j, c)]) for j, c, s in
+                    zip(df.loc[dup, "job_id"], df.loc[dup, "config_hash"],
+                        df.loc[dup, "_source"])})
+    shown = "; ".join(f"{a} duplicates {b}" for a, b in pairs[:3])
+    more = f"; and {len(pairs) - 3} more file pairs" if len(pairs) > 3 else ""
+    logger.warning("left out %d duplicate rows (same job_id and config_hash, counted once): "
+                   "%s%s", int(dup.sum()), shown, more)
+    return df[~dup]
+
+
+def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
+    """Add :data:`STATUS_KNOWN`; warn once about unknown statuses and count them in
+    ``df.attrs["unknown_statuses"]``."""
+    known = df["status"].isin(JOB_STATUSES)
+    df[STATUS_KNOWN] = known.to_numpy(dtype=bool)
+    unknown = {str(k): int(v) for k, v in df.loc[~known, "status"].value_counts(
+        dropna=False).items()}
+    if unknown:
+        logger.warning("%d rows with a status other than %s (%s): reported as unknown, not "
+                       "counted as ok, diverged or failed", int((~known).sum()),
+                       "/".join(JOB_STATUSES),
+                       ", ".join(f"{k!r}: {v}" for k, v in sorted(unknown.items())))
+    df.attrs["unknown_statuses"] = unknown
+    return df
+
+
+def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
+    """All results under ``path`` (file, folder, or several) as one DataFrame, each job once.
+
+    JSON columns stay text; use :func:`~penaltyrun.io.schema.decode_json` to parse them.
+    Files that cannot be used are skipped with a warning, duplicates left out, unknown
+    statuses marked (see the module docstring).
+
+    Returns
+    -------
+    DataFrame
+        The columns of :data:`~penaltyrun.io.schema.COLUMNS` and ``status_known`` (bool);
+        ``attrs["unknown_statuses"]``: {status: rows} of the statuses not known here,
+        ``attrs["skipped_files"]``: {path: reason} of the files left out.
+
+    Raises
+    ------
+    FileNotFoundError
+        If there is no results file under ``path``.
+    ResultsUnreadableError
+        If there are results files but none of them can be used.
+    """
+    paths = find_results(path) if isinstance(path, (str, Path)) else [Path(p) for p in path]
+    if not paths:
+        raise FileNotFoundError(f"no {RESULTS_FILE} found under {path}")
+    frames = []
+    skipped: dict[str, str] = {}
+    progress = _Progress(len(paths))
+    try:
+        for p in paths:
+            try:
+                frames.append(_read_one(p))
+            except (OSError, pa.ArrowException, ValueError) as exc:
+                reason = _first_line(exc)
+                logger.warning("skipped results file %s: %s", p, reason)
+                skipped[str(p)] = reason
+            progress.step()
+    finally:
+        progress.close()
+    if not frames:
+        shown = ", ".join(list(skipped)[:3]) + (" ..." if len(skipped) > 3 else "")
+        raise ResultsUnreadableError(f"no readable results under {path}: {len(skipped)} "
+                                     f"unreadable file(s) ({shown})")
+    df = _dedupe(pd.concat(frames, ignore_index=True))
+    df = _mark_statuses(df.drop(columns="_source").reset_index(drop=True))
+    df.attrs["skipped_files"] = skipped
+    return df

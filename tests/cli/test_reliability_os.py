@@ -1,0 +1,149 @@
+"""Every OS error a user can cause is one line and a documented exit code (subprocess
+tests): bad run and output paths, a full disk, a non-UTF-8 locale, an unwritable stdout."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from penaltyrun.cli import EXIT_CODES, EXIT_ENVIRONMENT
+from penaltyrun.io import RESULTS_FILE
+
+FAST_JOBS = ["problem=zermelo", "optimizer=baseline", "runner.report=false"]
+
+
+def cli(*args, cwd: Path, env=None, timeout: float = 600, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=timeout,
+                          env=env, **kw)
+
+
+def one_error_line(proc: subprocess.CompletedProcess) -> str:
+    assert "Traceback" not in proc.stderr + (proc.stdout or ""), proc.stderr
+    lines = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("penaltyrun")]
+    assert len(lines) == 1, proc.stderr
+    return lines[0]
+
+
+def test_environment_exit_code_is_documented():
+    assert EXIT_ENVIRONMENT == 5 and "disk full" in EXIT_CODES[EXIT_ENVIRONMENT]
+
+
+def test_dangling_symlink_run_dir_is_refused(tmp_path):
+    (tmp_path / "link").symlink_to(tmp_path / "gone")
+    proc = cli(*FAST_JOBS, f"hydra.run.dir={tmp_path / 'link'}", cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2
+    line = one_error_line(proc)
+    assert "symbolic link" in line and "does not exist" in line
+
+
+def test_results_parquet_directory_is_refused(tmp_path):
+    run = tmp_path / "run"
+    (run / RESULTS_FILE).mkdir(parents=True)
+    proc = cli(*FAST_JOBS, f"hydra.run.dir={run}", cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2
+    assert "results.parquet exists and is not a file" in one_error_line(proc)
+
+
+def test_report_output_on_a_file_is_refused(tmp_path):
+    run = tmp_path / "run"
+    assert cli(*FAST_JOBS, "runner.n_starts=1", f"hydra.run.dir={run}",
+               cwd=tmp_path).returncode == 0
+    (tmp_path / "afile").write_text("")
+    rep = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", str(run), "-o",
+                          str(tmp_path / "afile")], capture_output=True, text=True, timeout=300)
+    assert rep.returncode == 2
+    assert "is a file" in one_error_line(rep)
+    proc = cli("mode=report", f"report.input={run}", f"report.output={tmp_path / 'afile'}",
+               cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2 and "report.output" in one_error_line(proc)
+
+
+def test_a_non_utf8_locale_writes_utf8(tmp_path):
+    run = tmp_path / "run"
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0"}
+    env.pop("PYTHONIOENCODING", None)
+    proc = cli("problem=zermelo", "optimizer=baseline", "runner.n_starts=1",
+               f"hydra.run.dir={run}", cwd=tmp_path, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert "Logging error" not in proc.stderr + proc.stdout
+    assert (run / "report").is_dir()
+    for path in (run / "report").rglob("*.md"):
+        path.read_text(encoding="utf-8")
+
+
+def test_stdout_on_dev_full_is_one_line(tmp_path):
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full")
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run([sys.executable, "-m", "penaltyrun.cli", "mode=evaluate",
+                               "problem=zermelo", "matrices.K=[[1,0],[0,1]]"], cwd=tmp_path,
+                              stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
+    assert proc.returncode == EXIT_ENVIRONMENT, proc.stderr
+    assert "standard output" in one_error_line(proc)
+
+
+@pytest.fixture
+def small_tmpfs(tmp_path):
+    mnt = tmp_path / "tmpfs"
+    mnt.mkdir()
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a tmpfs needs root")
+    ok = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mnt)],
+                        capture_output=True)
+    if ok.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs: {ok.stderr.decode(errors='replace').strip()}")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+def _fill(folder: Path, leave: int) -> Path:
+    """Fill the file system of ``folder`` but ``leave`` bytes."""
+    filler = folder / "filler"
+    free = shutil.disk_usage(folder).free
+    with open(filler, "wb") as fh:
+        fh.write(b"\0" * max(0, free - leave))
+    return filler
+
+
+def test_disk_full_while_writing_records_is_one_line_and_resume_finishes(tmp_path, small_tmpfs):
+    run = tmp_path / "run"
+    run.mkdir()
+    (small_tmpfs / "jobs").mkdir()
+    (run / "jobs").symlink_to(small_tmpfs / "jobs")  # records on the small disk
+    args = [*FAST_JOBS, "runner.n_starts=4", f"hydra.run.dir={run}"]
+    filler = _fill(small_tmpfs, 12_000)  # room for about one record
+    proc = cli(*args, cwd=tmp_path)
+    assert proc.returncode == EXIT_ENVIRONMENT, proc.stderr
+    line = one_error_line(proc)
+    assert "No space left on device" in line and str(run / "jobs") in line and "free" in line
+    assert not [p for p in (small_tmpfs / "jobs").iterdir() if p.name.endswith(".tmp")]
+    kept = len(list((small_tmpfs / "jobs").glob("*.json")))
+    filler.unlink()
+    resumed = cli(*args, "runner.resume=true", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"{kept} of 4 jobs already finished" in resumed.stderr + resumed.stdout
+    assert len(pd.read_parquet(run / RESULTS_FILE)) == 4
+    assert all(json.loads(p.read_text())["status"] == "ok"
+               for p in (small_tmpfs / "jobs").glob("*.json"))
+
+
+def test_disk_full_while_writing_the_parquet_is_one_line(tmp_path, small_tmpfs):
+    run = small_tmpfs / "run"
+    args = [*FAST_JOBS, "runner.n_starts=2", f"hydra.run.dir={run}"]
+    assert cli(*args, cwd=tmp_path).returncode == 0
+    (run / RESULTS_FILE).unlink()
+    filler = _fill(small_tmpfs, 0)
+    proc = cli(*args, "runner.resume=true", cwd=tmp_path)
+    assert proc.returncode == EXIT_ENVIRONMENT, proc.stderr
+    assert "No space left on device" in one_error_line(proc)
+    assert not [p for p in run.rglob("*.tmp")]
+    filler.unlink()

@@ -196,7 +196,11 @@ def _one_line(exc: BaseException) -> str:
     for err in (exc, exc.__cause__):  # OmegaConf's own: "<full_key>: <message>"
         key, msg = getattr(err, "full_key", None), getattr(err, "msg", None)
         if key and msg:
-            return f"{key}: {' '.join(str(msg).split('full_key:')[0].split())}"
+            text = " ".join(str(msg).split("full_key:")[0].split())
+            if str(key).startswith("problem.params.") and "not in struct" in text:
+                text += (f" (a sweep in hydra.sweeper.params sets a parameter its YAML does "
+                         f"not list as ++{key})")
+            return f"{key}: {text}"
     text = " ".join(ln for ln in lines if not ln.startswith("Available options")
                     and ln not in (options or ()))
     cause = exc.__cause__

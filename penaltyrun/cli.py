@@ -1,6 +1,11 @@
 """Command line: ``penaltyrun`` (Hydra app: optimize / evaluate / report / plan) and
 ``penaltyrun-report`` (report from Parquet files).
 
+``penaltyrun --help`` is penaltyrun's own (:mod:`penaltyrun.clihelp`), ``--hydra-help``
+Hydra's; flags, sweeps without ``-m`` and Hydra's own errors are checked by
+:mod:`penaltyrun.cliargs`. ``mode=evaluate`` writes nothing unless ``--keep`` or
+``hydra.run.dir`` is given.
+
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
 line ``penaltyrun: error: <key>: <message> (allowed: ...)`` on stderr and exit code 2.
 Ctrl-C (SIGINT), SIGTERM and SIGHUP end a run with one line saying how to resume it and

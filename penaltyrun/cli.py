@@ -173,7 +173,9 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     result = prob.evaluate(given, scalars or None)
     print(json.dumps(result, default=str), flush=True)
     hydra_cfg = HydraConfig.get()
-    if hydra_cfg.output_subdir is not None:  # --keep or hydra.run.dir given
+    if hydra_cfg.output_subdir is None:  # cliargs.evaluate_overrides: nothing was written
+        print(cliargs.EVALUATE_NOTHING_WRITTEN, file=sys.stderr, flush=True)
+    else:  # --keep or hydra.run.dir given
         print(f"penaltyrun: evaluate: Hydra's config and log kept in "
               f"{hydra_cfg.runtime.output_dir}", file=sys.stderr, flush=True)
     return result
@@ -299,9 +301,7 @@ def main() -> None:
                 return _guard(lambda: planmode.run(argv))
         extra: list[str] = []
         if mode == "evaluate" and not (args.cfg or args.info or args.shell_completion):
-            extra, line = cliargs.evaluate_overrides(parsed, args.multirun, keep)
-            if line:
-                print(line, file=sys.stderr, flush=True)
+            extra = cliargs.evaluate_overrides(parsed, args.multirun, keep)
         sys.argv = [sys.argv[0], *argv, *extra]
         _guard(_hydra_main)
     if FAILED_RUNS:

@@ -1,6 +1,11 @@
 """Command line: ``penaltyrun`` (Hydra app: optimize / evaluate / report / plan) and
 ``penaltyrun-report`` (report from Parquet files).
 
+``penaltyrun --help`` is penaltyrun's own (:mod:`penaltyrun.clihelp`), ``--hydra-help``
+Hydra's; flags, sweeps without ``-m`` and Hydra's own errors are checked by
+:mod:`penaltyrun.cliargs`. ``mode=evaluate`` writes nothing unless ``--keep`` or
+``hydra.run.dir`` is given.
+
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
 line ``penaltyrun: error: <key>: <message> (allowed: ...)`` on stderr and exit code 2.
 Ctrl-C (SIGINT), SIGTERM and SIGHUP end a run with one line saying how to resume it and
@@ -185,7 +190,9 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     result = prob.evaluate(given, scalars or None)
     print(json.dumps(result, default=str), flush=True)
     hydra_cfg = HydraConfig.get()
-    if hydra_cfg.output_subdir is not None:  # --keep or hydra.run.dir given
+    if hydra_cfg.output_subdir is None:  # cliargs.evaluate_overrides: nothing was written
+        print(cliargs.EVALUATE_NOTHING_WRITTEN, file=sys.stderr, flush=True)
+    else:  # --keep or hydra.run.dir given
         print(f"penaltyrun: evaluate: Hydra's config and log kept in "
               f"{hydra_cfg.runtime.output_dir}", file=sys.stderr, flush=True)
     return result
@@ -325,9 +332,7 @@ def main() -> None:
                 return flush_stdout()
         extra: list[str] = []
         if mode == "evaluate" and not (args.cfg or args.info or args.shell_completion):
-            extra, line = cliargs.evaluate_overrides(parsed, args.multirun, keep)
-            if line:
-                print(line, file=sys.stderr, flush=True)
+            extra = cliargs.evaluate_overrides(parsed, args.multirun, keep)
         sys.argv = [sys.argv[0], *argv, *extra]
         _guard(_hydra_main)
     flush_stdout()

@@ -30,6 +30,9 @@ from typing import Any
 from penaltyrun.errors import ConfigError
 
 KEEP_FLAG = "--keep"
+#: What an evaluation that kept no run directory says on stderr.
+EVALUATE_NOTHING_WRITTEN = ("penaltyrun: evaluate: nothing written (pass --keep or "
+                            "hydra.run.dir=DIR to keep Hydra's config and log)")
 #: Exceptions raised inside penaltyrun's task function (bugs): kept as tracebacks.
 _TASK_ERRORS: list[BaseException] = []
 
@@ -137,25 +140,23 @@ def check_sweeps(overrides: list[str], multirun: bool) -> list[Any]:
     return parsed
 
 
-def evaluate_overrides(parsed: list[Any], multirun: bool, keep: bool) -> tuple[list[str], str]:
-    """Extra Hydra overrides so that ``mode=evaluate`` writes nothing, and the line saying so.
+def evaluate_overrides(parsed: list[Any], multirun: bool, keep: bool) -> list[str]:
+    """Extra Hydra overrides so that ``mode=evaluate`` writes nothing.
 
     Without ``--keep`` and without ``hydra.run.dir`` (``hydra.sweep.dir`` with ``-m``) on the
     command line, Hydra is told to save no ``.hydra/`` config, to configure no log file and
     to use the current directory as its run directory (which it then leaves untouched); a
-    sweep of evaluations gets a temporary sweep directory, removed at exit. When the run
-    directory is kept, the evaluation itself says where it is.
+    sweep of evaluations gets a temporary sweep directory, removed at exit. Each evaluation
+    then says on stderr whether anything was kept (:data:`EVALUATE_NOTHING_WRITTEN`).
 
     Returns
     -------
-    overrides : list of str
+    list of str
         To append to the command line (empty when the run directory is kept).
-    line : str
-        The line for stderr ("" when the run directory is kept).
     """
     run_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
     if keep or any(o.key_or_group == run_key for o in parsed):
-        return [], ""
+        return []
     extra = ["hydra.output_subdir=null", "hydra/job_logging=none"]
     if multirun:
         tmp = tempfile.mkdtemp(prefix="penaltyrun-evaluate-")
@@ -163,8 +164,7 @@ def evaluate_overrides(parsed: list[Any], multirun: bool, keep: bool) -> tuple[l
         extra += [f"hydra.sweep.dir={tmp}", "hydra.sweep.subdir=."]
     else:
         extra.append("hydra.run.dir=.")
-    return extra, ("penaltyrun: evaluate: nothing written (pass --keep or hydra.run.dir=DIR "
-                   "to keep Hydra's config and log)")
+    return extra
 
 
 _REMOVE_AT_EXIT: list[str] = []
@@ -196,7 +196,11 @@ def _one_line(exc: BaseException) -> str:
     for err in (exc, exc.__cause__):  # OmegaConf's own: "<full_key>: <message>"
         key, msg = getattr(err, "full_key", None), getattr(err, "msg", None)
         if key and msg:
-            return f"{key}: {' '.join(str(msg).split('full_key:')[0].split())}"
+            text = " ".join(str(msg).split("full_key:")[0].split())
+            if str(key).startswith("problem.params.") and "not in struct" in text:
+                text += (f" (a sweep in hydra.sweeper.params sets a parameter its YAML does "
+                         f"not list as ++{key})")
+            return f"{key}: {text}"
     text = " ".join(ln for ln in lines if not ln.startswith("Available options")
                     and ln not in (options or ()))
     cause = exc.__cause__

@@ -277,3 +277,28 @@ def test_unknown_params_are_refused_with_the_fields(toy):
     assert "problem.params.gian" in line and "(allowed: gain, offset)" in line, line
     line = one_error_line(toy("problem.params.gain=abc"))
     assert "problem.params.gain: must be a number" in line, line
+
+
+def test_profile_sweeps_an_unlisted_param_with_plus_plus(toy, tmp_path):
+    write(tmp_path / "conf" / "experiment" / "gains.yaml", """\
+        # @package _global_
+        hydra:
+          sweeper:
+            params:
+              ++problem.params.gain: 1,3
+        """)
+    proc = toy("-m", "+experiment=gains")
+    assert proc.returncode == 0, proc.stderr
+    costs = [json.loads(ln)["cost"] for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    assert costs == pytest.approx([2.5, 6.5])
+    write(tmp_path / "conf" / "experiment" / "gains.yaml", """\
+        # @package _global_
+        hydra:
+          sweeper:
+            params:
+              problem.params.gain: 1,3
+        """)
+    proc = toy("-m", "+experiment=gains")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].startswith("penaltyrun: error: ")
+    assert "++problem.params.gain" in proc.stderr

@@ -6,9 +6,11 @@ Shared by ``mode=optimize`` (:func:`penaltyrun.cli.run_optimize`) and ``mode=pla
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from penaltyrun.errors import ConfigError
 
@@ -22,6 +24,60 @@ def problem_params(cfg: DictConfig) -> dict[str, Any]:
     """Problem overrides from ``problem.params`` (nulls mean "from the case table")."""
     params = plain(cfg.problem.get("params")) or {}
     return {k: v for k, v in params.items() if v is not None}
+
+
+def params_fields(name: str, module_path: str | None = None) -> dict[str, Any]:
+    """Fields of problem ``name``'s ``Params`` dataclass with their defaults as plain config
+    values (``None`` where a default is not a number, string, boolean or list of them);
+    ``{}`` if the module cannot be imported or defines no such dataclass."""
+    from penaltyrun import problems
+
+    try:
+        mod = problems.module(str(name), module_path)
+    except ConfigError:
+        return {}
+    cls = getattr(mod, "Params", None)
+    if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
+        return {}
+    try:
+        defaults = cls()
+    except TypeError:  # a field without a default
+        return {f.name: None for f in dataclasses.fields(cls)}
+    return {f.name: _config_value(getattr(defaults, f.name)) for f in dataclasses.fields(cls)}
+
+
+def _config_value(value: Any) -> Any:
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, (tuple, list)):
+        items = [_config_value(v) for v in value]
+        return None if any(v is None for v in items) else items
+    return None
+
+
+def with_params_schema(base: DictConfig) -> DictConfig:
+    """``base`` with every field of the problem's ``Params`` dataclass in ``problem.params``.
+
+    A problem's parameters are the fields of its ``Params`` dataclass, whether or not its
+    YAML file lists them: the missing ones are added with their dataclass defaults, so that
+    the command-line checks know their names (unknown keys are still refused, with the
+    allowed list) and their types.
+    """
+    node = base.get("problem")
+    if not isinstance(node, DictConfig) or not node.get("name"):
+        return base
+    listed = plain(node.get("params")) or {}
+    missing = {k: v for k, v in params_fields(node.name, problem_module(base) or None).items()
+               if k not in listed}
+    if not missing:
+        return base
+    out = copy.deepcopy(base)
+    with open_dict(out):
+        if not isinstance(out.problem.get("params"), DictConfig):
+            out.problem.params = {}
+        for key, value in missing.items():
+            out.problem.params[key] = value
+    return out
 
 
 def problem_module(cfg: DictConfig) -> str | None:

@@ -18,6 +18,7 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from penaltyrun import cells
 from penaltyrun.errors import ConfigError
 
 MODES = ("optimize", "evaluate", "report", "plan")
@@ -268,7 +269,8 @@ def _checked(key: str, func: Any, *args: Any) -> Any:
 def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) -> None:
     """Check a composed config (with its ``hydra`` node) against the shipped one ``base``:
     unknown ``+keys``, every option's type and range, the run directory, the scheduler."""
-    check_known_keys(plain_nohydra(cfg), plain_nohydra(base))
+    base = cells.with_params_schema(base)  # a problem's parameters: its Params dataclass
+    check_known_keys(plain_nohydra(cells.with_params_schema(cfg)), plain_nohydra(base))
     check_config(cfg, base=base)
     if multirun:
         check_run_dir(cfg.hydra.sweep.dir, "hydra.sweep.dir")

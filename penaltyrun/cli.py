@@ -1,6 +1,11 @@
 """Command line: ``penaltyrun`` (Hydra app: optimize / evaluate / report / plan) and
 ``penaltyrun-report`` (report from Parquet files).
 
+``penaltyrun --help`` is penaltyrun's own (:mod:`penaltyrun.clihelp`), ``--hydra-help``
+Hydra's; flags, sweeps without ``-m`` and Hydra's own errors are checked by
+:mod:`penaltyrun.cliargs`. ``mode=evaluate`` writes nothing unless ``--keep`` or
+``hydra.run.dir`` is given.
+
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
 line ``penaltyrun: error: <key>: <message> (allowed: ...)`` on stderr and exit code 2.
 Ctrl-C (SIGINT), SIGTERM and SIGHUP end a run with one line saying how to resume it and
@@ -22,9 +27,10 @@ from typing import Any
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
+from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import __version__, cells, checks, userconf
+from penaltyrun import __version__, cells, checks, cliargs, clihelp, userconf
 from penaltyrun.errors import (
     ConfigError,
     EnvironmentProblemError,
@@ -183,6 +189,12 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
         scalars[spec.name] = float(scalars_cfg[spec.name])
     result = prob.evaluate(given, scalars or None)
     print(json.dumps(result, default=str), flush=True)
+    hydra_cfg = HydraConfig.get()
+    if hydra_cfg.output_subdir is None:  # cliargs.evaluate_overrides: nothing was written
+        print(cliargs.EVALUATE_NOTHING_WRITTEN, file=sys.stderr, flush=True)
+    else:  # --keep or hydra.run.dir given
+        print(f"penaltyrun: evaluate: Hydra's config and log kept in "
+              f"{hydra_cfg.runtime.output_dir}", file=sys.stderr, flush=True)
     return result
 
 
@@ -209,6 +221,8 @@ def _guard(func: Callable[[], Any]) -> Any:
     and exit code 128 + signal number (finished jobs are on disk already)."""
     try:
         return func()
+    except HydraException:  # (MissingConfigException is an OSError): one line by cliargs
+        raise
     except (ConfigError, FileNotFoundError, ResultsUnreadableError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
@@ -266,7 +280,11 @@ def _hydra_main(cfg: DictConfig) -> None:
             _discard_run_dir()
             raise
 
-    _guard(dispatch)
+    try:
+        _guard(dispatch)
+    except Exception as exc:  # a bug in penaltyrun: a traceback, not a Hydra error line
+        cliargs.mark_task_error(exc)
+        raise
 
 
 def _print_cell_plan(cfg: DictConfig) -> None:
@@ -286,22 +304,37 @@ def print_version(argv: list[str]) -> bool:
 def main() -> None:
     """Entry point of ``penaltyrun``: check the command line, then run the Hydra app.
 
+    ``--help`` is penaltyrun's own (:mod:`penaltyrun.clihelp`), ``--hydra-help`` Hydra's.
     Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
     """
     ensure_utf8_mode(sys.argv)
     logging.raiseExceptions = False  # a broken stdout is one line at the end, not tracebacks
     watch_stdout()
-    if _guard(lambda: print_version(sys.argv[1:])):
+    argv = sys.argv[1:]
+    if _guard(lambda: print_version(argv)):
+        return flush_stdout()
+    if "--hydra-help" in argv:
+        return _hydra_main()
+    if clihelp.wants_help(argv):
+        print(clihelp.render(argv))
         return flush_stdout()
     install_signal_handlers()
-    if _guard(lambda: preflight(sys.argv[1:])) == "plan":
-        from penaltyrun import planmode
+    argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(argv)))
+    args = _guard(lambda: cliargs.check_options(argv))
+    parsed = _guard(lambda: cliargs.check_sweeps(args.overrides, args.multirun))
+    with cliargs.hydra_errors():  # Hydra's errors, also from the preflight's composition
+        mode = _guard(lambda: preflight(argv))
+        if mode == "plan":
+            from penaltyrun import planmode
 
-        if planmode.intercepts(sys.argv[1:]):  # forecast only: Hydra runs nothing
-            _guard(lambda: planmode.run(sys.argv[1:]))
-            return flush_stdout()
-    sys.argv = [sys.argv[0], *userconf.normalize_argv(sys.argv[1:])]
-    _guard(_hydra_main)
+            if planmode.intercepts(argv):  # forecast only: Hydra runs nothing
+                _guard(lambda: planmode.run(argv))
+                return flush_stdout()
+        extra: list[str] = []
+        if mode == "evaluate" and not (args.cfg or args.info or args.shell_completion):
+            extra = cliargs.evaluate_overrides(parsed, args.multirun, keep)
+        sys.argv = [sys.argv[0], *argv, *extra]
+        _guard(_hydra_main)
     flush_stdout()
     if FAILED_RUNS:
         sys.exit(EXIT_JOBS_FAILED)

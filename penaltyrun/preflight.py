@@ -11,7 +11,7 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import checks, userconf
+from penaltyrun import cells, checks, userconf
 from penaltyrun.errors import ConfigError
 
 GROUPS = ("problem", "param", "optimizer", "experiment")
@@ -174,9 +174,13 @@ def _compose_dry(parsed: list[Any], source: userconf.ConfigSource,
         if "Could not override" not in str(exc) or bad is None:
             raise ConfigError(key, _first_line(exc)) from None
         groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
-        parent = OmegaConf.select(compose(config_name=name, overrides=groups + hydra_overrides),
-                                  key.rpartition(".")[0] or "")
+        schema = cells.with_params_schema(compose(config_name=name,
+                                                  overrides=groups + hydra_overrides))
+        parent = OmegaConf.select(schema, key.rpartition(".")[0] or "")
         allowed = sorted(parent.keys()) if isinstance(parent, DictConfig) else None
+        if key.startswith("problem.params.") and key.rpartition(".")[2] in (allowed or ()):
+            raise ConfigError(key, "a parameter the problem's YAML does not list: a sweep in "
+                              f"hydra.sweeper.params sets it as ++{key}") from None
         raise ConfigError(key, "unknown config key", allowed=allowed) from None
     groups = [d for d in dry if d.split("=", 1)[0].lstrip("+") in GROUPS]
     base = compose(config_name=name, overrides=groups + hydra_overrides)

@@ -67,9 +67,20 @@ def _option_values(argv: list[str]) -> tuple[dict[str, str], list[str]]:
     return found, rest
 
 
+#: Overrides of problem parameters, given as ``problem.params.X=v`` or ``+problem.params...``.
+PARAMS_PREFIX = "problem.params."
+
+
 def normalize_argv(argv: list[str]) -> list[str]:
-    """``argv`` with a relative ``--config-path`` made absolute (relative to the cwd)."""
-    out = list(argv)
+    """``argv`` with a relative ``--config-path`` made absolute (relative to the cwd), and
+    problem parameters overridden with ``++``.
+
+    ``problem.params.X=v`` becomes ``++problem.params.X=v`` (set or add): a problem's
+    parameters are the fields of its ``Params`` dataclass, listed in its YAML file or not;
+    the preflight refuses names that are not fields (:func:`penaltyrun.cells.with_params_schema`).
+    """
+    out = [f"++{arg.lstrip('+')}" if arg.lstrip("+").startswith(PARAMS_PREFIX) and "=" in arg
+           else arg for arg in argv]
     short = {v: k for k, v in SOURCE_OPTIONS.items()}
     for i, arg in enumerate(out):
         name, eq, value = arg.partition("=")

@@ -10,7 +10,6 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy.optimize import Bounds, minimize
 
 from penaltyrun.optim.base import BudgetExhaustedError, CountingObjective
 
@@ -57,6 +56,8 @@ def local_search(counted: CountingObjective, x0: np.ndarray, lb: np.ndarray, ub:
     str
         ``"converged"``, ``"local_budget"`` or ``"max_evals"`` (run budget spent).
     """
+    from scipy.optimize import Bounds, minimize  # imported when a search runs (0.3 s)
+
     lb, ub = np.asarray(lb, float), np.asarray(ub, float)
     start = counted.n_evals
     saved_limit = counted.limit

@@ -8,7 +8,8 @@ Traps handled here (docs: explanation/pso-matlab.md):
 * the whole swarm is evaluated as one batch; ``n_processes`` is never used (the runner
   already runs one job per worker);
 * pyswarms' reporter would reconfigure the root logger and write ``report.log`` in the
-  working directory: its logger set-up is disabled and its loggers quietened;
+  working directory: its logger set-up is disabled and its loggers quietened (pyswarms is
+  imported at the first run, so the command line's checks do not pay for its imports);
 * exact cutoff: each particle's threshold is its personal best before the evaluation
   (``swarm.pbest_cost``, ``inf`` on the first iteration). pyswarms replaces a personal best
   only by a strictly lower cost and derives everything else (global best, velocities, stall
@@ -17,6 +18,7 @@ Traps handled here (docs: explanation/pso-matlab.md):
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 from dataclasses import dataclass
@@ -24,11 +26,26 @@ from pathlib import Path
 
 import numpy as np
 
+from penaltyrun.optim.base import (
+    BatchObjective,
+    BudgetExhaustedError,
+    CommonSettings,
+    OptimResult,
+    as_counting,
+    main_budget,
+    require_int,
+)
+from penaltyrun.optim.checks import check_choice, check_range
+
+logger = logging.getLogger(__name__)
 _NOOP_LOGGING = str(Path(__file__).with_name("pyswarms_logging.yaml"))
 
 
-def _import_pyswarms_quietly():  # noqa: ANN202
-    """Import pyswarms with its import-time logging set-up pointed at a no-op config."""
+@functools.cache
+def _pyswarms():  # noqa: ANN202
+    """pyswarms, imported at the first run (0.4 s of scipy imports the command line's
+    checks do not need) with its import-time logging set-up pointed at a no-op config, and
+    its later reporters kept from configuring logging or writing ``report.log``."""
     previous = os.environ.get("LOG_CFG")
     os.environ["LOG_CFG"] = _NOOP_LOGGING
     try:
@@ -39,33 +56,11 @@ def _import_pyswarms_quietly():  # noqa: ANN202
             del os.environ["LOG_CFG"]
         else:
             os.environ["LOG_CFG"] = previous
-    return pyswarms, reporter
-
-
-pyswarms, _reporter = _import_pyswarms_quietly()
-
-from penaltyrun.optim.base import (  # noqa: E402  (after the quiet pyswarms import)
-    BatchObjective,
-    BudgetExhaustedError,
-    CommonSettings,
-    OptimResult,
-    as_counting,
-    main_budget,
-    require_int,
-)
-from penaltyrun.optim.checks import check_choice, check_range  # noqa: E402
-
-logger = logging.getLogger(__name__)
-
-
-def _quiet_pyswarms() -> None:
-    """Stop later pyswarms reporters from configuring logging or writing ``report.log``."""
-    _reporter.Reporter._setup_logger = lambda self, path=None: None
-    for name in ("pyswarms", "pyswarms.single.global_best", _reporter.__name__):
+    reporter.Reporter._setup_logger = lambda self, path=None: None
+    for name in ("pyswarms", "pyswarms.single.global_best", reporter.__name__):
         logging.getLogger(name).setLevel(logging.WARNING)
+    return pyswarms
 
-
-_quiet_pyswarms()
 
 BH_STRATEGIES = ("nearest", "random", "shrink", "reflective", "intermediate", "periodic")
 VH_STRATEGIES = ("unmodified", "adjust", "invert", "zero")
@@ -159,7 +154,7 @@ def run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings:
     if x0 is not None:
         init_pos = lb + np.random.random_sample((settings.n_particles, lb.size)) * (ub - lb)  # noqa: NPY002
         init_pos[0] = np.clip(np.asarray(x0, float), lb, ub)
-    opt = pyswarms.single.GlobalBestPSO(
+    opt = _pyswarms().single.GlobalBestPSO(
         n_particles=settings.n_particles,
         dimensions=len(lb),
         options={"c1": settings.c1, "c2": settings.c2, "w": settings.w},

@@ -21,6 +21,7 @@ exits it within :data:`WATCHDOG_S` seconds of noticing a new parent process id.
 from __future__ import annotations
 
 import ctypes
+import faulthandler
 import logging
 import multiprocessing as mp
 import os
@@ -71,6 +72,21 @@ def die_with_parent(parent_pid: int, interval_s: float = WATCHDOG_S) -> None:
     threading.Thread(target=watch, name="penaltyrun-parent-watchdog", daemon=True).start()
 
 
+def own_fault_handler() -> None:
+    """Point a fault handler inherited from the parent at this (worker) process's stderr.
+
+    A forked worker inherits the parent's ``faulthandler`` target, a file descriptor the
+    parent chose (pytest's is a saved copy of the terminal): a worker's crash dump would be
+    written there, into the parent's output, instead of to the worker's own stderr.
+    """
+    if not faulthandler.is_enabled():
+        return
+    try:
+        faulthandler.enable(file=sys.stderr)
+    except (AttributeError, ValueError, OSError):  # a stderr without a file descriptor
+        faulthandler.disable()
+
+
 def _start_heartbeat(conn: Connection, lock: threading.Lock, interval_s: float) -> None:
     """Daemon thread of a worker sending ``("beat", None)`` every ``interval_s`` seconds."""
     def beat() -> None:
@@ -89,6 +105,7 @@ def _worker_main(conn: Connection, parent_pid: int, func: JobFunc,
                  beat_s: float = BEAT_S) -> None:
     """Loop of one worker: receive a job, send back ``("record", record)``; ``None`` ends
     the loop. A thread sends heartbeats meanwhile."""
+    own_fault_handler()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the main process stops us
     for signum in (signal.SIGTERM, signal.SIGHUP):  # not the main process's handlers
         signal.signal(signum, signal.SIG_DFL)

@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from penaltyrun.dynamics import lowthrust as lt
+from penaltyrun.dynamics.lowthrust import qlaw as qlaw_kernel
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.lowthrust import lyapunov_transfer, qlaw
 
@@ -156,9 +157,61 @@ def test_no_progress_config_errors(key: str, value: float) -> None:
         assert exc.value.key == f"problem.params.{key}"
 
 
+def _rounding_bounds(prob, oe, F, K) -> tuple[float, np.ndarray]:
+    """Bounds on |Q − Q_cs| and |∇Q − ∇Q_cs| (complex step) from rounding alone.
+
+    Both kernels evaluate the same closed form, each exact up to rounding (the complex step
+    has no truncation error at h = 1e-30 and no subtractive cancellation in its derivative),
+    so they may differ by the rounding errors of the two, which depend on the magnitudes of
+    the terms summed, not on the result:
+
+    * each scaled error nd_j is a product / quotient / root of ≤ ~30 correctly rounded
+      operations (libm functions within 1 ulp) of the inputs, except 1 − e², whose relative
+      error is amplified by κ_e = e² / (1 − e²): |δnd_j| ≤ (30 + κ_e) u |nd_j| per kernel;
+    * Q = fac · Σ_jm nd_j M_jm nd_m: each term's relative error is at most twice that, plus
+      ~27 u for the products and the sum of 25 terms, so with both kernels
+      |Q − Q_cs| ≤ 2 (2 (30 + κ_e) + 27) u · fac · Σ_jm |nd_j| |M_jm| |nd_m|.
+      The sum of magnitudes, not Q, sets the scale: a full K with eigenvalues over five
+      decades makes Σ |terms| up to ~1e5 times Q (why a fixed rel=1e-12 failed);
+    * ∇Q_k = fac · Σ_j G_j J_jk + (penalty term), G = (M + Mᵀ) nd, J_jk = ∂nd_j/∂x_k: the
+      same argument with twice the operations (the derivative chain), on the magnitudes
+      fac · Σ_j (Σ_m |M_jm + M_mj| |nd_m|) |J_jk| + |penalty term|;
+
+    Underflow is outside this model: the complex step carries each derivative as an
+    imaginary part h · ∂f (h = CS_STEP = 1e-30), so for an angle of, say, 1e-284 rad the
+    products of h, sin ω and the small rates fall below the smallest normal number and the
+    reference's ∂Q/∂ω becomes 0 (the law's is ~1e-274): a limit of the reference, not of the
+    law. The property test therefore draws angles of 0 or of magnitude ≥ 1e-100.
+
+    (Measured on 20 000 random draws of this test's ranges: at most 10 u · scale for Q and
+    32 u · scale for ∇Q, against bounds of ≥ 174 u and ≥ 348 u.)
+    """
+    u = np.finfo(float).eps
+    M = np.empty((5, 5))
+    qlaw_kernel.selector_matrix(prob._sel, K, prob._prm[lt.I_SIDES] > 1.5, M)
+    work = np.empty(qlaw_kernel.N_WORK)
+    grad = np.empty(5)
+    val = qlaw_kernel.qlaw_grad(oe, F, prob._oeT, prob._sel, M, prob._prm, work, grad)
+    nd, jac = work[:5], work[5:30].reshape(5, 5)
+    quad = float(nd @ M @ nd)
+    fac = val / quad if quad != 0.0 else 1.0  # 1 + W_p P
+    e2 = min(oe[1], 0.999) ** 2
+    per_nd = 30.0 + e2 / (1.0 - e2)
+    scale_q = fac * float(np.abs(nd) @ np.abs(M) @ np.abs(nd))
+    chain = fac * (((np.abs(M) + np.abs(M.T)) @ np.abs(nd)) @ np.abs(jac))
+    penalty = np.abs(grad - fac * (((M + M.T) @ nd) @ jac))
+    ops_q = 2.0 * (2.0 * per_nd + 27.0)
+    return ops_q * u * scale_q, 2.0 * ops_q * u * (chain + penalty)
+
+
+def _angles(lo: float, hi: float) -> st.SearchStrategy[float]:
+    """Angles in [lo, hi], 0 or of magnitude ≥ 1e-100 (see :func:`_rounding_bounds`)."""
+    return st.floats(lo, hi).filter(lambda x: x == 0.0 or abs(x) >= 1e-100)
+
+
 @settings(max_examples=200)
-@given(a=st.floats(6600.0, 2e5), e=st.floats(0.0, 0.97), inc=st.floats(0.0, np.pi),
-       raan=st.floats(-np.pi, np.pi), argp=st.floats(-np.pi, np.pi),
+@given(a=st.floats(6600.0, 2e5), e=st.floats(0.0, 0.97), inc=_angles(0.0, np.pi),
+       raan=_angles(-np.pi, np.pi), argp=_angles(-np.pi, np.pi),
        eig=st.lists(st.floats(-3.0, 2.0), min_size=5, max_size=5),
        seed=st.integers(0, 2**31), case=st.sampled_from(CASES), sides=st.sampled_from([1, 2]))
 def test_gradient_property_matches_complex_step(a, e, inc, raan, argp, eig, seed, case, sides):
@@ -169,5 +222,6 @@ def test_gradient_property_matches_complex_step(a, e, inc, raan, argp, eig, seed
     g, g_ref = np.empty(5), np.empty(5)
     val = lt.qlaw_gradient(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g)
     ref = lt.qlaw_gradient_cs(oe, 1e-6, prob._oeT, prob._sel, K, prob._prm, g_ref)
-    assert val == pytest.approx(ref, rel=1e-12)
-    _assert_close(g, g_ref, a)
+    tol_q, tol_g = _rounding_bounds(prob, oe, 1e-6, K)
+    assert abs(val - ref) <= tol_q, (val, ref, tol_q)
+    assert np.all(np.abs(g - g_ref) <= tol_g), (g, g_ref, tol_g)

@@ -1,0 +1,241 @@
+"""The command line around Hydra: penaltyrun's own flags, Hydra's options and Hydra's errors.
+
+Hydra prints its own errors on several lines (``Ambiguous value for argument ...``, ``Could
+not find 'param/bogus'`` with the list of options, argparse's usage) and exits with 1, the
+code of an internal error. Here every such mistake becomes one line
+``penaltyrun: error: <key>: <message>`` and exit code 2:
+
+* :func:`check_options` checks the flags with Hydra's own argument parser before anything
+  else runs;
+* :func:`check_sweeps` refuses a comma list (a sweep) without ``-m``;
+* :func:`hydra_errors` turns an error Hydra raises while it composes a config (e.g. a bad
+  value inside an experiment profile's ``hydra.sweeper.params``, met when the sweep reaches
+  that cell) into one line, and leaves a real bug in penaltyrun's code a traceback (exit 1).
+
+``--keep`` (:func:`pop_keep`) is penaltyrun's flag: ``mode=evaluate`` writes nothing unless
+it, or ``hydra.run.dir``, is given (:func:`evaluate_overrides`).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+from penaltyrun.errors import ConfigError
+
+KEEP_FLAG = "--keep"
+#: What an evaluation that kept no run directory says on stderr.
+EVALUATE_NOTHING_WRITTEN = ("penaltyrun: evaluate: nothing written (pass --keep or "
+                            "hydra.run.dir=DIR to keep Hydra's config and log)")
+#: Exceptions raised inside penaltyrun's task function (bugs): kept as tracebacks.
+_TASK_ERRORS: list[BaseException] = []
+
+
+def pop_keep(argv: list[str]) -> tuple[list[str], bool]:
+    """``argv`` without ``--keep``, and whether it was there."""
+    rest = [a for a in argv if a != KEEP_FLAG]
+    return rest, len(rest) != len(argv)
+
+
+def _hydra_parser() -> Any:
+    """Hydra's own argument parser, raising :class:`ConfigError` instead of exiting."""
+    from hydra._internal.utils import get_args_parser
+
+    parser = get_args_parser()
+
+    def error(message: str) -> None:
+        text = message.replace("unrecognized arguments", "unknown option")
+        raise ConfigError("command line", f"{text} (see penaltyrun --help)")
+
+    parser.error = error  # type: ignore[method-assign]
+    return parser
+
+
+#: Hydra's options that take a value (``--info`` takes one only from its choices).
+VALUE_OPTIONS = ("--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--config-name",
+                 "-cn", "--config-dir", "-cd", "--experimental-rerun")
+INFO_CHOICES = ("all", "config", "defaults", "defaults-tree", "plugins", "searchpath")
+
+
+def options_first(argv: list[str]) -> list[str]:
+    """``argv`` with the options (and their values) before the overrides, in their order.
+
+    Hydra's parser refuses an option between overrides (``a=1 -m b=2``); penaltyrun accepts
+    them anywhere, as a user writes them.
+    """
+    options: list[str] = []
+    overrides: list[str] = []
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg.startswith("-"):
+            options.append(arg)
+            takes = arg in VALUE_OPTIONS or (arg in ("--info", "-i") and i + 1 < len(argv)
+                                             and argv[i + 1] in INFO_CHOICES)
+            if takes and i + 1 < len(argv):
+                options.append(argv[i + 1])
+                i += 1
+        else:
+            overrides.append(arg)
+        i += 1
+    return options + overrides
+
+
+def check_options(argv: list[str]) -> Any:
+    """Parse ``argv`` (options first) as Hydra will; an unknown flag or a bad flag value is
+    one line.
+
+    Returns
+    -------
+    argparse.Namespace
+        Hydra's parsed arguments (``overrides``, ``multirun``, ``cfg``, ...).
+
+    Raises
+    ------
+    ConfigError
+        ``command line: unknown option: --bogus`` and the like.
+    """
+    return _hydra_parser().parse_args(argv)
+
+
+def _parse(overrides: list[str]) -> list[Any]:
+    """Hydra's parsed overrides (each one alone, so that a bad one names itself)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    parser = OverridesParser.create()
+    parsed = []
+    for arg in overrides:
+        try:
+            parsed.extend(parser.parse_overrides([arg]))
+        except HydraException as exc:
+            key = arg.split("=", 1)[0].lstrip("+~")
+            raise ConfigError(key, f"malformed override {arg!r}: {_one_line(exc)}") from None
+    return parsed
+
+
+def check_sweeps(overrides: list[str], multirun: bool) -> list[Any]:
+    """Refuse a sweep (``param=diagonal,full``, ``range(3)``, ...) without ``-m``.
+
+    Returns
+    -------
+    list
+        Hydra's parsed overrides.
+    """
+    parsed = _parse(overrides)
+    if not multirun:
+        for o in parsed:
+            if o.is_sweep_override():
+                value = o.input_line.split("=", 1)[1]
+                hint = f" (or {o.key_or_group}=[{value}] for a list)" \
+                    if "," in value and "(" not in value else ""
+                raise ConfigError(o.key_or_group, f"{value!r} is a sweep: add -m to sweep"
+                                  + hint)
+    return parsed
+
+
+def evaluate_overrides(parsed: list[Any], multirun: bool, keep: bool) -> list[str]:
+    """Extra Hydra overrides so that ``mode=evaluate`` writes nothing.
+
+    Without ``--keep`` and without ``hydra.run.dir`` (``hydra.sweep.dir`` with ``-m``) on the
+    command line, Hydra is told to save no ``.hydra/`` config, to configure no log file and
+    to use the current directory as its run directory (which it then leaves untouched); a
+    sweep of evaluations gets a temporary sweep directory, removed at exit. Each evaluation
+    then says on stderr whether anything was kept (:data:`EVALUATE_NOTHING_WRITTEN`).
+
+    Returns
+    -------
+    list of str
+        To append to the command line (empty when the run directory is kept).
+    """
+    run_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
+    if keep or any(o.key_or_group == run_key for o in parsed):
+        return []
+    extra = ["hydra.output_subdir=null", "hydra/job_logging=none"]
+    if multirun:
+        tmp = tempfile.mkdtemp(prefix="penaltyrun-evaluate-")
+        _REMOVE_AT_EXIT.append(tmp)
+        extra += [f"hydra.sweep.dir={tmp}", "hydra.sweep.subdir=."]
+    else:
+        extra.append("hydra.run.dir=.")
+    return extra
+
+
+_REMOVE_AT_EXIT: list[str] = []
+
+
+def remove_temporary() -> None:
+    """Remove the temporary sweep directories of :func:`evaluate_overrides`."""
+    while _REMOVE_AT_EXIT:
+        shutil.rmtree(_REMOVE_AT_EXIT.pop(), ignore_errors=True)
+
+
+def mark_task_error(exc: BaseException) -> None:
+    """Remember an exception raised inside the task function (a bug, not a Hydra error)."""
+    _TASK_ERRORS.append(exc)
+
+
+def _one_line(exc: BaseException) -> str:
+    """Hydra's message on one line: ``<group>: unknown choice 'x' (allowed: ...)`` for a
+    missing config, else its lines joined (without the config search path it lists)."""
+    options = getattr(exc, "options", None)
+    if options is None and isinstance(exc.__cause__, BaseException):
+        options = getattr(exc.__cause__, "options", None)
+    text = str(exc).split("Config search path:")[0]
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    missing = re.search(r"Could not (?:find|load) '([^']+)/([^'/]+)'", text)
+    if missing and options is not None:
+        group, name = missing.groups()
+        return str(ConfigError(group, f"unknown choice {name!r}", allowed=sorted(options)))
+    for err in (exc, exc.__cause__):  # OmegaConf's own: "<full_key>: <message>"
+        key, msg = getattr(err, "full_key", None), getattr(err, "msg", None)
+        if key and msg:
+            text = " ".join(str(msg).split("full_key:")[0].split())
+            if str(key).startswith("problem.params.") and "not in struct" in text:
+                text += (f" (a sweep in hydra.sweeper.params sets a parameter its YAML does "
+                         f"not list as ++{key})")
+            return f"{key}: {text}"
+    text = " ".join(ln for ln in lines if not ln.startswith("Available options")
+                    and ln not in (options or ()))
+    cause = exc.__cause__
+    if cause is not None and str(cause).strip() and str(cause).strip() not in text:
+        text += ": " + " ".join(str(cause).split())
+    return text or type(exc).__name__
+
+
+def _is_hydra_error(exc: BaseException) -> bool:
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    if any(exc is seen for seen in _TASK_ERRORS):
+        return False
+    return isinstance(exc, (HydraException, OmegaConfBaseException))
+
+
+@contextmanager
+def hydra_errors() -> Iterator[None]:
+    """Run Hydra with its errors as one line and exit code 2 (see the module docstring).
+
+    Hydra re-raises instead of printing when ``HYDRA_FULL_ERROR`` is set; it is set here
+    for the duration. A user who set it keeps Hydra's full tracebacks.
+    """
+    if os.environ.get("HYDRA_FULL_ERROR"):
+        yield
+        return
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    try:
+        yield
+    except Exception as exc:
+        if not _is_hydra_error(exc):
+            raise
+        print(f"penaltyrun: error: {_one_line(exc)}", file=sys.stderr)
+        sys.exit(2)
+    finally:
+        os.environ.pop("HYDRA_FULL_ERROR", None)
+        remove_temporary()

@@ -63,6 +63,12 @@ def preflight(argv: list[str]) -> str:
         except HydraException as exc:
             key = arg.split("=", 1)[0].lstrip("+~")
             raise ConfigError(key, f"malformed override {arg!r}: {_first_line(exc)}") from None
+    for o in parsed:
+        if o.key_or_group.startswith("hydra.sweeper.params"):
+            name = o.key_or_group.removeprefix("hydra.sweeper.params").lstrip(".") or "KEY"
+            raise ConfigError(o.key_or_group, "sweeps are given on the command line as "
+                              f"{name}=a,b with -m (hydra.sweeper.params belongs in an "
+                              "experiment profile)")
     hydra_overrides, searchpath = _searchpath(parsed)
     multirun = "-m" in argv or "--multirun" in argv
     with userconf.hydra_context(source):

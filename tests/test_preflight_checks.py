@@ -86,3 +86,10 @@ def test_command_line_values_are_checked_against_the_profiles_problems():
         preflight(["-m", "+experiment=lowthrust_baseline", "case=A,Z"])
     with pytest.raises(ConfigError, match="param: unknown choice 'bogus'"):
         preflight(["-m", "+experiment=referee_zermelo", "param=diagonal,bogus"])
+
+
+def test_sweeper_params_on_the_command_line_are_one_line():
+    from penaltyrun.preflight import preflight
+
+    with pytest.raises(ConfigError, match="bogus=a,b with -m"):
+        preflight(["-m", "mode=plan", "hydra.sweeper.params.bogus=1"])

@@ -43,7 +43,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from penaltyrun.dynamics.dop853_tableau import A_IDX, A_PTR, A_VAL, E3, E5, C, D
+from penaltyrun.dynamics.dop853_stages import dense_rows, error_norms, stage_input
+from penaltyrun.dynamics.dop853_tableau import C
 from penaltyrun.dynamics.integrate import CUTOFF, EVENT, HORIZON, NONFINITE, STEP_FAILURE
 
 #: Factor on the stage-derivative slope bound in the quick no-crossing test of a step.
@@ -136,11 +137,9 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
         v = np.empty(n)
         K = np.empty((16, n))
         F = np.empty((7, n))
-        f = np.empty(n)
         t = 0.0
         set_mode(t, y, p)
-        rhs(t, y, p, f)
-        K[0, :] = f
+        rhs(t, y, p, K[0])
         e_old = event(t, y, p)
         if e_old <= 0.0:
             return t, y, EVENT, 0
@@ -151,7 +150,7 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
         for i in range(n):
             sc = atol + abs(y[i]) * rtol
             d0 += (y[i] / sc) ** 2
-            d1 += (f[i] / sc) ** 2
+            d1 += (K[0, i] / sc) ** 2
         d0 = np.sqrt(d0 / n)
         d1 = np.sqrt(d1 / n)
         h = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
@@ -161,34 +160,12 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
             steps += 1
             if t + h > t_max:
                 h = t_max - t
-            for s in range(1, 13):
-                for i in range(n):
-                    y_tmp[i] = 0.0
-                for k in range(A_PTR[s], A_PTR[s + 1]):
-                    a = A_VAL[k]
-                    j = A_IDX[k]
-                    for i in range(n):
-                        y_tmp[i] += a * K[j, i]
-                for i in range(n):
-                    y_tmp[i] = y[i] + h * y_tmp[i]
-                if s == 12:
-                    y_new[:] = y_tmp
-                rhs(t + C[s] * h, y_tmp, p, f)
-                K[s, :] = f
-            err5 = 0.0
-            err3 = 0.0
-            finite = True
-            for i in range(n):
-                if not np.isfinite(y_new[i]):
-                    finite = False
-                sc = atol + max(abs(y[i]), abs(y_new[i])) * rtol
-                a5 = 0.0
-                a3 = 0.0
-                for j in range(13):
-                    a5 += E5[j] * K[j, i]
-                    a3 += E3[j] * K[j, i]
-                err5 += (a5 / sc) ** 2
-                err3 += (a3 / sc) ** 2
+            for s in range(1, 12):
+                stage_input(s, y, h, K, y_tmp)
+                rhs(t + C[s] * h, y_tmp, p, K[s])
+            stage_input(12, y, h, K, y_new)
+            rhs(t + h, y_new, p, K[12])
+            err5, err3, finite = error_norms(y, y_new, K, rtol, atol)
             if not finite:
                 if h < 1e-12 * max(1.0, t):
                     return t, y, NONFINITE, steps
@@ -221,27 +198,14 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
                     and g_old + g_new > sg * h):
                 # Dense output: three extra stages, then the interpolant's coefficients.
                 for s in range(13, 16):
-                    for i in range(n):
-                        y_tmp[i] = 0.0
-                    for k in range(A_PTR[s], A_PTR[s + 1]):
-                        a = A_VAL[k]
-                        j = A_IDX[k]
-                        for i in range(n):
-                            y_tmp[i] += a * K[j, i]
-                    for i in range(n):
-                        y_tmp[i] = y[i] + h * y_tmp[i]
-                    rhs(t + C[s] * h, y_tmp, p, f)
-                    K[s, :] = f
+                    stage_input(s, y, h, K, y_tmp)
+                    rhs(t + C[s] * h, y_tmp, p, K[s])
+                dense_rows(h, K, F)
                 for i in range(n):
                     dy = y_new[i] - y[i]
                     F[0, i] = dy
                     F[1, i] = h * K[0, i] - dy
                     F[2, i] = 2.0 * dy - h * (K[12, i] + K[0, i])
-                    for r in range(4):
-                        acc = 0.0
-                        for j in range(16):
-                            acc += D[r, j] * K[j, i]
-                        F[3 + r, i] = h * acc
                     bound = 0.0
                     for r in range(7):
                         bound += _BASIS_SLOPE[r] * abs(F[r, i])
@@ -294,8 +258,7 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
                 t = t + x_end * h
                 y[:] = y_probe
                 set_mode(t, y, p)
-                rhs(t, y, p, f)
-                K[0, :] = f
+                rhs(t, y, p, K[0])
                 e_old = event(t, y, p)
                 if e_old <= 0.0:
                     return t, y, EVENT, steps

@@ -9,7 +9,8 @@ event and horizon:
 * Zermelo (tol 1e-10, event ‖X‖ = 1e-3, t_max = 1000).
 
 penaltyrun is timed as one batch call of ``evaluate_batch`` (decode of the gain included for
-LQR: the Riccati solves) and as B calls of one candidate; heyoka as ``taylor_adaptive``
+LQR: the Riccati solves), as B calls of one candidate and, for LQR, as the closed loop alone
+with the gains given (as heyoka gets them); heyoka as ``taylor_adaptive``
 (scalar: one candidate after another, runtime parameters reset each time) and
 ``taylor_adaptive_batch`` with 4 and 8 SIMD lanes (the gain, for heyoka, is computed
 beforehand and not timed). CPU time (``time.process_time``), best of ``--repeats`` after
@@ -136,7 +137,7 @@ def heyoka_runs(hy, sys_ev, y0, pars, t_max, tol, batch):  # noqa: ANN001, ANN20
 
 
 def compare(hy, label: str, prob, mats, pars, sys_ev, y0, t_max: float, tol: float,  # noqa: ANN001
-            repeats: int) -> None:
+            repeats: int, gains: np.ndarray | None = None) -> None:
     """Time penaltyrun and heyoka on the same candidates and print the comparison."""
     n = pars.shape[0]
     prob.evaluate_batch({k: v[:2] for k, v in mats.items()})  # JIT warm-up
@@ -145,6 +146,9 @@ def compare(hy, label: str, prob, mats, pars, sys_ev, y0, t_max: float, tol: flo
     singles = [{k: v[b:b + 1] for k, v in mats.items()} for b in range(n)]
     t_single = cpu_best(lambda: [prob.evaluate_batch(m) for m in singles], repeats)
     rates = {"penaltyrun batch": n / t_batch, "penaltyrun one by one": n / t_single}
+    if gains is not None:  # the closed loop alone, gains given as to heyoka
+        t_kernel = cpu_best(lambda: prob.run(gains), repeats)
+        rates["penaltyrun kernel only"] = n / t_kernel
     print(f"{label}: {res.converged.sum()} of {n} random full candidates converge")
     for lanes in (1, 4, 8):
         _, run, conv, cost = heyoka_runs(hy, sys_ev, y0, pars, t_max, tol, lanes)
@@ -180,7 +184,7 @@ def main() -> None:
         pars = np.ascontiguousarray(G.reshape(args.n, 18))
         compare(hy, f"{name} / detumble", prob, mats, pars, attitude_system(hy, prob),
                 np.concatenate([prob.y0, [0.0]]), float(prob.params.t_max), args.tol,
-                args.repeats)
+                args.repeats, G if name == "attitude_lqr" else None)
     prob, mats = candidates("zermelo", "default", args.n, tol)
     pars = np.ascontiguousarray(mats["K"].reshape(args.n, 4))
     x0 = np.asarray(prob.params.x0, dtype=float)

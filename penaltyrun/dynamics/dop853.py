@@ -144,7 +144,8 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
         if e_old <= 0.0:
             return t, y, EVENT, 0
         g_old = switch(t, y, p)
-        # Initial step (Hairer, Nørsett & Wanner, II.4).
+        # Initial step (Hairer, Nørsett & Wanner, II.4): an Euler probe estimates the second
+        # derivative, h = (0.01 / max(d1, d2))^(1/8) for the order-8 method.
         d0 = 0.0
         d1 = 0.0
         for i in range(n):
@@ -153,8 +154,21 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
             d1 += (K[0, i] / sc) ** 2
         d0 = np.sqrt(d0 / n)
         d1 = np.sqrt(d1 / n)
-        h = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
-        h = min(h, max_step, t_max)
+        h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+        h0 = min(h0, max_step, t_max)
+        for i in range(n):
+            y_tmp[i] = y[i] + h0 * K[0, i]
+        rhs(t + h0, y_tmp, p, K[1])
+        d2 = 0.0
+        for i in range(n):
+            sc = atol + abs(y[i]) * rtol
+            d2 += ((K[1, i] - K[0, i]) / sc) ** 2
+        d2 = np.sqrt(d2 / n) / h0
+        if max(d1, d2) <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / max(d1, d2)) ** 0.125
+        h = min(100.0 * h0, h1, max_step, t_max)
         steps = 0
         while steps < max_steps:
             steps += 1

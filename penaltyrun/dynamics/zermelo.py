@@ -34,11 +34,17 @@ def control(x, y, p):
 
 @njit(cache=True)
 def rhs(t, y, p, out):
-    """Closed-loop right-hand side dy/dt for ``y = (x, y, J)``."""
-    u1, u2 = control(y[0], y[1], p)
-    dx, dy = drift(y[0], y[1])
-    out[0] = u1 + dx
-    out[1] = u2 + dy
+    """Closed-loop right-hand side dy/dt for ``y = (x, y, J)``: Ẋ = −Kᵀ X (the control
+    cancels the drift), J̇ = ½ |U|² with U = −d(X) − Kᵀ X (one drift evaluation)."""
+    x1 = y[0]
+    x2 = y[1]
+    k1 = p[0] * x1 + p[2] * x2
+    k2 = p[1] * x1 + p[3] * x2
+    dx, dy = drift(x1, x2)
+    u1 = -dx - k1
+    u2 = -dy - k2
+    out[0] = -k1
+    out[1] = -k2
     out[2] = 0.5 * (u1 * u1 + u2 * u2)
 
 

@@ -277,6 +277,8 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
                 if e_old <= 0.0:
                     return t, y, EVENT, steps
                 g_old = switch(t, y, p)
+                if t >= t_max:
+                    return t, y, HORIZON, steps
                 if cut_index >= 0 and y[cut_index] > cut_value:
                     return t, y, CUTOFF, steps
                 continue

@@ -176,3 +176,23 @@ def test_bitwise_deterministic():
     a = _kernel(G, y0, 0.05)
     b = _kernel(G, y0, 0.05)
     assert a[0] == b[0] and a[2] == b[2] and np.array_equal(a[1], b[1])
+
+
+def test_tableau_is_scipys_and_the_unrolled_stages_are_current():
+    from pathlib import Path
+
+    from scipy.integrate._ivp import dop853_coefficients as ref
+
+    from penaltyrun.dynamics import dop853_stages
+    from penaltyrun.dynamics import dop853_tableau as tab
+
+    A = np.zeros((16, 16))
+    for s in range(16):
+        for k in range(tab.A_PTR[s], tab.A_PTR[s + 1]):
+            A[s, tab.A_IDX[k]] = tab.A_VAL[k]
+    np.testing.assert_array_equal(A, ref.A)
+    np.testing.assert_array_equal(tab.C, ref.C)
+    np.testing.assert_array_equal(tab.E3, ref.E3)
+    np.testing.assert_array_equal(tab.E5, ref.E5)
+    np.testing.assert_array_equal(tab.D, ref.D)
+    assert Path(dop853_stages.__file__).read_text() == tab.stages_source()

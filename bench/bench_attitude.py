@@ -1,13 +1,14 @@
 """Attitude problems: production batch path vs scipy reference, and one default PSO start.
 
-For ``attitude_lyapunov`` and ``attitude_lqr`` (detumble, t_max = 100 s, rtol = atol = 1e-10,
-max step 0.2 s) the same candidates, drawn uniformly in the full (GEAGSP) box of each tuned
-matrix (eigenvalues in [1e-8, 10]), are evaluated by
+For ``attitude_lyapunov`` and ``attitude_lqr`` (detumble, t_max = 100 s, rtol = atol = 1e-10)
+the same candidates, drawn uniformly in the full (GEAGSP) box of each tuned matrix
+(eigenvalues in [1e-8, 10]), are evaluated by
 
 * the production path (``Problem.evaluate_batch``: batched Riccati for LQR + numba
-  Dormand–Prince 5(4) with dense-output event search), timed after JIT warm-up;
+  Dormand–Prince 8(5,3) with the event searched on the dense output), timed after JIT
+  warm-up;
 * the reference (``reference_cost``: scipy ``solve_continuous_are`` + ``solve_ivp`` DOP853
-  with a terminal event, same tolerances, same max step, same graded penalty).
+  with a terminal event, same tolerances, step at most 0.2 s, same graded penalty).
 
 It prints evaluations per second of both, their ratio and the largest relative cost
 difference, then the wall time of one default PSO start (``penaltyrun.optim.pso.run_pso``

@@ -128,8 +128,9 @@ def render(cells_fc: Sequence[fc.CellForecast], cfgs: Sequence[DictConfig],
     how = "multirun: Hydra runs the cells one after another" if multirun else "one cell"
     lines = [f"penaltyrun plan: {len(cells_fc)} cell{'s' * (len(cells_fc) != 1)}, "
              f"{n_jobs} jobs ({how})",
-             f"s/eval: CPU s per evaluation, mean [min–max] of {samples} random candidates "
-             f"of the box", "        (time.process_time, after one warm-up evaluation)", "",
+             f"s/eval: CPU s per evaluation, mean [min–max] of {samples} random batches "
+             f"of the box", "        (the optimizer's batch size; time.process_time, after one "
+             "warm-up evaluation)", "",
              f"{'cell (problem/case/param/optimizer)':<36} {'jobs':>4} {'evals/job≤':>10} "
              f"{'+after':>6}  {'s/eval [min–max]':<22} {'CPU':>9} {'wall':>9}"]
     lines += [_row(c, workers) for c in cells_fc]

@@ -16,7 +16,14 @@ default weights (1, 1, 1) give the main set-up's ‖(q0 − 1, q_v, ω)‖; the 
 
 Kernel parameter vector ``p`` (length :data:`N_PRM`): ``p[0:9]`` I row-major, ``p[9:18]``
 I⁻¹ row-major, ``p[18:36]`` G row-major, ``p[36]`` u_max, ``p[37]`` tol, ``p[38:41]``
-event weights (w_q0, w_qv, w_ω).
+event weights (w_q0, w_qv, w_ω), ``p[41:44]`` the saturation mode of each axis.
+
+Integration: Dormand–Prince 8(5,3) (:mod:`penaltyrun.dynamics.dop853`). With saturation the
+torque has kinks where an axis enters or leaves the limit; the integrator locates them as
+switch points and integrates each smooth piece with the axis modes frozen (−1: at −u_max,
+0: linear, +1: at +u_max), so the method keeps its order across the kinks. The mode value
+:data:`AUTO` (what :func:`pack_params` writes) clamps instead: the plain saturated law,
+for evaluating the right-hand side outside the integrator.
 """
 
 from __future__ import annotations
@@ -24,27 +31,43 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from penaltyrun.dynamics.integrate import make_dopri5
+from penaltyrun.dynamics.dop853 import make_dop853
 
 #: Number of states (quaternion 4, rates 3, cost 1).
 N_STATE = 8
 #: Length of the kernel parameter vector.
-N_PRM = 41
+N_PRM = 44
+#: Mode value of an axis whose torque is clamped on every evaluation (not frozen).
+AUTO = 2.0
 _I = 0
 _IINV = 9
 _G = 18
 _UMAX = 36
 _TOL = 37
 _W = 38
+_MODE = 41
+
+
+@njit(cache=True)
+def _linear(y, p, i):
+    """Component i of the unsaturated torque −G (q_v, ω) (N·m)."""
+    acc = 0.0
+    for j in range(3):
+        acc += p[_G + 6 * i + j] * y[1 + j] + p[_G + 6 * i + 3 + j] * y[4 + j]
+    return -acc
 
 
 @njit(cache=True)
 def _torque(y, p, i):
-    """Component i of the saturated torque u = −G (q_v, ω) (N·m)."""
-    acc = 0.0
-    for j in range(3):
-        acc += p[_G + 6 * i + j] * y[1 + j] + p[_G + 6 * i + 3 + j] * y[4 + j]
-    return min(max(-acc, -p[_UMAX]), p[_UMAX])
+    """Component i of the torque in the axis's mode (see the module docstring) (N·m)."""
+    mode = p[_MODE + i]
+    if mode == 0.0:
+        return _linear(y, p, i)
+    if mode == 1.0:
+        return p[_UMAX]
+    if mode == -1.0:
+        return -p[_UMAX]
+    return min(max(_linear(y, p, i), -p[_UMAX]), p[_UMAX])
 
 
 @njit(cache=True)
@@ -165,8 +188,66 @@ def event(t, y, p):
     return weighted_distance(y, p) - p[_TOL]
 
 
-_integrate = make_dopri5(rhs, event)
-"""Dormand–Prince 5(4) bound to this closed loop (callers are cacheable)."""
+@njit(cache=True)
+def event_slope(v, p):
+    """Bound on |d event/dt| from bounds ``v`` (≥ |dy_i/dt|): ‖W v‖ (triangle inequality)."""
+    d = (p[_W] * v[0]) ** 2
+    for i in range(1, 4):
+        d += (p[_W + 1] * v[i]) ** 2
+    for i in range(4, 7):
+        d += (p[_W + 2] * v[i]) ** 2
+    return np.sqrt(d)
+
+
+@njit(cache=True)
+def set_mode(t, y, p):
+    """Store the saturation mode of every axis at state ``y`` in ``p[41:44]``."""
+    for i in range(3):
+        s = _linear(y, p, i)
+        if s > p[_UMAX]:
+            p[_MODE + i] = 1.0
+        elif s < -p[_UMAX]:
+            p[_MODE + i] = -1.0
+        else:
+            p[_MODE + i] = 0.0
+
+
+@njit(cache=True)
+def switch(t, y, p):
+    """Distance of the unsaturated torque to the next kink, ≥ 0 inside the frozen modes
+    (N·m; ``inf`` without saturation)."""
+    if not np.isfinite(p[_UMAX]):
+        return np.inf
+    g = np.inf
+    for i in range(3):
+        s = _linear(y, p, i)
+        mode = p[_MODE + i]
+        if mode == 0.0:
+            gi = p[_UMAX] - abs(s)
+        elif mode == 1.0:
+            gi = s - p[_UMAX]
+        else:
+            gi = -p[_UMAX] - s
+        g = min(g, gi)
+    return g
+
+
+@njit(cache=True)
+def switch_slope(v, p):
+    """Bound on |d switch/dt|: max_i Σ_j |G_ij| v_j over (q_v, ω) (0 without saturation)."""
+    if not np.isfinite(p[_UMAX]):
+        return 0.0
+    out = 0.0
+    for i in range(3):
+        acc = 0.0
+        for j in range(6):
+            acc += abs(p[_G + 6 * i + j]) * v[1 + j]
+        out = max(out, acc)
+    return out
+
+
+_integrate = make_dop853(rhs, event, event_slope, switch, switch_slope, set_mode)
+"""Dormand–Prince 8(5,3) bound to this closed loop (callers are cacheable)."""
 
 
 @njit(cache=True)
@@ -199,11 +280,14 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=
     p[_W] = w_q0
     p[_W + 1] = w_qv
     p[_W + 2] = w_w
+    for i in range(3):
+        p[_MODE + i] = AUTO
 
 
 @njit(cache=True)
 def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
-                   n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0, cutoff=None):
+                   event_spacing, n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0,
+                   cutoff=None):
     """Closed-loop runs for a batch of gains and/or initial states.
 
     Gains and initial states are paired run by run; a batch of size 1 on either side is
@@ -225,8 +309,11 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
         Per-axis torque limit (N·m); ``inf`` turns saturation off.
     rtol, atol, max_step : float
         Integrator tolerances and largest step (s).
+    event_spacing : float
+        Largest time between dense-output probes of the event (and of the switch points)
+        where they come close to firing (s): dips longer than this are never stepped over.
     n_event_samples : int
-        Dense-output event checks per step.
+        At least this many probes per step in that regime.
     max_steps : int
         Step cap per run.
     w_q0, w_qv, w_w : float, optional
@@ -264,11 +351,11 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
             y[i] = y0[s, i]
         y[7] = 0.0
         if cutoff is None:
-            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, n_event_samples,
-                                      max_steps)
+            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
+                                      n_event_samples, max_steps)
         else:
-            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, n_event_samples,
-                                      max_steps, 7, cutoff[r])
+            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
+                                      n_event_samples, max_steps, 7, cutoff[r])
         t_end[r] = t
         cost[r] = yf[7]
         dist[r] = weighted_distance(yf, p)
@@ -278,7 +365,7 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
 
 @njit(cache=True)
 def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
-                n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
+                event_spacing, n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
     """One closed-loop run returning the full state at its end.
 
     Parameters are those of :func:`simulate_batch` for one run (``G`` shape (3, 6),
@@ -298,6 +385,6 @@ def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_
     y = np.zeros(N_STATE)
     for i in range(7):
         y[i] = y0[i]
-    t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, n_event_samples,
-                          max_steps)
+    t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
+                              n_event_samples, max_steps)
     return t, yf, st

@@ -7,11 +7,16 @@ For one cell (problem, case, parameterization, optimizer settings) the forecast 
   capped by ``max_evals``; an upper bound, since a stall rule may end a search earlier),
   plus the evaluations after the search: the best candidate's detailed evaluation and its
   held-out set (one per scenario, about the cost of a training evaluation);
-* the CPU time of one evaluation, from timing a few candidates drawn uniformly from the
-  decision box (``time.process_time``, each candidate alone, after one untimed warm-up
-  evaluation that compiles or loads the kernels). Random candidates are the optimizer's
-  first iteration; later candidates may be cheaper (converging transfers end early) or
-  dearer, which is why the spread is printed with the mean;
+* the CPU time of one evaluation, from timing a few batches of candidates drawn uniformly
+  from the decision box (``time.process_time``, after one untimed warm-up evaluation that
+  compiles or loads the kernels). Each batch has the optimizer's batch size (its swarm or
+  population, :func:`optimizer_batch`), because that is how the run calls the problem:
+  the per-call overhead (Python, decoding, an LQR gain's Riccati solve) is shared by the
+  batch, so one candidate alone can cost several times its share in a large swarm. A
+  batch is shrunk so that one timed call takes about :data:`BATCH_CALL_S` at most. Random
+  candidates are the optimizer's first iteration; later candidates may be cheaper
+  (converging transfers end early) or dearer, which is why the spread is printed with the
+  mean;
 * the wall time for a number of cores from the jobs' CPU times through a *wall model*:
   :func:`job_level_wall` (each job on one core, dispatched longest first, as the runner
   does). A model distributing one job's candidates over several cores (swarm level) can be
@@ -40,6 +45,8 @@ logger = logging.getLogger(__name__)
 
 #: Cluster sizes every forecast also reports (cores, one job per core).
 CLUSTER_CORES = (64, 512)
+#: CPU seconds one timed batch may take at most (the batch is shrunk for slow problems).
+BATCH_CALL_S = 1.0
 
 #: Wall model: (CPU seconds of each job, cores) → wall seconds.
 WallModel = Callable[[Sequence[float], int], float]
@@ -80,21 +87,24 @@ WALL_MODELS: dict[str, WallModel] = {"job": job_level_wall}
 
 @dataclass(frozen=True)
 class Timing:
-    """CPU time of single evaluations of random candidates of the box.
+    """CPU time per evaluation of random candidates of the box, timed in batches.
 
     Attributes
     ----------
     samples_s : tuple of float
-        CPU time of each timed candidate (s).
+        CPU time per evaluation of each timed batch (the batch's time over its size) (s).
     warmup_s : float
         CPU time of the untimed first evaluation (compiling or loading kernels) (s).
     error : str
         Why no timing is available ("" if it is).
+    batch : int
+        Candidates per timed batch.
     """
 
     samples_s: tuple[float, ...] = ()
     warmup_s: float = float("nan")
     error: str = ""
+    batch: int = 1
 
     @property
     def mean_s(self) -> float | None:
@@ -102,46 +112,75 @@ class Timing:
         return float(np.mean(self.samples_s)) if self.samples_s else None
 
     def describe(self) -> str:
-        """``0.21 s (8 candidates: min 0.05, median 0.2, max 0.9)``."""
+        """``0.21 s (8 batches of 30: min 0.05, median 0.2, max 0.9)``."""
         if not self.samples_s:
             return self.error or "not timed"
         s = np.asarray(self.samples_s)
-        return (f"{s.mean():.3g} s ({s.size} candidates: min {s.min():.3g}, median "
+        what = "candidates" if self.batch == 1 else f"batches of {self.batch}"
+        return (f"{s.mean():.3g} s ({s.size} {what}: min {s.min():.3g}, median "
                 f"{np.median(s):.3g}, max {s.max():.3g})")
 
 
-def time_candidates(problem: Any, layout: Any, n: int, seed: int) -> Timing:
-    """Time ``n`` random candidates of ``layout``'s box on ``problem``, one at a time.
+def optimizer_batch(settings: Any, dim: int) -> int:
+    """Candidates the optimizer of ``settings`` passes to the problem per call (≥ 1).
+
+    Swarm size (``pso``, ``pso_matlab``), population (``cmaes``: λ, default
+    4 + ⌊3 ln dim⌋; ``de``: max(5, popsize · dim)); 1 for anything else.
+    """
+    name = type(settings).__module__.rsplit(".", 1)[-1]
+    if name == "pso_matlab":
+        from penaltyrun.optim.pso_matlab import default_swarm_size
+
+        return int(settings.swarm_size or default_swarm_size(dim))
+    if name == "pso":
+        return int(settings.n_particles)
+    if name == "cmaes":
+        return int(settings.popsize or 4 + int(3 * math.log(dim)))
+    if name == "de":
+        return max(5, int(settings.popsize) * dim)
+    return 1
+
+
+def time_candidates(problem: Any, layout: Any, n: int, seed: int, batch: int = 1) -> Timing:
+    """Time ``n`` batches of random candidates of ``layout``'s box on ``problem``.
 
     Parameters
     ----------
     problem : Problem
     layout : DecisionLayout
     n : int
-        Candidates timed (after one untimed warm-up candidate); 0 returns no timing.
+        Batches timed (after one untimed warm-up candidate); 0 returns no timing.
     seed : int
         Seed of the candidates.
+    batch : int
+        Candidates per call (the optimizer's batch size); shrunk so that one call takes
+        about :data:`BATCH_CALL_S` at most, judged from one candidate timed alone.
 
     Returns
     -------
     Timing
-        A candidate that raises ends the timing with ``error`` set (the run records such
+        ``samples_s`` are per-evaluation times (a batch's CPU time over its size). A
+        candidate that raises ends the timing with ``error`` set (the run records such
         failures itself; the forecast never stops a run).
     """
     if n <= 0:
         return Timing(error="not timed (runner.forecast_samples=0)")
     lb, ub = layout.bounds()
-    Z = uniform_box(np.random.default_rng(seed), lb, ub, n + 1)
+    rng = np.random.default_rng(seed)
 
-    def one(z: np.ndarray) -> float:
-        mats, scalars = layout.split(z[None, :])
+    def per_eval(Z: np.ndarray) -> float:
+        mats, scalars = layout.split(Z)
         t0 = time.process_time()
         problem.evaluate_batch(mats, scalars or None)
-        return time.process_time() - t0
+        return (time.process_time() - t0) / Z.shape[0]
 
     try:
-        warm = one(Z[0])
-        return Timing(tuple(one(z) for z in Z[1:]), warm)
+        warm = per_eval(uniform_box(rng, lb, ub, 1))
+        if batch > 1:
+            alone = per_eval(uniform_box(rng, lb, ub, 1))
+            batch = max(1, min(batch, int(BATCH_CALL_S / max(alone, 1e-9))))
+        return Timing(tuple(per_eval(uniform_box(rng, lb, ub, batch)) for _ in range(n)),
+                      warm, batch=batch)
     except Exception as exc:  # reported in the forecast; the run itself records failures
         return Timing(error=f"timing failed: {type(exc).__name__}: {exc}")
 
@@ -233,7 +272,8 @@ def forecast_cell(jobs: Sequence[Job], samples: int, root_seed: int = 0,
     label = f"{job.problem}/{job.case}/{job.param}/{job.optimizer}"
     if timing is None:
         timing = time_candidates(problem, layout, samples,
-                                 job_seed(root_seed, f"forecast/{label}"))
+                                 job_seed(root_seed, f"forecast/{label}"),
+                                 optimizer_batch(settings, layout.dim))
     return CellForecast(label, tuple(jobs), job_evals(job, problem, settings, layout.dim),
                         extra_evals(problem, job.holdout), timing)
 

@@ -44,7 +44,7 @@ def test_plan_of_one_cell_is_consistent_and_writes_nothing(tmp_path):
     assert cpu == pytest.approx(jobs * (evals + extra) * mean, rel=0.06)  # 2-3 digits shown
     for cores in ("64", "512"):
         assert re.search(rf"^\s+{cores}\s+\S+ (s|min|h)", out, re.M), out
-    assert "3 random candidates" in out
+    assert "3 random batches" in out
     assert not (tmp_path / "run").exists() and not (tmp_path / "outputs").exists()
 
 
@@ -92,5 +92,5 @@ def test_a_run_logs_the_forecast_in_its_first_lines(tmp_path):
     log = [line for line in (run / "penaltyrun.log").read_text().splitlines() if line]
     assert "2 jobs" in log[0]
     assert "forecast: 2 jobs × ≤ 24 evaluations" in log[1]
-    assert "3 candidates" in log[2]
+    assert "3 batches of 6" in log[2]
     assert "CPU" in log[3] and "64 cores" in log[3] and "512 cores" in log[3]

@@ -15,10 +15,11 @@ Q_START = np.array([0.413836, -0.610042, 0.290580, 0.610042])
 Q_START = Q_START / np.linalg.norm(Q_START)
 
 
-def _final(G, y0, inertia, t_max=100.0, tol=1e-4, u_max=np.inf, rtol=1e-10, max_step=0.2):
+def _final(G, y0, inertia, t_max=100.0, tol=1e-4, u_max=np.inf, rtol=1e-10,
+           max_step=np.inf):
     return at.final_state(np.asarray(G, float), np.asarray(y0, float), inertia,
                           np.linalg.inv(inertia), t_max, tol, u_max, rtol, rtol, max_step,
-                          4, 1_000_000)
+                          0.05, 4, 1_000_000)
 
 
 def _params_vector(G, inertia, u_max=np.inf, tol=1e-4):
@@ -104,7 +105,7 @@ def test_batch_broadcasts_gains_and_starts():
     G = np.stack([np.hstack([k * np.eye(3), 3 * k * np.eye(3)]) for k in (0.5, 1.0, 2.0)])
     y0 = np.concatenate([Q_START, [0.01, -0.01, 0.01]])[None]
     Iinv = np.linalg.inv(I_DIAG)
-    args = (100.0, 1e-4, np.inf, 1e-10, 1e-10, 0.2, 4, 1_000_000)
+    args = (100.0, 1e-4, np.inf, 1e-10, 1e-10, np.inf, 0.05, 4, 1_000_000)
     t_b, c_b, d_b, s_b = at.simulate_batch(G, y0, I_DIAG, Iinv, *args)
     assert t_b.shape == (3,)
     for k in range(3):

@@ -73,7 +73,7 @@ def test_timing_of_random_candidates():
     assert cell.total_evals == 3 * (24 + cell.extra)
     assert cell.job_cpu_s == pytest.approx((24 + cell.extra) * cell.timing.mean_s)
     assert set(cell.expected_s()) == {j.job_id for j in jobs}
-    assert "4 candidates" in cell.timing.describe()
+    assert "4 batches of 6" in cell.timing.describe()
     off = fc.forecast_cell(jobs, samples=0)
     assert off.job_cpu_s is None and "forecast_samples=0" in off.timing.describe()
 

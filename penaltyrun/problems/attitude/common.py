@@ -180,7 +180,8 @@ class AttitudeProblem(AttitudeScenarios):
         return kernel.simulate_batch(
             np.ascontiguousarray(G, dtype=float), np.ascontiguousarray(y0, dtype=float),
             self.inertia, self.inertia_inv, float(p.t_max), float(p.tol), p.saturation(),
-            float(p.rtol), float(p.atol), float(p.max_step), int(p.n_event_samples),
+            float(p.rtol), float(p.atol), float(p.max_step), float(p.event_spacing),
+            int(p.n_event_samples),
             int(p.max_steps), *p.event_weights(),
             None if cutoff is None else np.ascontiguousarray(cutoff, dtype=float))
 

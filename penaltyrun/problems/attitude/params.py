@@ -82,10 +82,13 @@ class Params(ParamsMixin, TrainingParams):
     rtol, atol : float
         Integration tolerances (paper: 1e-10).
     max_step : float
-        Largest integration step (s).
+        Largest integration step (s); default none (the error control chooses the steps).
+    event_spacing : float
+        Largest time between two dense-output checks of the event (and of the saturation
+        switch points) where it could fire (s), so a short dip of the non-monotone distance
+        under ``tol`` is not stepped over: dips longer than this are always found.
     n_event_samples : int
-        Dense-output points per step where the event is checked (so a short dip of the
-        non-monotone distance under ``tol`` is not stepped over).
+        At least this many such checks per step.
     max_steps : int
         Step cap per run (hitting it counts as ``step_failure``).
     eig_bounds : tuple of float
@@ -129,7 +132,8 @@ class Params(ParamsMixin, TrainingParams):
     u_max: float | None = None
     rtol: float = 1e-10
     atol: float = 1e-10
-    max_step: float = 0.2
+    max_step: float = float("inf")
+    event_spacing: float = 0.05
     n_event_samples: int = 4
     max_steps: int = 1_000_000
     eig_bounds: tuple = (1e-8, 10.0)
@@ -211,7 +215,8 @@ def validate(params: Params) -> Params:
     w0 = np.asarray(params.omega0, dtype=float)
     if w0.shape != (3,) or not np.all(np.isfinite(w0)):
         raise ConfigError("problem.omega0", "expected 3 finite rates (rad/s)")
-    for key in ("t_max", "tol", "rtol", "atol", "max_step", "failure_penalty"):
+    for key in ("t_max", "tol", "rtol", "atol", "max_step", "event_spacing",
+                "failure_penalty"):
         value = getattr(params, key)
         if not (isinstance(value, Real) and value > 0):
             raise ConfigError(f"problem.{key}", f"must be a positive number, got {value!r}")

@@ -71,12 +71,18 @@ def _rhs_numpy(G: np.ndarray, inertia: np.ndarray, inertia_inv: np.ndarray,
     return rhs
 
 
+def reference_max_step(params: Params) -> float:
+    """Largest scipy step (s): ``max_step``, at most ``n_event_samples · event_spacing`` (0.2 s
+    by default), so that scipy's end-of-step event check does not step over a dip."""
+    return float(min(params.max_step, params.n_event_samples * params.event_spacing))
+
+
 def reference_run(G: Any, params: Params, y0: Any = None, method: str = "DOP853"
                   ) -> dict[str, Any]:
     """Independent scipy ``solve_ivp`` evaluation of one gain (slow; for tests and benches).
 
-    Uses the same event definition, ``max_step`` and tolerances as the kernel; scipy
-    checks the event sign at step ends only, which ``max_step`` makes safe.
+    Uses the same event definition and tolerances as the kernel; scipy checks the event sign
+    at step ends only, so its step is bounded by :func:`reference_max_step`.
 
     Parameters
     ----------
@@ -108,7 +114,7 @@ def reference_run(G: Any, params: Params, y0: Any = None, method: str = "DOP853"
     hit.direction = -1.0
     sol = solve_ivp(rhs, (0.0, params.t_max), np.concatenate([y_init, [0.0]]), events=hit,
                     rtol=params.rtol, atol=params.atol, method=method,
-                    max_step=params.max_step)
+                    max_step=reference_max_step(params))
     converged = bool(sol.t_events[0].size)
     y_end = sol.y_events[0][0] if converged else sol.y[:, -1]
     t_end = float(sol.t_events[0][0]) if converged else float(sol.t[-1])
@@ -144,11 +150,12 @@ def trajectory(G: Any, params: Params, t_end: float, n_points: int = 500,
     t = np.linspace(0.0, t_end, n_points)
     sol = solve_ivp(rhs, (0.0, max(t_end, 1e-12)), np.concatenate([y_init, [0.0]]), t_eval=t,
                     rtol=params.rtol, atol=params.atol, method="DOP853",
-                    max_step=params.max_step)
+                    max_step=reference_max_step(params))
     y = sol.y.T
     u = np.clip(-y[:, 1:7] @ G.T, -u_max, u_max)
     dist = params.event_distance(y)
     return {"t": sol.t, "q": y[:, :4], "w": y[:, 4:7], "u": u, "J": y[:, 7], "dist": dist}
 
 
-__all__ = ["HARD_FAILURE_FACTOR", "graded_cost", "reference_run", "trajectory"]
+__all__ = ["HARD_FAILURE_FACTOR", "graded_cost", "reference_max_step", "reference_run",
+           "trajectory"]

@@ -110,3 +110,21 @@ def test_objective_without_threshold_support_runs_every_candidate():
     lb, ub = layout.bounds()
     res = optim.minimize("pso", beat, lb, ub, settings, 1)
     assert res.n_evals == 15 and beat.n_cutoff == 0
+
+
+def test_jobs_run_with_one_blas_thread(monkeypatch):
+    """The BLAS thread limit holds while the job runs and is lifted afterwards."""
+    from threadpoolctl import threadpool_info
+
+    from penaltyrun.runner import job as job_module
+
+    seen = {}
+
+    def fake(job, evaluation=None):
+        seen["threads"] = {p["num_threads"] for p in threadpool_info()
+                           if p["user_api"] == "blas"}
+        return {"status": "ok"}
+
+    monkeypatch.setattr(job_module, "_run_job", fake)
+    assert job_module.run_job(None) == {"status": "ok"}
+    assert seen["threads"] <= {job_module.BLAS_THREADS}

@@ -49,6 +49,7 @@ def test_exit_codes_and_schema(pages):
     for code, meaning in cli.EXIT_CODES.items():
         assert f"| {int(code)} |" in codes
         assert meaning.split("(")[0].strip().replace("|", "\\|") in codes
+    assert "| 5 | `EXIT_ENVIRONMENT` |" in codes  # the machine refused a file operation
     columns = pages["reference/schema.md"]
     for name in schema.COLUMNS:
         assert f"| `{name}` |" in columns
@@ -59,6 +60,15 @@ def test_protocol_page_names_required_members(pages):
     from penaltyrun import problems
     for member in (*problems.MODULE_MEMBERS, *problems.PROBLEM_MEMBERS):
         assert f"`{member}`" in text
+
+
+def test_problems_page_lists_every_registered_problem(pages):
+    from penaltyrun import problems
+    text = pages["reference/problems.md"]
+    for name in problems.REGISTRY:
+        assert f"| `{name}` |" in text
+    assert "[Model predictive control](../explanation/mpc.md)" in text
+    assert "[Tune your own controller](../tutorials/tune-your-lqr.md)" in text
 
 
 def test_generated_text_has_no_tracker_references(pages):

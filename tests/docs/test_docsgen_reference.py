@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+from pathlib import Path
 
 import pytest
 
@@ -14,6 +15,8 @@ from penaltyrun.io import schema
 from penaltyrun.optim import OPTIMIZERS
 from penaltyrun.problems import REGISTRY
 from penaltyrun.runner.options import RUNNER_OPTIONS
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -69,6 +72,13 @@ def test_problems_page_lists_every_registered_problem(pages):
         assert f"| `{name}` |" in text
     assert "[Model predictive control](../explanation/mpc.md)" in text
     assert "[Tune your own controller](../tutorials/tune-your-lqr.md)" in text
+
+
+def test_report_page_lists_every_report_table():
+    from penaltyrun.report.build import TABLES
+    text = (ROOT / "docs" / "reference" / "report.md").read_text()
+    for stem in TABLES:
+        assert f"`{stem}.csv`" in text
 
 
 def test_generated_text_has_no_tracker_references(pages):

@@ -151,3 +151,26 @@ def test_fast_study_regenerates(name, tmp_path):
 @pytest.mark.parametrize("name", [n for n in NAMES if n not in FAST])
 def test_study_regenerates(name, tmp_path):
     run_reduced(name, tmp_path)
+
+
+def test_budget_from_selects_on_a_problem_parameter(tmp_path):
+    """The equal-budget cells read the median evaluations of one objective form's cell."""
+    from penaltyrun.io.schema import to_table
+    rows = []
+    for k, (form, evals) in enumerate([("neg_reciprocal", 100), ("neg_reciprocal", 120),
+                                       ("cost", 900), ("cost", 1000)]):
+        rows.append({"job_id": f"a-schaub_detumble-diagonal-pso_matlab-x-s{k:03d}",
+                     "problem": "attitude_lyapunov", "case": "schaub_detumble",
+                     "param": "diagonal", "optimizer": "pso_matlab", "start": k, "seed": k,
+                     "status": "ok", "best_cost": 80.0 + k, "best_converged": True,
+                     "n_evals": evals, "git_commit": "abc",
+                     "problem_params": json.dumps({"objective_form": form})})
+    (tmp_path / "defaults").mkdir()
+    pq.write_table(to_table(rows, run_id="r"), tmp_path / "defaults" / "results.parquet")
+    where = {"case": "schaub_detumble", "optimizer": "pso_matlab"}
+    command = studies.Command(subdir="eq", args=[], budget_from={
+        "subdir": "defaults", "where": {**where, "problem_params.objective_form":
+                                        "neg_reciprocal"}})
+    assert studies.budget_override(command, tmp_path) == ["optimizer.max_evals=110"]
+    command.budget_from["where"] = where
+    assert studies.budget_override(command, tmp_path) == ["optimizer.max_evals=510"]

@@ -141,8 +141,8 @@ def budget_override(command: Command, run_dir: Path) -> list[str]:
     for key, value in (spec.get("where") or {}).items():
         if key.startswith(PARAMS_PREFIX):  # a problem parameter, e.g. its objective form
             name = key.removeprefix(PARAMS_PREFIX)
-            params = frame["problem_params"].map(lambda text: json.loads(text or "{}"))
-            frame = frame[params.map(lambda p: p.get(name) == value)]
+            params = [json.loads(text or "{}") for text in frame["problem_params"]]
+            frame = frame[[p.get(name) == value for p in params]]
         else:
             frame = frame[frame[key] == value]
     if frame.empty:

@@ -122,7 +122,8 @@ def default_columns(stem: str) -> list[str]:
     from penaltyrun.report import build
     return {"summary": build.SUMMARY_MD, "comparison": build.COMPARISON_MD,
             "best_known": build.BEST_KNOWN_COLUMNS, "shortfall": build.SHORTFALL_COLUMNS,
-            "targets": build.TARGET_COLUMNS}.get(stem, [])
+            "targets": build.TARGET_COLUMNS,
+            "verdict": build.VERDICT_COLUMNS}.get(stem, [])
 
 
 def _select(frame: Any, where: dict | None) -> Any:
@@ -247,6 +248,16 @@ class Context:
             raise ValueError(f"{name}/{stem}: {len(frame)} rows match {where}, need one")
         return fmt(frame[column].iloc[0], spec)
 
+    def verdict(self, name: str, spec: str = ".4g") -> str:
+        """The report's verdict table of the study and, under it, its generated sentence per
+        row (a note when the report wrote no verdict)."""
+        table = self.csv(name, "verdict", spec=spec)
+        if not (self.study(name).folder / TABLES / "verdict.csv").is_file():
+            return table
+        sentences = self.study(name).table("verdict").get("sentence")
+        lines = [f"- {s}" for s in ([] if sentences is None else sentences.dropna())]
+        return "\n\n".join([table, *(["\n".join(lines)] if lines else [])])
+
     def held_out(self, name: str, spec: str = ".4g") -> str:
         """The report's held-out table (``holdout.csv``: one row per cell × full map and
         per best-known pair, paired by scenario) as one Markdown table per problem × case,
@@ -305,6 +316,7 @@ def environment(root: Path) -> jinja2.Environment:
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
                        held_out=ctx.held_out, table_value=ctx.table_value,
+                       verdict=ctx.verdict,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        **experiments.functions(root))
     env.filters["num"] = fmt

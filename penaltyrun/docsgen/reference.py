@@ -273,16 +273,18 @@ def page_schema() -> str:
 def page_protocol() -> str:
     """The problem protocol, read from :mod:`penaltyrun.problems.base`."""
     from penaltyrun import problems
-    from penaltyrun.problems import base
+    from penaltyrun.problems import base, report_hooks
     lines = ["# Problem protocol", "",
              "Generated from `penaltyrun/problems/base.py` and the registry's checks. A "
              "module that lacks a required member is refused with one line naming it.", "",
              "Required module members: " + ", ".join(f"`{m}`" for m in problems.MODULE_MEMBERS)
              + ". Required members of the object `make_problem` returns: "
              + ", ".join(f"`{m}`" for m in problems.PROBLEM_MEMBERS) + ".", "",
-             "## The module", "", rst_to_md(inspect.getdoc(base) or ""), ""]
+             "## The module", "", rst_to_md(inspect.getdoc(base) or ""), "",
+             "## Report hooks (optional)", "",
+             rst_to_md(inspect.getdoc(report_hooks) or ""), ""]
     for obj in (base.Problem, base.MatrixSpec, base.ScalarSpec, base.BatchEvaluation,
-                base.ParamsMixin):
+                base.ParamsMixin, base.ReportInfo, base.PaperValues, base.ReportSection):
         lines += [f"## `{obj.__name__}`", "", numpydoc_to_md(inspect.getdoc(obj) or ""), ""]
         for name, member in vars(obj).items():
             if callable(member) and not name.startswith("_") or isinstance(member, classmethod):

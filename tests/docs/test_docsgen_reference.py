@@ -63,6 +63,9 @@ def test_protocol_page_names_required_members(pages):
     from penaltyrun import problems
     for member in (*problems.MODULE_MEMBERS, *problems.PROBLEM_MEMBERS):
         assert f"`{member}`" in text
+    for hook in ("report_info", "report_plots", "report_sections", "COST_UNIT",
+                 "## `ReportInfo`", "## `PaperValues`", "## `ReportSection`"):
+        assert hook in text
 
 
 def test_problems_page_lists_every_registered_problem(pages):

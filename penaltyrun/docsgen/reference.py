@@ -273,16 +273,18 @@ def page_schema() -> str:
 def page_protocol() -> str:
     """The problem protocol, read from :mod:`penaltyrun.problems.base`."""
     from penaltyrun import problems
-    from penaltyrun.problems import base
+    from penaltyrun.problems import base, report_hooks
     lines = ["# Problem protocol", "",
              "Generated from `penaltyrun/problems/base.py` and the registry's checks. A "
              "module that lacks a required member is refused with one line naming it.", "",
              "Required module members: " + ", ".join(f"`{m}`" for m in problems.MODULE_MEMBERS)
              + ". Required members of the object `make_problem` returns: "
              + ", ".join(f"`{m}`" for m in problems.PROBLEM_MEMBERS) + ".", "",
-             "## The module", "", rst_to_md(inspect.getdoc(base) or ""), ""]
+             "## The module", "", rst_to_md(inspect.getdoc(base) or ""), "",
+             "## Report hooks (optional)", "",
+             rst_to_md(inspect.getdoc(report_hooks) or ""), ""]
     for obj in (base.Problem, base.MatrixSpec, base.ScalarSpec, base.BatchEvaluation,
-                base.ParamsMixin):
+                base.ParamsMixin, base.ReportInfo, base.PaperValues, base.ReportSection):
         lines += [f"## `{obj.__name__}`", "", numpydoc_to_md(inspect.getdoc(obj) or ""), ""]
         for name, member in vars(obj).items():
             if callable(member) and not name.startswith("_") or isinstance(member, classmethod):
@@ -301,9 +303,44 @@ def page_protocol() -> str:
     return "\n".join(lines)
 
 
+#: Where each built-in problem is explained or taught (relative to ``docs/reference``).
+PROBLEM_PAGES = {"zermelo": ("Zermelo navigation", "../explanation/zermelo.md"),
+                 "attitude_lyapunov": ("Spacecraft attitude", "../explanation/attitude.md"),
+                 "attitude_lqr": ("Spacecraft attitude", "../explanation/attitude.md"),
+                 "lyapunov_transfer": ("Low-thrust transfers", "../explanation/lowthrust.md"),
+                 "qlaw": ("Low-thrust transfers", "../explanation/lowthrust.md"),
+                 "mpc_rendezvous": ("Model predictive control", "../explanation/mpc.md"),
+                 "lqr": ("Tune your own controller", "../tutorials/tune-your-lqr.md")}
+
+
+def page_problems() -> str:
+    """The built-in problems, read from the registry and each module's report hooks."""
+    from penaltyrun import problems
+    from penaltyrun.problems import report_hooks
+    lines = ["# Problems", "",
+             "Generated from the problem registry (`penaltyrun.problems.REGISTRY`): every "
+             "built-in `problem=` choice, its cases (`case=`, the default first), the cost the "
+             "report states and where the problem is explained. Your own problem joins with "
+             "`problem=my_pkg.my_module` ([add your own problem](../how-to/add-a-problem.md)); "
+             "its parameters are under `problem.params.*` in the "
+             "[configuration keys](config.md).", "",
+             "| `problem=` | what it is | cases | cost (unit) | page |", "|---|---|---|---|---|"]
+    for name, module_path in problems.REGISTRY.items():
+        mod = problems.module(name)
+        summary = (inspect.getdoc(mod) or "").split("\n\n", 1)[0].replace("\n", " ")
+        cases = [mod.DEFAULT_CASE, *[c for c in mod.CASES if c != mod.DEFAULT_CASE]]
+        cost = report_hooks.info(mod, mod.DEFAULT_CASE, {}).cost_label
+        page = PROBLEM_PAGES.get(name)
+        lines.append(f"| `{name}` | {_text(rst_to_md(summary))} | "
+                     f"{', '.join(f'`{c}`' for c in cases)} | {_text(cost)} | "
+                     + (f"[{page[0]}]({page[1]})" if page else f"`{module_path}`") + " |")
+    return "\n".join(lines) + "\n"
+
+
 def pages() -> dict[str, str]:
     """Generated page path (relative to ``docs/``) → Markdown text."""
     return {"reference/config.md": page_config(),
             "reference/exit-codes.md": page_exit_codes(),
             "reference/schema.md": page_schema(),
-            "reference/problem-protocol.md": page_protocol()}
+            "reference/problem-protocol.md": page_protocol(),
+            "reference/problems.md": page_problems()}

@@ -26,6 +26,7 @@ from typing import Any
 
 import jinja2
 
+from penaltyrun.docsgen import experiments
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
 
 TEMPLATES = Path("studies") / "templates"
@@ -78,13 +79,58 @@ class StudyData:
     def table(self, stem: str) -> Any:
         """A report table of the study (``tables/<stem>.csv``) as a DataFrame."""
         import pandas as pd
-        return pd.read_csv(self.folder / TABLES / f"{stem}.csv")
+        frame = pd.read_csv(self.folder / TABLES / f"{stem}.csv")
+        for column in LABEL_COLUMNS:  # an empty label ("" = default variant) reads as NaN
+            if column in frame:
+                values = frame[column].astype(object)
+                frame[column] = values.where(values.notna(), "").astype(str)
+        return frame
 
     @cached_property
     def provenance(self) -> dict[str, Any]:
         """``provenance.json`` of the study (empty if absent)."""
         path = self.folder / "provenance.json"
         return json.loads(path.read_text()) if path.is_file() else {}
+
+
+#: Text columns of the report's tables where an empty value is a label (the default
+#: variant, no note), not a missing number.
+LABEL_COLUMNS = ("variant", "problem_variant", "note", "ci_note", "label")
+#: Columns of ``holdout.csv`` the results pages show.
+HELD_OUT_COLUMNS = ["optimizer", "full_map", "scenarios", "pairs", "diag_conv", "full_conv",
+                    "full_better_share", "median_imp_pct", "wilcoxon_p", "p_holm"]
+
+
+def report_table(stem: str) -> str:
+    """``stem`` if the report writes ``<stem>.csv`` (:data:`penaltyrun.report.build.TABLES`).
+
+    Raises
+    ------
+    ValueError
+        For any other name: a template naming a table the report never writes.
+    """
+    from penaltyrun.report.build import TABLES as REPORT_TABLES
+    if stem not in REPORT_TABLES:
+        raise ValueError(f"{stem!r} is not a table of the report (it writes: "
+                         f"{', '.join(sorted(REPORT_TABLES))})")
+    return stem
+
+
+def default_columns(stem: str) -> list[str]:
+    """The columns the report's own Markdown copy of a table shows (all columns of the CSV
+    for a table without one)."""
+    from penaltyrun.report import build
+    return {"summary": build.SUMMARY_MD, "comparison": build.COMPARISON_MD,
+            "best_known": build.BEST_KNOWN_COLUMNS, "shortfall": build.SHORTFALL_COLUMNS,
+            "targets": build.TARGET_COLUMNS,
+            "verdict": build.VERDICT_COLUMNS}.get(stem, [])
+
+
+def _select(frame: Any, where: dict | None) -> Any:
+    """Rows of ``frame`` matching ``where`` (column → value or list of values)."""
+    for key, value in (where or {}).items():
+        frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
+    return frame
 
 
 def fmt(value: Any, spec: str = ".4g") -> str:
@@ -168,12 +214,20 @@ class Context:
             where: dict | None = None, spec: str = ".4g") -> str:
         """A report table of the study (or some of its columns / rows) as Markdown; a note
         saying so when the study's report did not write that table (e.g. no pair of maps
-        to compare)."""
+        to compare).
+
+        Raises
+        ------
+        ValueError
+            If ``stem`` is not a table the report writes (:func:`report_table`).
+        """
+        report_table(stem)
         if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
             return f"*The report of `{name}` has no `{stem}` table.*"
-        frame = self.study(name).table(stem)
-        for key, value in (where or {}).items():
-            frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
+        frame = _select(self.study(name).table(stem), where)
+        if frame.empty:
+            return f"*The `{stem}` table of `{name}` has no row for {where}.*"
+        columns = columns or [c for c in default_columns(stem) if c in frame]
         return markdown_table(frame[columns] if columns else frame, spec)
 
     def table_value(self, name: str, stem: str, column: str, where: dict | None = None,
@@ -183,28 +237,42 @@ class Context:
         Raises
         ------
         ValueError
-            If no row or several rows match (the template's query is ambiguous).
+            If ``stem`` is not a report table, the study's report did not write it, or no
+            row or several rows match (the template's query is ambiguous).
         """
-        frame = self.study(name).table(stem)
-        for key, value in (where or {}).items():
-            frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
+        report_table(stem)
+        if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
+            raise ValueError(f"{name}: its report wrote no {stem} table")
+        frame = _select(self.study(name).table(stem), where)
         if len(frame) != 1:
             raise ValueError(f"{name}/{stem}: {len(frame)} rows match {where}, need one")
         return fmt(frame[column].iloc[0], spec)
 
+    def verdict(self, name: str, spec: str = ".4g") -> str:
+        """The report's verdict table of the study and, under it, its generated sentence per
+        row (a note when the report wrote no verdict)."""
+        table = self.csv(name, "verdict", spec=spec)
+        if not (self.study(name).folder / TABLES / "verdict.csv").is_file():
+            return table
+        sentences = self.study(name).table("verdict").get("sentence")
+        lines = [f"- {s}" for s in ([] if sentences is None else sentences.dropna())]
+        return "\n\n".join([table, *(["\n".join(lines)] if lines else [])])
+
     def held_out(self, name: str, spec: str = ".4g") -> str:
-        """Every per-family held-out table of the study's report (``holdout_<family>.csv``:
-        paired by scenario, share full better, median improvement, Wilcoxon p), one after
-        another under a heading naming the family."""
-        folder = self.study(name).folder / TABLES
-        skip = {"holdout_discretization", "holdout_tuning_modes"}
+        """The report's held-out table (``holdout.csv``: one row per cell × full map and
+        per best-known pair, paired by scenario) as one Markdown table per problem × case,
+        under a heading naming it."""
+        if not (self.study(name).folder / TABLES / "holdout.csv").is_file():
+            return "*The study's report has no held-out table.*"
+        frame = self.study(name).table("holdout")
         parts = []
-        for path in sorted(folder.glob("holdout_*.csv")):
-            if path.stem not in skip:
-                family = path.stem.removeprefix("holdout_").replace("_", " ")
-                parts.append(f"**Held-out scenarios, {family}:**\n\n"
-                             + self.csv(name, path.stem, spec=spec))
-        return "\n\n".join(parts) or "*The study's report has no held-out table.*"
+        for (problem, case, variant), group in frame.groupby(["problem", "case", "variant"],
+                                                             sort=True):
+            title = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
+            parts.append(f"**Held-out scenarios, {title}:**\n\n"
+                         + markdown_table(group[[c for c in HELD_OUT_COLUMNS
+                                                 if c in group]], spec))
+        return "\n\n".join(parts)
 
     def provenance(self, name: str) -> str:
         """One paragraph: jobs, machine, package versions and commits of the study's data."""
@@ -229,16 +297,13 @@ class Context:
                 f"versions: {versions}; commits: {', '.join(info.get('git_commits', []))}.")
 
 
-def paper_claim(problem: str) -> str:
-    """What the paper states for ``problem`` (:data:`penaltyrun.report.paper.CLAIMS`)."""
-    from penaltyrun.report.paper import CLAIMS
-    return CLAIMS[problem]
-
-
-def paper_mean(problem: str, case: str, param: str, spec: str = ".3g") -> str:
-    """The paper's mean cost of a cell (:data:`penaltyrun.report.paper.MEAN_COST`)."""
-    from penaltyrun.report.paper import MEAN_COST
-    return fmt(MEAN_COST[(problem, case)][param], spec)
+def paper_claim(problem: str, case: str) -> str:
+    """What the paper states for a problem case, as the problem declares it to the report
+    (``report_info(case, {}).paper.claim``); empty when it declares none."""
+    from penaltyrun import problems
+    from penaltyrun.problems import report_hooks
+    paper = report_hooks.info(problems.module(problem), case, {}).paper
+    return paper.claim if paper is not None else ""
 
 
 def environment(root: Path) -> jinja2.Environment:
@@ -251,8 +316,9 @@ def environment(root: Path) -> jinja2.Environment:
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
                        held_out=ctx.held_out, table_value=ctx.table_value,
+                       verdict=ctx.verdict,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
-                       paper_mean=paper_mean)
+                       **experiments.functions(root))
     env.filters["num"] = fmt
     return env
 

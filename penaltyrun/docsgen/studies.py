@@ -114,9 +114,15 @@ def list_studies(root: Path) -> list[str]:
     return sorted(p.parent.name for p in base.glob(f"*/{STUDY_FILE}")) if base.is_dir() else []
 
 
+#: ``budget_from.where`` keys with this prefix select on a problem parameter (read from
+#: the records' ``problem_params``), e.g. ``problem_params.objective_form``.
+PARAMS_PREFIX = "problem_params."
+
+
 def budget_override(command: Command, run_dir: Path) -> list[str]:
     """``optimizer.max_evals=<median n_evals>`` of the cell ``command.budget_from`` names,
     read from the records already in ``run_dir/<subdir>``; nothing without budget_from.
+    ``where`` keys are result columns, or ``problem_params.<name>`` for a problem parameter.
 
     Raises
     ------
@@ -133,7 +139,12 @@ def budget_override(command: Command, run_dir: Path) -> list[str]:
     except FileNotFoundError:
         raise StudyError(f"budget_from: no results under {source} yet") from None
     for key, value in (spec.get("where") or {}).items():
-        frame = frame[frame[key] == value]
+        if key.startswith(PARAMS_PREFIX):  # a problem parameter, e.g. its objective form
+            name = key.removeprefix(PARAMS_PREFIX)
+            params = [json.loads(text or "{}") for text in frame["problem_params"]]
+            frame = frame[[p.get(name) == value for p in params]]
+        else:
+            frame = frame[frame[key] == value]
     if frame.empty:
         raise StudyError(f"budget_from: no records match {spec.get('where')} under {source}")
     return [f"optimizer.max_evals={int(round(float(frame['n_evals'].median())))}"]

@@ -47,6 +47,32 @@ SHORTFALL_COLUMNS = ["problem", "case", "variant", "optimizer", "param", "n_conv
                      "best_known", "best", "gap_best_pct", "gap_median_pct"]
 TARGET_COLUMNS = ["problem", "case", "variant", "optimizer", "param", "epsilon", "n_reached",
                   "n_starts", "ert_evals", "median_evals_to_target"]
+#: Every CSV table the report can write (``<stem>.csv``), with what it holds. A table is
+#: written only when it has rows (e.g. no ``comparison`` without two maps of one optimizer).
+TABLES = {
+    "verdict": "one row per problem × case × problem variant: best-known diagonal and full "
+               "costs with their evidence, gain, equal-budget tests, held-out and "
+               "discretization verdicts, and the generated sentence",
+    "summary": "one row per cell: jobs, converged starts, best / median / mean / worst, "
+               "bootstrap intervals, budget, the paper's mean where published",
+    "comparison": "map against map within one optimizer and variant: medians, A12, "
+                  "Mann–Whitney p, Holm p, equal-budget flag",
+    "holdout": "held-out scenarios, every problem: per cell × full map and per best-known "
+               "pair, scenarios, pairs, convergence, share full better, median change, "
+               "Wilcoxon and Holm p",
+    "discretization": "the discretization check of each cell's best diagonal and best full "
+                      "start (problems that declare discretization re-runs)",
+    "paper": "our cells beside the published mean / median with Mood's median test and its "
+             "Holm p",
+    "paper_matrices": "our best matrices against the published ones: the published "
+                      "matrices' cost in our implementation and the distance of our best",
+    "best_known": "the lowest converged cost per problem × case × problem variant and map "
+                  "family, with its evidence",
+    "shortfall": "each cell's gap to the best-known value of its map family",
+    "targets": "fixed targets: share of starts reaching f* + ε·|f*| and the ERT",
+    "holdout_tuning_modes": "multi- against single-scenario tuning, held-out gaps side by "
+                            "side",
+}
 
 
 def methods() -> str:
@@ -245,6 +271,10 @@ def _write_report(src: Path, df: pd.DataFrame, out: Path, paper: bool) -> None:
     verdict = verdict_rows(df, bk, comp, held)
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
            "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
+    _write_csv(ctx["paper"], out, "paper")
+    if paper:
+        _write_csv(sections.paper_matrix_rows(df), out, "paper_matrices")
+    _write_csv(holdout.discretization_rows(df), out, "discretization")
     lines = ["# penaltyrun report", "",
              f"Source: `{src}` — {len(df)} jobs, {df['run_id'].nunique()} run(s).", ""]
     if not verdict.empty:
@@ -281,6 +311,15 @@ def _write_report(src: Path, df: pd.DataFrame, out: Path, paper: bool) -> None:
     text = "\n".join(lines) + "\n"
     (out / "report.md").write_text(text, encoding="utf-8")
     html.write_html(text, out, out / "report.html")
+
+
+def _write_csv(table: pd.DataFrame, out: Path, stem: str) -> None:
+    """``<stem>.csv`` of one of :data:`TABLES` when it has rows (the report shows it in
+    Markdown in the case sections)."""
+    if stem not in TABLES:
+        raise KeyError(f"{stem!r} is not a report table")
+    if not table.empty:
+        table.to_csv(out / f"{stem}.csv", index=False, encoding="utf-8")
 
 
 def _statistics(df: pd.DataFrame, bk: pd.DataFrame, out: Path) -> list[str]:

@@ -82,12 +82,26 @@ def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
     return lines
 
 
-def paper_matrices(g: pd.DataFrame) -> list[str]:
-    """Our best matrices vs the published ones: cost of the published matrix in our
-    implementation, distance of our best, starts that match it."""
+def paper_matrix_rows(df: pd.DataFrame) -> pd.DataFrame:
+    """:func:`paper_matrices` rows of every problem × case × variant of ``df`` (the
+    ``paper_matrices`` table), with ``problem``, ``case`` and ``variant`` columns."""
+    tables = []
+    for (problem, case, variant), g in df.groupby(["problem", "case", "variant"], sort=True):
+        rows = _paper_matrix_table(g)
+        if not rows.empty:
+            rows.insert(0, "variant", variant)
+            rows.insert(0, "case", case)
+            rows.insert(0, "problem", problem)
+            tables.append(rows)
+    return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+
+
+def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
+    """Our best matrices vs the published ones, one row per published map (empty without
+    published matrices)."""
     info = protocol.info_of(g)
     if info.paper is None or not info.paper.matrices:
-        return []
+        return pd.DataFrame()
     first = g.iloc[0]
     prob = problems.make(first["problem"], first["case"],
                          protocol.params_of(first.get("problem_params")))
@@ -108,11 +122,19 @@ def paper_matrices(g: pd.DataFrame) -> list[str]:
                      "deviation of our best": f"{100 * best_dev:.3g} %",
                      f"starts within {100 * MATCH_TOL:g} %": f"{sum(d <= MATCH_TOL for d in devs)}"
                                                              f"/{len(devs)}"})
-    if not rows:
+    return pd.DataFrame(rows)
+
+
+def paper_matrices(g: pd.DataFrame) -> list[str]:
+    """Our best matrices vs the published ones: cost of the published matrix in our
+    implementation, distance of our best, starts that match it."""
+    table = _paper_matrix_table(g)
+    if table.empty:
         return []
+    info = protocol.info_of(g)
     return [f"Our best matrices vs the published ones ({info.paper.source}); costs in "
             f"{info.cost_label}; deviation = max |K − K_paper| / max |K_paper|.", "",
-            markdown(pd.DataFrame(rows)), ""]
+            markdown(table), ""]
 
 
 def median_test(ours: np.ndarray, their_median: float, their_runs: int) -> float:
@@ -251,5 +273,6 @@ def contributed(df: pd.DataFrame, out: Path) -> list[str]:
     return lines
 
 
-__all__ = ["active_bounds", "contributed", "median_test", "paper_rows", "paper_section",
+__all__ = ["active_bounds", "contributed", "median_test", "paper_matrix_rows", "paper_rows",
+           "paper_section",
            "plots_section", "render"]

@@ -118,3 +118,21 @@ def test_check_command_exit_code(repo):
     done = subprocess.run(cmd, capture_output=True, text=True)
     assert done.returncode == 1
     assert "26.5200" in done.stderr and "make docs-results" in done.stderr
+
+
+def test_fidelity_page_numbers_come_from_the_experiment_files(tmp_path):
+    """The fidelity-gap page is rendered from studies/fidelity_gap/*.csv: a changed value in
+    a committed CSV makes the committed page stale."""
+    root = Path(__file__).resolve().parents[2]
+    shutil.copytree(root / "studies" / "fidelity_gap", tmp_path / "studies" / "fidelity_gap")
+    (tmp_path / "studies" / "templates").mkdir()
+    shutil.copy2(root / "studies" / "templates" / "fidelity.md",
+                 tmp_path / "studies" / "templates")
+    results.render_all(tmp_path, reference=False)
+    page = (tmp_path / "docs" / "results" / "fidelity.md").read_text()
+    assert page == (root / "docs" / "results" / "fidelity.md").read_text()
+    assert results.check(tmp_path, reference=False) == []
+    csv = tmp_path / "studies" / "fidelity_gap" / "sat_form.csv"
+    csv.write_text(csv.read_text().replace(",8730,", ",8731,"))
+    problems = results.check(tmp_path, reference=False)
+    assert len(problems) == 1 and "8731" in problems[0]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+from pathlib import Path
 
 import pytest
 
@@ -14,6 +15,8 @@ from penaltyrun.io import schema
 from penaltyrun.optim import OPTIMIZERS
 from penaltyrun.problems import REGISTRY
 from penaltyrun.runner.options import RUNNER_OPTIONS
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +52,7 @@ def test_exit_codes_and_schema(pages):
     for code, meaning in cli.EXIT_CODES.items():
         assert f"| {int(code)} |" in codes
         assert meaning.split("(")[0].strip().replace("|", "\\|") in codes
+    assert "| 5 | `EXIT_ENVIRONMENT` |" in codes  # the machine refused a file operation
     columns = pages["reference/schema.md"]
     for name in schema.COLUMNS:
         assert f"| `{name}` |" in columns
@@ -59,6 +63,25 @@ def test_protocol_page_names_required_members(pages):
     from penaltyrun import problems
     for member in (*problems.MODULE_MEMBERS, *problems.PROBLEM_MEMBERS):
         assert f"`{member}`" in text
+    for hook in ("report_info", "report_plots", "report_sections", "COST_UNIT",
+                 "## `ReportInfo`", "## `PaperValues`", "## `ReportSection`"):
+        assert hook in text
+
+
+def test_problems_page_lists_every_registered_problem(pages):
+    from penaltyrun import problems
+    text = pages["reference/problems.md"]
+    for name in problems.REGISTRY:
+        assert f"| `{name}` |" in text
+    assert "[Model predictive control](../explanation/mpc.md)" in text
+    assert "[Tune your own controller](../tutorials/tune-your-lqr.md)" in text
+
+
+def test_report_page_lists_every_report_table():
+    from penaltyrun.report.build import TABLES
+    text = (ROOT / "docs" / "reference" / "report.md").read_text()
+    for stem in TABLES:
+        assert f"`{stem}.csv`" in text
 
 
 def test_generated_text_has_no_tracker_references(pages):

@@ -65,19 +65,75 @@ def run_reduced(name: str, tmp_path: Path) -> Path:
     return merged
 
 
-def render_pages_with(name: str, dest: Path, root: Path) -> None:
-    """Render the real templates with this study's (reduced) data in place: its place on
-    every page is filled from the data, no longer pending."""
+def render_pages_with(name: str | list[str], dest: Path, root: Path) -> str:
+    """Render the real templates with the (reduced) data of ``dest`` in the place of study
+    ``name`` (or of each study of a list): its place on every page is filled from the data,
+    no longer pending. Returns the rendered text of every page."""
+    names = [name] if isinstance(name, str) else name
     for other in NAMES:
         folder = root / "studies" / other
         folder.mkdir(parents=True)
         shutil.copy2(ROOT / "studies" / other / "study.yaml", folder)
-    shutil.copytree(dest, root / "studies" / name, dirs_exist_ok=True)
+    for other in names:
+        shutil.copytree(dest, root / "studies" / other, dirs_exist_ok=True)
+    for folder in (ROOT / "studies").iterdir():  # experiments' CSV files (no study.yaml)
+        if folder.is_dir() and folder.name not in NAMES and folder.name != "templates":
+            shutil.copytree(folder, root / "studies" / folder.name)
     shutil.copytree(ROOT / "studies" / "templates", root / "studies" / "templates")
     shutil.copy2(ROOT / "README.md", root)
     text = "\n".join(results.render(root, reference=False).values())
-    assert f"study-{name}`" not in text
-    assert f"`{name}` | " in text
+    for other in names:
+        assert f"study-{other}`" not in text
+        assert f"`{other}` | " in text
+    return text
+
+
+@pytest.fixture(scope="module")
+def zermelo_study(tmp_path_factory) -> Path:
+    """A tiny real Zermelo study merged by the study machinery: diagonal against GEAGSP
+    with `pso` and the certifying grid, every job on the held-out set, and the same cells
+    tuned on two training starts (multi-scenario), so its report writes the verdict,
+    held-out, comparison, best-known, shortfall, target, paper-matrix and tuning-mode
+    tables."""
+    from penaltyrun import io, runner
+    tmp = tmp_path_factory.mktemp("zermelo_study")
+    pso = {"max_evals": 60, "n_particles": 6, "iters": 10}
+    grid = {"points_per_dim": 5, "n_local": 1, "local_max_evals": 30}
+    multi = {"train_scenarios": [{"x0": [-6.0, 8.0]}]}
+    jobs = []
+    for param in ("diagonal", "geagsp"):
+        jobs += runner.plan_jobs("zermelo", "default", param, "pso", 3, 7, {}, {}, pso, {})
+        jobs += runner.plan_jobs("zermelo", "default", param, "pso", 2, 7, multi, {}, pso, {})
+        jobs += runner.plan_jobs("zermelo", "default", param, "grid", 1, 7, {}, {}, grid, {})
+    runner.execute(jobs, tmp / "run")
+    io.collect(tmp / "run")
+    studies.merge_study(ROOT, "referee_zermelo", run_dir=tmp / "run", dest=tmp / "dest")
+    return tmp / "dest"
+
+
+#: Tables the tiny Zermelo study's report must write (Zermelo declares no published
+#: means and no discretization re-runs, so `paper` and `discretization` stay absent).
+ZERMELO_TABLES = {"verdict", "summary", "comparison", "holdout", "best_known", "shortfall",
+                  "targets", "paper_matrices", "holdout_tuning_modes"}
+
+
+def test_templates_use_only_tables_the_report_writes(zermelo_study, tmp_path):
+    written = {p.stem for p in (zermelo_study / "tables").glob("*.csv")}
+    assert ZERMELO_TABLES <= written
+    from penaltyrun.report.build import TABLES
+    assert written <= set(TABLES)
+    # every study's place filled with the same data: each template's table queries run
+    text = render_pages_with(NAMES, zermelo_study, tmp_path / "root")
+    for stem in written:
+        assert f"has no `{stem}` table" not in text
+    assert "has no held-out table" not in text
+    assert "**Held-out scenarios, zermelo / default:**" in text
+    assert "full_better_share" in text
+
+
+def test_a_template_naming_a_table_the_report_never_writes_fails(zermelo_study):
+    with pytest.raises(ValueError, match="not a table of the report"):
+        results.report_table("holdout_zermelo")
 
 
 @pytest.mark.parametrize("name", FAST)
@@ -95,3 +151,26 @@ def test_fast_study_regenerates(name, tmp_path):
 @pytest.mark.parametrize("name", [n for n in NAMES if n not in FAST])
 def test_study_regenerates(name, tmp_path):
     run_reduced(name, tmp_path)
+
+
+def test_budget_from_selects_on_a_problem_parameter(tmp_path):
+    """The equal-budget cells read the median evaluations of one objective form's cell."""
+    from penaltyrun.io.schema import to_table
+    rows = []
+    for k, (form, evals) in enumerate([("neg_reciprocal", 100), ("neg_reciprocal", 120),
+                                       ("cost", 900), ("cost", 1000)]):
+        rows.append({"job_id": f"a-schaub_detumble-diagonal-pso_matlab-x-s{k:03d}",
+                     "problem": "attitude_lyapunov", "case": "schaub_detumble",
+                     "param": "diagonal", "optimizer": "pso_matlab", "start": k, "seed": k,
+                     "status": "ok", "best_cost": 80.0 + k, "best_converged": True,
+                     "n_evals": evals, "git_commit": "abc",
+                     "problem_params": json.dumps({"objective_form": form})})
+    (tmp_path / "defaults").mkdir()
+    pq.write_table(to_table(rows, run_id="r"), tmp_path / "defaults" / "results.parquet")
+    where = {"case": "schaub_detumble", "optimizer": "pso_matlab"}
+    command = studies.Command(subdir="eq", args=[], budget_from={
+        "subdir": "defaults", "where": {**where, "problem_params.objective_form":
+                                        "neg_reciprocal"}})
+    assert studies.budget_override(command, tmp_path) == ["optimizer.max_evals=110"]
+    command.budget_from["where"] = where
+    assert studies.budget_override(command, tmp_path) == ["optimizer.max_evals=510"]

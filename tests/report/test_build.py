@@ -45,6 +45,9 @@ def test_attitude_tables_figures_and_studies(attitude_report):
     paper = pd.read_csv(attitude_report / "summary.csv")
     lqr = paper[(paper["problem"] == "attitude_lqr") & (paper["case"] == "detumble")]
     assert lqr.set_index("param").loc["diagonal", "paper_mean"] == pytest.approx(0.423)
+    published = pd.read_csv(attitude_report / "paper.csv")  # the Paper values tables as CSV
+    assert {"attitude_lqr", "attitude_lyapunov"} <= set(published["problem"])
+    assert published["Holm p"].dropna().between(0, 1).all()
     for name in ("attitude_lqr_detumble_histories.png",):
         assert (attitude_report / name).stat().st_size > 0
     assert list(attitude_report.glob("attitude_lyapunov_section*_horizon_study.png"))
@@ -67,6 +70,8 @@ def test_lowthrust_tables_and_case_e(tmp_path):
     verdict = pd.read_csv(out / "verdict.csv", keep_default_na=False)
     row = verdict[verdict["case"] == "C"].iloc[0]
     assert row["discretization"] in ("within discretization noise", "beyond the spread")
+    check = pd.read_csv(out / "discretization.csv", keep_default_na=False)
+    assert row["discretization"] in set(check["verdict"])
     for name in ("qlaw_C_trajectory.png", "qlaw_C_elements.png", "qlaw_C_thrust.png"):
         assert (out / name).stat().st_size > 0
 
@@ -118,6 +123,8 @@ def test_zermelo_report_statistics_best_known_and_anytime(zermelo_run, tmp_path)
     # one diagonal-vs-full row per optimizer of the main variant, none for the warm variant
     assert sorted(comp["optimizer"]) == ["cmaes", "grid", "pso"]
     assert set(comp["variant"]) == {""}
+    matrices = pd.read_csv(out / "paper_matrices.csv")  # ours against the published K
+    assert set(matrices["map"]) == {"diagonal", "full"}
     assert (comp["note"] != "").all()  # 3 starts: underpowered, or budgets differ
     grid = comp[comp["optimizer"] == "grid"].iloc[0]
     assert grid["note"].startswith("budgets differ")  # grid spends what its grid needs

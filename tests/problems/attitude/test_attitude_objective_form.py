@@ -130,7 +130,7 @@ def test_seeded_run_stops_where_the_stall_test_on_neg_reciprocal_predicts():
     """MATLAB's test allows a change of 1e-6·max(1, |f|): absolute on −1/J (J > 1). The run
     stops at the first iteration k > W where its own best J's give |Δ(−1/J)| ≤ 1e-6, and
     spends S·(k + 1) evaluations; the same seed under J stops later (relative test)."""
-    settings = {"swarm_size": 12, "max_iterations": 150}
+    settings = {"swarm_size": 12, "max_iterations": 400}
     rec, _ = _run(True, "neg_reciprocal", settings)
     plain, _ = _run(True, "cost", settings)
     bests = [rec.trace_best[0]] + rec.history  # J after the initial swarm, then per iteration

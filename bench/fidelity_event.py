@@ -152,7 +152,8 @@ def main() -> None:
     detectors = {
         "first_crossing": lambda g: kernel_eval(g, {}),
         "dopri_stepend_35s": lambda g: kernel_eval(g, {"max_step": 35.0,
-                                                       "n_event_samples": 1}),
+                                                       "n_event_samples": 1,
+                                                       "event_spacing": np.inf}),
         "lsoda_stepend": lambda g: scipy_eval(g[:args.scipy_max], "LSODA"),
         "dop853_stepend": lambda g: scipy_eval(g[:args.scipy_max], "DOP853"),
     }

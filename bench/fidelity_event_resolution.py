@@ -1,10 +1,10 @@
 """How many of a run's best gains still converge as the event check gets coarser?
 
 The production kernel (DOP853) probes the terminal event on its dense output; here the probes
-are set to ``n_event_samples`` points per step of at most ``max_step`` seconds
-(``event_spacing = max_step / n_event_samples``), the detector of the earlier DOPRI5 kernel.
-This script re-evaluates the best gains of recorded companion diagonal runs over a grid of (max step, samples per
-step). ``n_event_samples = 1`` is a step-end-only detector. It counts how many bests
+are set to ``n_event_samples`` points per step of at most ``max_step`` seconds (``event_spacing
+= max_step / n_event_samples``), the detector of the earlier DOPRI5 kernel. This script re-
+evaluates the best gains of recorded companion diagonal runs over a grid of (max step, samples
+per step). ``n_event_samples = 1`` is a step-end-only detector. It counts how many bests
 converge and gives the median J of those that do.
 
 Usage::

@@ -243,10 +243,18 @@ class Context:
         report_table(stem)
         if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
             raise ValueError(f"{name}: its report wrote no {stem} table")
+        return fmt(self.table_number(name, stem, column, where), spec)
+
+    def table_number(self, name: str, stem: str, column: str,
+                     where: dict | None = None) -> float:
+        """Like :meth:`table_value`, unformatted (for arithmetic in a template)."""
+        report_table(stem)
+        if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
+            raise ValueError(f"{name}: its report wrote no {stem} table")
         frame = _select(self.study(name).table(stem), where)
         if len(frame) != 1:
             raise ValueError(f"{name}/{stem}: {len(frame)} rows match {where}, need one")
-        return fmt(frame[column].iloc[0], spec)
+        return float(frame[column].iloc[0])
 
     def verdict(self, name: str, spec: str = ".4g") -> str:
         """The report's verdict table of the study and, under it, its generated sentence per
@@ -315,7 +323,7 @@ def environment(root: Path) -> jinja2.Environment:
     env.globals.update(study=ctx.study, pending=ctx.pending, value=ctx.value,
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
-                       held_out=ctx.held_out, table_value=ctx.table_value,
+                       held_out=ctx.held_out, table_value=ctx.table_value, table_number=ctx.table_number,
                        verdict=ctx.verdict,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        **experiments.functions(root))

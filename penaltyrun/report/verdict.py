@@ -37,7 +37,8 @@ def _label(problem: str, case: str, variant: str) -> str:
 
 
 def _p(value: float) -> str:
-    return "—" if not np.isfinite(value) else ("< 0.0001" if value < 1e-4 else fmt(value, 2))
+    return "—" if not np.isfinite(value) else ("< 0.0001" if value < 1e-4 else
+                                                "= " + fmt(value, 2))
 
 
 def _equal_budget(comp: pd.DataFrame, problem: str, case: str, pvar: str) -> list[dict]:
@@ -159,17 +160,17 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         p = h["p_holm"]
         if np.isfinite(p) and p < ALPHA and h["median_imp_pct"] < 0:
             tail = (f"worse on {worse} of {h['pairs']} held-out scenarios (median "
-                    f"{fmt(h['median_imp_pct'], 3)} %, Holm p = {_p(p)})")
+                    f"{fmt(h['median_imp_pct'], 3)} %, Holm p {_p(p)})")
             parts.append(("but " if gain > 0 else "and ") + tail +
                          (": the gain is specific to the training scenario" if gain > 0
                           else ""))
         elif np.isfinite(p) and p < ALPHA:
             parts.append(f"and better on {better} of {h['pairs']} held-out scenarios (median "
-                         f"+{fmt(h['median_imp_pct'], 3)} %, Holm p = {_p(p)}): the gain "
+                         f"+{fmt(h['median_imp_pct'], 3)} %, Holm p {_p(p)}): the gain "
                          "holds off the training scenario")
         else:
             parts.append(f"on the held-out scenarios there is no evidence of a difference at "
-                         f"n = {h['pairs']} (full better on {better}, Holm p = {_p(p)})")
+                         f"n = {h['pairs']} (full better on {better}, Holm p {_p(p)})")
     else:
         parts.append("no held-out result")
     tested = [r for r in budgets if r["equal_budget"] and np.isfinite(r["p_mwu"])]
@@ -177,7 +178,7 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         r = min(tested, key=lambda r: r["p_holm"])
         parts.append(f"at equal budget ({r['optimizer']}, n = {r['n_a']}/{r['n_b']}) a full "
                      f"start beats a diagonal start with probability A12 = "
-                     f"{fmt(r['a12_b_beats_a'], 2)} (Holm p = {_p(r['p_holm'])})")
+                     f"{fmt(r['a12_b_beats_a'], 2)} (Holm p {_p(r['p_holm'])})")
     elif budgets:
         parts.append("no equal-budget test (" + (
             "budgets differ" if not any(r["equal_budget"] for r in budgets)

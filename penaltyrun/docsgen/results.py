@@ -323,7 +323,8 @@ def environment(root: Path) -> jinja2.Environment:
     env.globals.update(study=ctx.study, pending=ctx.pending, value=ctx.value,
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
-                       held_out=ctx.held_out, table_value=ctx.table_value, table_number=ctx.table_number,
+                       held_out=ctx.held_out, table_value=ctx.table_value,
+                       table_number=ctx.table_number,
                        verdict=ctx.verdict,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        **experiments.functions(root))

@@ -144,6 +144,9 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
         if e_old <= 0.0:
             return t, y, EVENT, 0
         g_old = switch(t, y, p)
+        for i in range(n):
+            if not np.isfinite(K[0, i]):  # e.g. a gain of 1e308: the first derivative overflows
+                return t, y, NONFINITE, 0
         # Initial step (Hairer, Nørsett & Wanner, II.4): an Euler probe estimates the second
         # derivative, h = (0.01 / max(d1, d2))^(1/8) for the order-8 method.
         d0 = 0.0
@@ -156,6 +159,8 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
         d1 = np.sqrt(d1 / n)
         h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
         h0 = min(h0, max_step, t_max)
+        if not h0 > 0.0:
+            h0 = min(1e-6, t_max)
         for i in range(n):
             y_tmp[i] = y[i] + h0 * K[0, i]
         rhs(t + h0, y_tmp, p, K[1])

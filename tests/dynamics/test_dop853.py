@@ -196,3 +196,15 @@ def test_tableau_is_scipys_and_the_unrolled_stages_are_current():
     np.testing.assert_array_equal(tab.E5, ref.E5)
     np.testing.assert_array_equal(tab.D, ref.D)
     assert Path(dop853_stages.__file__).read_text() == tab.stages_source()
+
+
+@pytest.mark.parametrize("gain", [1e308, np.inf])
+def test_an_overflowing_first_derivative_is_a_nonfinite_status(gain):
+    """A gain so large that the first derivative overflows ends at t = 0 with status
+    NONFINITE (it raised ZeroDivisionError in the initial-step estimate)."""
+    from penaltyrun.dynamics.zermelo import simulate_batch
+
+    K = np.array([[[gain, 0.0], [0.0, gain]]])
+    t_end, _, _, status = simulate_batch(K, np.array([-8.0, 6.0]), 50.0, 1e-3, 1e-10,
+                                         1e-10, np.inf, 100000)
+    assert status[0] == integrate.NONFINITE and t_end[0] == 0.0

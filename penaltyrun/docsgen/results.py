@@ -196,18 +196,26 @@ class Context:
     def summary(self, name: str, by: list[str], where: dict | None = None,
                 cost: str = "best_cost", spec: str = ".4g") -> str:
         """Per group: starts, converged, best / median / mean / worst of ``cost`` over the
-        converged starts and the median evaluations, as a Markdown table."""
+        converged starts and the median evaluations, as a Markdown table. Starts with other
+        optimizer settings (another budget, swarm or stall rule) are never pooled: each
+        settings variant is its own row, with its ``max_evals`` budget."""
         import pandas as pd
-        frame = self.study(name).rows(where)
+        frame = self.study(name).rows(where).copy()
         ok = (frame["status"] == "ok") & frame["best_converged"].astype(bool)
+        frame["_settings"] = frame["optimizer_settings"].astype(str) \
+            if "optimizer_settings" in frame else ""
+        budget = frame["max_evals"] if "max_evals" in frame else pd.Series(index=frame.index)
         rows = []
-        for key, group in frame.groupby(by, sort=True):
+        for key, group in frame.groupby([*by, "_settings"], sort=True):
             key = key if isinstance(key, tuple) else (key,)
             good = group.loc[ok.loc[group.index], cost].astype(float)
-            rows.append({**dict(zip(by, key)), "starts": len(group),
+            cap = budget.loc[group.index].dropna()
+            rows.append({**dict(zip(by, key[:len(by)])),
+                         "budget (max_evals)": f"{int(cap.iloc[0])}" if len(cap) else "—",
+                         "starts": len(group),
                          "converged": int(len(good)), "best": good.min(),
                          "median": good.median(), "mean": good.mean(), "worst": good.max(),
-                         "evaluations (median)": group["n_evals"].median()})
+                         "evaluations (median)": f"{group['n_evals'].median():.0f}"})
         return markdown_table(pd.DataFrame(rows), spec)
 
     def csv(self, name: str, stem: str, columns: list[str] | None = None,

@@ -202,11 +202,12 @@ class Context:
         import pandas as pd
         frame = self.study(name).rows(where).copy()
         ok = (frame["status"] == "ok") & frame["best_converged"].astype(bool)
-        frame["_settings"] = frame["optimizer_settings"].astype(str) \
-            if "optimizer_settings" in frame else ""
+        settings = frame["optimizer_settings"] if "optimizer_settings" in frame else None
+        frame["_settings"] = "" if settings is None else \
+            [("" if v is None or v != v else str(v)) for v in settings]
         budget = frame["max_evals"] if "max_evals" in frame else pd.Series(index=frame.index)
         rows = []
-        for key, group in frame.groupby([*by, "_settings"], sort=True):
+        for key, group in frame.groupby([*by, "_settings"], sort=True, dropna=False):
             key = key if isinstance(key, tuple) else (key,)
             good = group.loc[ok.loc[group.index], cost].astype(float)
             cap = budget.loc[group.index].dropna()

@@ -1,8 +1,8 @@
 """Does a step-end-only event detector (as MATLAB's ode113 uses) change the cost of good
 candidates of the companion diagonal cell?
 
-The production kernel (Dormand–Prince 5(4), max step 0.2 s, the event checked at 4 dense-
-output points per step) finds the FIRST time the weighted distance falls to the threshold.
+The production kernel (DOP853, the event probed on the dense output every ``event_spacing``
+seconds near the threshold) finds the FIRST time the weighted distance falls to the threshold.
 MATLAB's ``ode113`` (variable-order Adams–Bashforth–Moulton, default MaxStep = tf/10 = 35 s)
 checks the event sign only at the ends of the steps it takes, so a short dip under the
 threshold inside one step is not seen; the run then goes on, accumulating energy, to a later
@@ -10,7 +10,8 @@ crossing (a larger J) or to t_f (a failure). This script evaluates the best cand
 recorded runs, and seeded perturbations of them, with four detectors:
 
 * ``first_crossing``: the production kernel (reference);
-* ``dopri_stepend_35s``: the same kernel with max step 35 s and the event at step ends only;
+* ``kernel_stepend_35s``: the same kernel with max step 35 s and the event at step ends only
+  (``event_spacing = inf``);
 * ``lsoda_stepend``: scipy ``LSODA`` (Adams methods on this non-stiff problem), no max step,
   events at step ends (``solve_ivp`` semantics), rel = abs tolerance 1e-10 — the closest
   scipy analogue of ode113;
@@ -151,9 +152,9 @@ def main() -> None:
     gains = np.stack(cand["gains"].to_numpy())
     detectors = {
         "first_crossing": lambda g: kernel_eval(g, {}),
-        "dopri_stepend_35s": lambda g: kernel_eval(g, {"max_step": 35.0,
-                                                       "n_event_samples": 1,
-                                                       "event_spacing": np.inf}),
+        "kernel_stepend_35s": lambda g: kernel_eval(g, {"max_step": 35.0,
+                                                        "n_event_samples": 1,
+                                                        "event_spacing": np.inf}),
         "lsoda_stepend": lambda g: scipy_eval(g[:args.scipy_max], "LSODA"),
         "dop853_stepend": lambda g: scipy_eval(g[:args.scipy_max], "DOP853"),
     }

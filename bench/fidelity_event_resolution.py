@@ -4,8 +4,8 @@ The production kernel (DOP853) probes the terminal event on its dense output; he
 are set to ``n_event_samples`` points per step of at most ``max_step`` seconds (``event_spacing
 = max_step / n_event_samples``), the detector of the earlier DOPRI5 kernel. This script re-
 evaluates the best gains of recorded companion diagonal runs over a grid of (max step, samples
-per step). ``n_event_samples = 1`` is a step-end-only detector. It counts how many bests
-converge and gives the median J of those that do.
+per step). ``n_event_samples = 1`` is a step-end-only detector (``event_spacing = inf``). It
+counts how many bests converge and gives the median J of those that do.
 
 Usage::
 
@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 from fidelity_event import candidates, kernel_eval
 
-#: (max step s, event samples per step); the first is the production setting.
+#: (max step s, event samples per step); the first is the earlier kernel's production setting.
 GRID = [(0.2, 4), (0.2, 1), (1.0, 1), (5.0, 1), (35.0, 1), (35.0, 4), (35.0, 16), (0.2, 16)]
 
 
@@ -37,7 +37,8 @@ def main() -> None:
         gains = np.stack(candidates([path], 0, 0.0, 0)["gains"].to_numpy())
         for max_step, samples in GRID:
             res = kernel_eval(gains, {"max_step": max_step, "n_event_samples": samples,
-                                      "event_spacing": max_step / samples})
+                                      "event_spacing": np.inf if samples == 1
+                                      else max_step / samples})
             conv = res["converged"].to_numpy()
             rows.append({"bests_of": label, "max_step_s": max_step,
                          "n_event_samples": samples, "step_end_only": samples == 1,

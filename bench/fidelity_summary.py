@@ -1,8 +1,8 @@
 """Evaluation counts and costs of companion-cell runs beside the authors' published ones.
 
 Each run directory's best candidates are also re-evaluated with the production kernel
-(first-crossing event, max step 0.2 s), so runs tuned under another event detector are
-compared on the same J.
+(first-crossing event, the case's default step and event settings), so runs tuned under
+another event detector are compared on the same J.
 
 Usage::
 
@@ -12,8 +12,9 @@ Usage::
 Also writes ``<out stem>_starts.csv``: one row per start (run, start, seed, evaluations,
 stop reason, J recorded and under the production kernel, event time).
 
-Columns: ``run`` (label), ``objective_form``, ``max_step_s`` and ``n_event_samples`` (the
-event detector the optimizer saw), ``starts``, evaluation counts (median, min, max and the
+Columns: ``run`` (label), ``objective_form``, ``max_step_s``, ``n_event_samples`` and
+``event_spacing_s`` (the event detector the optimizer saw; ``inf`` spacing with one sample
+per step: step ends only), ``starts``, evaluation counts (median, min, max and the
 ratio of the median to the authors' 12 450), J as recorded (``J_recorded_*``) and J of the
 same gains under the production kernel (``J_production_*``: best, median, mean, worst;
 NaN for a start whose best does not converge there, counted in
@@ -61,6 +62,7 @@ def summarize(label: str, run_dir: Path) -> tuple[dict, pd.DataFrame]:
     row = {"run": label, "case": case, "objective_form": "/".join(forms),
            "max_step_s": params[0].get("max_step"),
            "n_event_samples": params[0].get("n_event_samples"),
+           "event_spacing_s": params[0].get("event_spacing"),
            "starts": len(df),
            "evals_median": float(df["n_evals"].median()),
            "evals_min": int(df["n_evals"].min()), "evals_max": int(df["n_evals"].max()),

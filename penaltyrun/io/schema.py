@@ -235,6 +235,9 @@ def _upgrade_settings(optimizer: Any, settings_json: Any) -> Any:
     return json.dumps({**missing, **settings})
 
 
-def decode_json(value: str | None) -> Any:
-    """Parse one JSON column value (None stays None)."""
-    return None if value is None or value == "" else json.loads(value)
+def decode_json(value: str | float | None) -> Any:
+    """Parse one JSON column value; a missing value (None, ``""`` or the NaN pandas puts in
+    a column that some of the concatenated frames lack) is None."""
+    if value is None or value == "" or (isinstance(value, float) and value != value):
+        return None
+    return json.loads(value)

@@ -37,7 +37,7 @@ from penaltyrun.io import decode_json  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
 from penaltyrun.report.stats import holm  # noqa: E402
-from penaltyrun.report.tables import markdown, save_figure  # noqa: E402
+from penaltyrun.report.tables import file_stem, markdown, save_figure  # noqa: E402
 
 #: Fewer pairs than this: the Wilcoxon test is reported as underpowered.
 MIN_PAIRS = 10
@@ -299,8 +299,8 @@ def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.nd
         lines += [markdown(g, COLUMNS, HEADERS), ""]
     mine = {k: imps[k] for k in sel["label"] if k in imps}
     if mine:
-        slug = "".join(ch if ch.isalnum() else "_" for ch in f"{first['problem']}_"
-                       f"{first['case']}_{first['problem_variant']}").rstrip("_")
+        label = f"{first['problem']}_{first['case']}_{first['problem_variant']}"
+        slug = file_stem(label.rstrip("_"))
         name = f"holdout_{slug}.png"
         figure(mine, out / name, f"{first['problem']} / {first['case']}: held-out scenarios")
         lines += [f"![held-out {first['problem']} / {first['case']}]({name})", ""]

@@ -23,6 +23,7 @@ from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, family  # noqa: E402
 from penaltyrun.report.stats import converged, holm, paper_value  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
+    file_stem,
     fmt,
     markdown,
     markdown_split,
@@ -51,7 +52,7 @@ def relative_deviation(K: np.ndarray, ref: np.ndarray) -> float:
 
 
 def _slug(text: str) -> str:
-    return "".join(ch if ch.isalnum() else "_" for ch in text)[:80]
+    return file_stem(text, 80)
 
 
 def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -44,6 +45,17 @@ def with_unit(value: float, unit: str, digits: int = 5) -> str:
     """``fmt(value)`` followed by the unit (none for a nondimensional ``"1"`` or ``""``)."""
     text = fmt(value, digits)
     return text if unit in ("", "1") or text == "—" else f"{text} {unit}"
+
+
+def file_stem(text: str, limit: int = 80) -> str:
+    """``text`` as a file-name stem: every character not a letter or digit becomes ``_``;
+    a stem longer than ``limit`` keeps its first characters and ends with a hash of the
+    whole text, so stems stay distinct and within file-system limits (255 bytes)."""
+    stem = "".join(ch if ch.isalnum() else "_" for ch in str(text))
+    if len(stem) <= limit:
+        return stem
+    digest = hashlib.sha1(stem.encode()).hexdigest()[:10]
+    return f"{stem[:limit - 11]}_{digest}"
 
 
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:

@@ -23,7 +23,7 @@ import pandas as pd
 from penaltyrun.report import protocol
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_rows
 from penaltyrun.report.compare import NO_TEST
-from penaltyrun.report.holdout import BEST_KNOWN, discretization_check
+from penaltyrun.report.holdout import BEST_KNOWN, MIN_PAIRS, discretization_check
 from penaltyrun.report.tables import fmt, with_unit
 
 #: Significance level of the words in the sentences (the p-values are always printed).
@@ -68,12 +68,36 @@ def _held(held: pd.DataFrame, problem: str, case: str, pvar: str) -> dict | None
     return None if sel.empty else sel.iloc[0].to_dict()
 
 
+def _reached(h: dict) -> tuple[int, int, int]:
+    """(scenarios, reached by diagonal, reached by full) of a held-out pairing."""
+    n = int(h["scenarios"])
+    return n, int(round(h["diag_conv"] * n)), int(round(h["full_conv"] * n))
+
+
+def _few_pairs(h: dict) -> bool:
+    """Whether fewer than :data:`MIN_PAIRS` and under half of the held-out scenarios are
+    converged under both matrices: then the converged counts are the held-out answer."""
+    return h["pairs"] < MIN_PAIRS and h["pairs"] < h["scenarios"] / 2
+
+
+def _reach_text(h: dict) -> str:
+    """The converged counts when too few held-out scenarios are converged in both."""
+    n, d, f = _reached(h)
+    return (f"few held-out scenarios are converged under both matrices: diagonal reaches "
+            f"the target on {d} of {n}, full on {f} of {n}")
+
+
 def _held_text(h: dict | None) -> str:
-    if h is None or not h["pairs"]:
+    if h is None or not h["scenarios"]:
         return "—"
+    n, d, f = _reached(h)
+    reach = f"converged: diagonal {d}/{n}, full {f}/{n}"
+    if not h["pairs"]:
+        return reach
     better = int(round(h["full_better_share"] * h["pairs"]))
-    return (f"full better on {better}/{h['pairs']}, median {fmt(h['median_imp_pct'], 3)} %, "
+    text = (f"full better on {better}/{h['pairs']}, median {fmt(h['median_imp_pct'], 3)} %, "
             f"Holm p {_p(h['p_holm'])}")
+    return f"{text}; {reach}" if _few_pairs(h) else text
 
 
 def verdict_rows(df: pd.DataFrame, bk: pd.DataFrame, comp: pd.DataFrame,
@@ -171,6 +195,11 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         else:
             parts.append(f"on the held-out scenarios there is no evidence of a difference at "
                          f"n = {h['pairs']} (full better on {better}, Holm p {_p(p)})")
+        if _few_pairs(h):
+            parts.append(_reach_text(h))
+    elif h is not None and h["scenarios"]:
+        parts.append("no held-out scenario is converged under both matrices; "
+                     + _reach_text(h))
     else:
         parts.append("no held-out result")
     tested = [r for r in budgets if r["equal_budget"] and np.isfinite(r["p_mwu"])]

@@ -231,3 +231,13 @@ def test_pso_matlab_records_from_before_the_reading_settings_say_page(tmp_path):
     assert settings[0] == {**old, "neighbourhood": "others", "stall_test": "page"}
     assert settings[1] == new
     assert settings[2] == {"n_particles": 30}
+
+
+def test_decode_json_treats_every_missing_value_as_none():
+    """Concatenating frames of which only some have a JSON column leaves NaN in the others."""
+    import pandas as pd
+    frame = pd.concat([pd.DataFrame({"a": [1]}), pd.DataFrame({"a": [2], "holdout": ['{"x": 1}']})],
+                      ignore_index=True)
+    assert decode_json(frame.loc[0, "holdout"]) is None
+    assert decode_json(frame.loc[1, "holdout"]) == {"x": 1}
+    assert decode_json(None) is None and decode_json("") is None

@@ -81,3 +81,13 @@ def test_old_results_without_labels_pair_by_position(tmp_path):
     assert "rest-to-rest starts" in lines[2]  # the problem describes its held-out set
     assert list(table["pairs"]) == [2, 2]
     assert (tmp_path / "holdout_attitude_lqr_A.png").exists()
+
+
+def test_file_stem_keeps_long_labels_within_file_system_limits():
+    from penaltyrun.report.tables import file_stem
+    label = "attitude_lyapunov_rest_to_rest_train_scenarios=" + repr(
+        [{"attitude": [60.0 + k, 80.0, -60.0]} for k in range(8)])
+    other = label.replace("67.0", "68.5")
+    stem = file_stem(label)
+    assert len(stem) == 80 and stem.replace("_", "").isalnum()
+    assert file_stem(other) != stem and file_stem("a-b") == "a_b"

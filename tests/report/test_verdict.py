@@ -94,3 +94,36 @@ def test_full_worse_names_the_setting_that_stopped_the_search():
     assert stop_setting("ftol+polish", {"ftol": 1e-6, "ftol_iter": 5}) == \
         "the stall rule (`optimizer.ftol`, `optimizer.ftol_iter`)"
     assert stop_setting("max_evals", {}) == "the evaluation budget (`optimizer.max_evals`)"
+
+
+def test_mostly_unconverged_held_out_states_the_converged_counts():
+    """When few held-out scenarios converge under both matrices, the paired test rests on
+    a handful of pairs: the sentence and the table give the converged counts instead."""
+    diag_h = {"scenario": SCENARIOS, "cost": [10.0] * 12, "converged": [True] + [False] * 11}
+    full_h = {"scenario": SCENARIOS, "cost": [8.0] * 12,
+              "converged": [True, True, True] + [False] * 9}
+    rows = [job("diagonal", "pso", 10.0 + 0.1 * k, diag_h if k == 0 else None)
+            for k in range(10)]
+    rows += [job("full", "pso", 9.0 + 0.1 * k, full_h if k == 0 else None) for k in range(10)]
+    row = verdict(pd.DataFrame(rows))
+    assert "converged: diagonal 1/12, full 3/12" in row["held-out"]
+    assert ("few held-out scenarios are converged under both matrices: diagonal reaches the "
+            "target on 1 of 12, full on 3 of 12") in row["sentence"]
+    assert "no evidence of a difference at n = 1" in row["sentence"]
+
+
+def test_held_out_without_any_converged_pair_still_gives_the_counts():
+    diag_h = {"scenario": SCENARIOS, "cost": [10.0] * 12, "converged": [False] * 12}
+    full_h = {"scenario": SCENARIOS, "cost": [8.0] * 12, "converged": [True] * 2 + [False] * 10}
+    rows = [job("diagonal", "pso", 10.0 + 0.1 * k, diag_h if k == 0 else None)
+            for k in range(10)]
+    rows += [job("full", "pso", 9.0 + 0.1 * k, full_h if k == 0 else None) for k in range(10)]
+    row = verdict(pd.DataFrame(rows))
+    assert row["held-out"] == "converged: diagonal 0/12, full 2/12"
+    assert "no held-out scenario is converged under both matrices" in row["sentence"]
+    assert "no held-out result" not in row["sentence"]
+
+
+def test_well_converged_held_out_keeps_the_paired_answer_alone():
+    row = verdict(frame())
+    assert "converged:" not in row["held-out"] and "unconverged" not in row["sentence"]

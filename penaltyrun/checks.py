@@ -180,7 +180,14 @@ def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
         else:
             continue
         if not ok:
-            raise ConfigError(f"{prefix}.{key}", f"must be {what}, got {value!r}")
+            hint = ""
+            if isinstance(value, str) and value.strip().lower() in YAML_INFINITY:
+                hint = " (Hydra reads YAML's .inf as text: write inf or -inf)"
+            raise ConfigError(f"{prefix}.{key}", f"must be {what}, got {value!r}{hint}")
+
+
+#: YAML's spellings of infinity, which the command-line grammar reads as strings.
+YAML_INFINITY = (".inf", "+.inf", "-.inf")
 
 
 def _is_number(value: Any) -> bool:

@@ -93,3 +93,10 @@ def test_sweeper_params_on_the_command_line_are_one_line():
 
     with pytest.raises(ConfigError, match="bogus=a,b with -m"):
         preflight(["-m", "mode=plan", "hydra.sweeper.params.bogus=1"])
+
+
+def test_yaml_infinity_on_the_command_line_names_the_spelling_that_works():
+    with pytest.raises(ConfigError, match=r"got '\.inf' \(Hydra reads YAML's \.inf as text: "
+                                          r"write inf or -inf\)"):
+        checks.check_like_defaults({"event_spacing": ".inf"}, {"event_spacing": 0.05}, "p")
+    checks.check_like_defaults({"event_spacing": float("inf")}, {"event_spacing": 0.05}, "p")

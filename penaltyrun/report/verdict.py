@@ -198,8 +198,9 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         if _few_pairs(h):
             parts.append(_reach_text(h))
     elif h is not None and h["scenarios"]:
-        parts.append("no held-out scenario is converged under both matrices; "
-                     + _reach_text(h))
+        n_all, n_diag, n_full = _reached(h)
+        parts.append(f"no held-out scenario is converged under both matrices (diagonal "
+                     f"reaches the target on {n_diag} of {n_all}, full on {n_full} of {n_all})")
     else:
         parts.append("no held-out result")
     tested = [r for r in budgets if r["equal_budget"] and np.isfinite(r["p_mwu"])]

@@ -28,6 +28,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.overrides import parse_each
 
 KEEP_FLAG = "--keep"
 #: What an evaluation that kept no run directory says on stderr.
@@ -104,22 +105,6 @@ def check_options(argv: list[str]) -> Any:
     return _hydra_parser().parse_args(argv)
 
 
-def _parse(overrides: list[str]) -> list[Any]:
-    """Hydra's parsed overrides (each one alone, so that a bad one names itself)."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from hydra.errors import HydraException
-
-    parser = OverridesParser.create()
-    parsed = []
-    for arg in overrides:
-        try:
-            parsed.extend(parser.parse_overrides([arg]))
-        except HydraException as exc:
-            key = arg.split("=", 1)[0].lstrip("+~")
-            raise ConfigError(key, f"malformed override {arg!r}: {_one_line(exc)}") from None
-    return parsed
-
-
 def check_sweeps(overrides: list[str], multirun: bool) -> list[Any]:
     """Refuse a sweep (``param=diagonal,full``, ``range(3)``, ...) without ``-m``.
 
@@ -128,7 +113,7 @@ def check_sweeps(overrides: list[str], multirun: bool) -> list[Any]:
     list
         Hydra's parsed overrides.
     """
-    parsed = _parse(overrides)
+    parsed = parse_each(overrides, _one_line)
     if not multirun:
         for o in parsed:
             if o.is_sweep_override():

@@ -13,6 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun import cells, checks, userconf
 from penaltyrun.errors import ConfigError
+from penaltyrun.overrides import parse_each
 
 GROUPS = ("problem", "param", "optimizer", "experiment")
 #: Hydra settings the preflight needs to check the run directory.
@@ -51,18 +52,11 @@ def preflight(argv: list[str]) -> str:
         Naming the key and, where there is a list, the allowed values.
     """
     from hydra.core.override_parser.overrides_parser import OverridesParser
-    from hydra.errors import HydraException
 
     source, argv = userconf.parse_source(argv)
     args = [a for a in argv if ("=" in a or a.startswith("~")) and not a.startswith("-")]
     parser = OverridesParser.create()
-    parsed = []
-    for arg in args:
-        try:
-            parsed.extend(parser.parse_overrides([arg]))
-        except HydraException as exc:
-            key = arg.split("=", 1)[0].lstrip("+~")
-            raise ConfigError(key, f"malformed override {arg!r}: {_first_line(exc)}") from None
+    parsed = parse_each(args, _first_line, parser)
     for o in parsed:
         if o.key_or_group.startswith("hydra.sweeper.params"):
             name = o.key_or_group.removeprefix("hydra.sweeper.params").lstrip(".") or "KEY"

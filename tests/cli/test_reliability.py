@@ -1,61 +1,26 @@
 """Issue 12, one subprocess test per row of its table: worker deaths, bad files, signals,
 bad options and dask clusters each end the way the README's "Errors and exit codes" says."""
 
-import json
 import os
 import signal
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import pandas as pd
 import psutil
 import pytest
+from cli_subprocess import (
+    FAST_JOBS,
+    SLOW_JOBS,
+    alive,
+    cli,
+    one_error_line,
+    popen,
+    records,
+    report,
+    wait_for_records,
+)
 
 from penaltyrun.io import RESULTS_FILE
-
-#: Jobs of a few seconds each (long enough to kill something mid-run).
-SLOW_JOBS = ["problem=zermelo", "param=diagonal", "optimizer.n_particles=200",
-             "optimizer.iters=60", "optimizer.ftol_iter=100", "runner.report=false"]
-#: Jobs of well under a second each (one evaluation of K = I).
-FAST_JOBS = ["problem=zermelo", "optimizer=baseline", "runner.report=false"]
-
-
-def cli(*args, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=timeout)
-
-
-def popen(*args, cwd: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-
-
-def wait_for_records(run: Path, n: int = 1, timeout: float = 300) -> None:
-    deadline = time.monotonic() + timeout
-    while len(list((run / "jobs").glob("*.json"))) < n:
-        assert time.monotonic() < deadline, "no job record appeared"
-        time.sleep(0.2)
-
-
-def records(run: Path) -> list[dict]:
-    return [json.loads(p.read_text()) for p in sorted((run / "jobs").glob("*.json"))]
-
-
-def alive(pid: int) -> bool:
-    try:
-        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
-    except psutil.NoSuchProcess:
-        return False
-
-
-def one_error_line(proc: subprocess.CompletedProcess) -> str:
-    assert "Traceback" not in proc.stderr + proc.stdout, proc.stderr
-    lines = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("penaltyrun")]
-    assert len(lines) == 1, proc.stderr
-    return lines[0]
 
 
 def test_killed_pool_worker_fails_only_its_job_which_is_retried(tmp_path):
@@ -112,8 +77,7 @@ def test_truncated_job_record_is_moved_aside_and_rerun(tmp_path):
     (folder / "good" / RESULTS_FILE).write_bytes(good.read_bytes())
     (folder / "truncated" / RESULTS_FILE).write_bytes(good.read_bytes()[:300])
     (folder / "garbage" / RESULTS_FILE).write_text("garbage")
-    rep = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", str(folder)],
-                         capture_output=True, text=True, timeout=300)
+    rep = report(str(folder), timeout=300)
     assert rep.returncode == 0, rep.stderr
     assert "Traceback" not in rep.stderr
     for name in ("truncated", "garbage"):
@@ -121,9 +85,7 @@ def test_truncated_job_record_is_moved_aside_and_rerun(tmp_path):
     assert (folder / "report" / "report.md").exists()
     assert not [p for p in (folder / "report").iterdir() if p.name.startswith(".")]
     for bad in ("truncated", "garbage"):
-        rep = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli",
-                              str(folder / bad / RESULTS_FILE)],
-                             capture_output=True, text=True, timeout=300)
+        rep = report(str(folder / bad / RESULTS_FILE), timeout=300)
         assert rep.returncode == 2
         assert "no readable results" in one_error_line(rep)
 

@@ -5,47 +5,17 @@ booleans are no matrix entries, profile sweeps are checked before anything runs.
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import psutil
 import pytest
+from cli_subprocess import FAST_JOBS, SLOW_JOBS, cli, one_error_line, popen, wait_for_records
 
 from penaltyrun.io import RESULTS_FILE
-
-SLOW_JOBS = ["problem=zermelo", "param=diagonal", "optimizer.n_particles=200",
-             "optimizer.iters=60", "optimizer.ftol_iter=100", "runner.report=false"]
-FAST_JOBS = ["problem=zermelo", "optimizer=baseline", "runner.report=false"]
-
-
-def cli(*args, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=timeout)
-
-
-def popen(*args, cwd: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-
-
-def one_error_line(proc) -> str:
-    assert "Traceback" not in proc.stderr + proc.stdout, proc.stderr
-    lines = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("penaltyrun")]
-    assert len(lines) == 1, proc.stderr
-    return lines[0]
-
-
-def wait_for_records(run: Path, n: int = 1, timeout: float = 600) -> None:
-    deadline = time.monotonic() + timeout
-    while len(list((run / "jobs").glob("*.json"))) < n:
-        assert time.monotonic() < deadline, "no job record appeared"
-        time.sleep(0.2)
 
 
 def test_stopped_pool_worker_is_killed_and_its_job_retried(tmp_path):
@@ -141,49 +111,23 @@ def test_profile_sweep_values_are_checked_before_anything_runs(tmp_path, sweep, 
     assert not (tmp_path / "sweep").exists()
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _start(*args):
-    return subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_" + args[0],
-                             *args[1:]], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("evaluate_on", ["local", "dask"])
-def test_lost_scheduler_is_exit_4_and_finished_jobs_stay(tmp_path, evaluate_on):
-    distributed = pytest.importorskip("distributed")
-    port = _free_port()
-    address = f"tcp://127.0.0.1:{port}"
-    procs = [_start("scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard")]
-    try:
-        procs += [_start("worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard")
-                  for _ in range(2)]
-        with distributed.Client(address, timeout=60) as client:
-            client.wait_for_workers(2, timeout=120)
-        run = tmp_path / "run"
-        proc = popen(*SLOW_JOBS, "runner.n_starts=6", "runner.backend=dask",
-                     f"runner.evaluate_on={evaluate_on}", f"runner.scheduler={address}",
-                     f"hydra.run.dir={run}", cwd=tmp_path)
-        wait_for_records(run)
-        os.killpg(procs[0].pid, signal.SIGKILL)
-        out, err = proc.communicate(timeout=300)
-        assert proc.returncode == 4, err
-        assert "Traceback" not in out + err
-        last = err.strip().splitlines()[-1]
-        assert last.startswith("penaltyrun: error: lost the dask scheduler")
-        assert "runner.resume=true" in last
-        kept = [json.loads(p.read_text()) for p in (run / "jobs").glob("*.json")]
-        assert kept and all(r["status"] == "ok" for r in kept)
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait(timeout=10)
+def test_lost_scheduler_is_exit_4_and_finished_jobs_stay(tmp_path, evaluate_on, dask_cluster):
+    run = tmp_path / "run"
+    proc = popen(*SLOW_JOBS, "runner.n_starts=6", "runner.backend=dask",
+                 f"runner.evaluate_on={evaluate_on}", f"runner.scheduler={dask_cluster.address}",
+                 f"hydra.run.dir={run}", cwd=tmp_path)
+    wait_for_records(run)
+    os.killpg(dask_cluster.scheduler.pid, signal.SIGKILL)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 4, err
+    assert "Traceback" not in out + err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("penaltyrun: error: lost the dask scheduler")
+    assert "runner.resume=true" in last
+    kept = [json.loads(p.read_text()) for p in (run / "jobs").glob("*.json")]
+    assert kept and all(r["status"] == "ok" for r in kept)
 
 
 @pytest.mark.slow

@@ -10,24 +10,10 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from cli_subprocess import FAST_JOBS, cli, one_error_line, report
 
 from penaltyrun.cli import EXIT_CODES, EXIT_ENVIRONMENT
 from penaltyrun.io import RESULTS_FILE
-
-FAST_JOBS = ["problem=zermelo", "optimizer=baseline", "runner.report=false"]
-
-
-def cli(*args, cwd: Path, env=None, timeout: float = 600, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=timeout,
-                          env=env, **kw)
-
-
-def one_error_line(proc: subprocess.CompletedProcess) -> str:
-    assert "Traceback" not in proc.stderr + (proc.stdout or ""), proc.stderr
-    lines = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("penaltyrun")]
-    assert len(lines) == 1, proc.stderr
-    return lines[0]
 
 
 def test_environment_exit_code_is_documented():
@@ -55,8 +41,7 @@ def test_report_output_on_a_file_is_refused(tmp_path):
     assert cli(*FAST_JOBS, "runner.n_starts=1", f"hydra.run.dir={run}",
                cwd=tmp_path).returncode == 0
     (tmp_path / "afile").write_text("")
-    rep = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", str(run), "-o",
-                          str(tmp_path / "afile")], capture_output=True, text=True, timeout=300)
+    rep = report(str(run), "-o", str(tmp_path / "afile"), timeout=300)
     assert rep.returncode == 2
     assert "is a file" in one_error_line(rep)
     proc = cli("mode=report", f"report.input={run}", f"report.output={tmp_path / 'afile'}",

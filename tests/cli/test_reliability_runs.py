@@ -6,47 +6,18 @@ import json
 import os
 import shutil
 import signal
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import pandas as pd
+from cli_subprocess import FAST_JOBS, SLOW_JOBS, cli, one_error_line, popen, records, report
 
 from penaltyrun.io import RESULTS_FILE
-
-SLOW_JOBS = ["problem=zermelo", "param=diagonal", "optimizer.n_particles=200",
-             "optimizer.iters=60", "optimizer.ftol_iter=100", "runner.report=false"]
-FAST_JOBS = ["problem=zermelo", "optimizer=baseline", "runner.report=false"]
-
-
-def cli(*args, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=timeout)
-
-
-def report(*args, timeout: float = 600) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", *args],
-                          capture_output=True, text=True, timeout=timeout)
-
-
-def one_error_line(proc: subprocess.CompletedProcess) -> str:
-    assert "Traceback" not in proc.stderr + proc.stdout, proc.stderr
-    lines = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("penaltyrun")]
-    assert len(lines) == 1, proc.stderr
-    return lines[0]
-
-
-def records(run: Path) -> list[dict]:
-    return [json.loads(p.read_text()) for p in sorted((run / "jobs").glob("*.json"))]
 
 
 def test_second_run_into_a_busy_directory_is_refused_and_a_dead_one_never_blocks(tmp_path):
     run = tmp_path / "run"
-    first = subprocess.Popen([sys.executable, "-m", "penaltyrun.cli", *SLOW_JOBS,
-                              "runner.n_starts=4", "runner.workers=1", f"hydra.run.dir={run}"],
-                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             text=True, start_new_session=True)
+    first = popen(*SLOW_JOBS, "runner.n_starts=4", "runner.workers=1", f"hydra.run.dir={run}",
+                  cwd=tmp_path)
     try:
         lock = run / ".penaltyrun.lock"
         t0 = time.monotonic()

@@ -4,28 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from batched_objectives import CENTER, LB, UB, Recorder, quadratic
 
 from penaltyrun.optim import DESettings, minimize
 from penaltyrun.optim.de import run_de
-
-CENTER = np.array([0.3, -0.2, 0.5])
-LB, UB = -np.ones(3), np.ones(3)
-W = np.array([[2.0, 0.5, 0.0], [0.5, 1.0, 0.3], [0.0, 0.3, 4.0]])  # SPD coupling
-
-
-def quadratic(Z):
-    D = Z - CENTER
-    return np.einsum("bi,ij,bj->b", D, W, D)
-
-
-class Recorder:
-    def __init__(self, func):
-        self.func = func
-        self.batches: list[np.ndarray] = []
-
-    def __call__(self, Z):
-        self.batches.append(np.array(Z, copy=True))
-        return self.func(Z)
 
 
 def test_finds_minimum_of_quadratic():

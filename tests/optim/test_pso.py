@@ -9,6 +9,7 @@ import textwrap
 
 import numpy as np
 import pytest
+from batched_objectives import CENTER, LB, UB, Recorder, sphere
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.optim import (
@@ -21,25 +22,6 @@ from penaltyrun.optim import (
 )
 from penaltyrun.optim.base import CountingObjective
 from penaltyrun.optim.pso import run_pso
-
-CENTER = np.array([0.3, -0.2, 0.5])
-LB, UB = -np.ones(3), np.ones(3)
-
-
-def sphere(Z):
-    return ((Z - CENTER) ** 2).sum(axis=1)
-
-
-class Recorder:
-    """Batched objective that keeps every batch it was given."""
-
-    def __init__(self, func):
-        self.func = func
-        self.batches: list[np.ndarray] = []
-
-    def __call__(self, Z):
-        self.batches.append(np.array(Z, copy=True))
-        return self.func(Z)
 
 
 def test_finds_minimum_of_sphere():

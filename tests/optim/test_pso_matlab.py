@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from batched_objectives import CENTER, LB, UB, Recorder, sphere
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -26,25 +27,7 @@ from penaltyrun.optim.pso_matlab import (
     velocity_update,
 )
 
-CENTER = np.array([0.3, -0.2, 0.5])
-LB, UB = -np.ones(3), np.ones(3)
 RANGE = (0.1, 1.1)
-
-
-def sphere(Z):
-    return ((Z - CENTER) ** 2).sum(axis=1)
-
-
-class Recorder:
-    """Batched objective that keeps every batch it was given."""
-
-    def __init__(self, func):
-        self.func = func
-        self.batches: list[np.ndarray] = []
-
-    def __call__(self, Z):
-        self.batches.append(np.array(Z, copy=True))
-        return self.func(Z)
 
 
 # --- defaults and sizes --------------------------------------------------------------------

@@ -13,6 +13,7 @@ import json
 
 import numpy as np
 import pytest
+from attitude_agreement import I_FULL, agreement, random_spd
 from scipy.linalg import solve_continuous_are
 
 from penaltyrun.errors import ConfigError
@@ -20,22 +21,9 @@ from penaltyrun.problems import make
 from penaltyrun.problems.attitude import lqr as lqr
 
 I_DIAG = (10.0, 15.0, 20.0)
-I_FULL = ((10.0, 1.0, 0.5), (1.0, 15.0, -0.7), (0.5, -0.7, 20.0))
 QQ, QW, RR = (1.0, 2.0, 3.0), (0.5, 1.0, 4.0), (1.0, 2.0, 0.5)
 EXAMPLE = {"Q": np.diag(QQ + QW), "R": np.diag(RR)}
 WEAK = {"Q": 1e-3 * np.eye(6), "R": 10.0 * np.eye(3)}
-INITIAL_CONDITIONS = (
-    ("detumble", {}),
-    ("rest_to_rest", {}),
-    ("detumble", {"attitude": (-120.0, 30.0, 150.0), "omega0": (0.02, 0.0, -0.01),
-                  "inertia": I_FULL}),
-)
-
-
-def random_spd(rng: np.random.Generator, n: int, lo: float, hi: float) -> np.ndarray:
-    """Random SPD matrix: random rotation, eigenvalues uniform in [lo, hi]."""
-    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    return Q @ np.diag(rng.uniform(lo, hi, n)) @ Q.T
 
 
 def test_closed_form_example():
@@ -128,24 +116,14 @@ def _agreement(n_random: int, seed: int) -> tuple[int, int]:
     rng = np.random.default_rng(seed)
     cands = [EXAMPLE, WEAK] + [{"Q": random_spd(rng, 6, 0.01, 10.0),
                                 "R": random_spd(rng, 3, 0.1, 10.0)} for _ in range(n_random)]
-    n_conv = n_fail = 0
-    for case, over in INITIAL_CONDITIONS:
-        prob = make("attitude_lqr", case, over)
-        batch = {k: np.stack([c[k] for c in cands]) for k in ("Q", "R")}
-        be = prob.evaluate_batch(batch)
-        G, ok = lqr.lqr_gains(batch["Q"], batch["R"], prob.inertia)
-        assert ok.all()
-        t_end, energy, _, _ = prob.run(G)
-        for b, cand in enumerate(cands):
-            ref = lqr.reference_cost(cand, prob.params)
-            np.testing.assert_allclose(G[b], ref["gain"], rtol=1e-8, atol=1e-12)
-            assert bool(be.converged[b]) == ref["converged"], (case, b)
-            assert be.cost[b] == pytest.approx(ref["cost"], rel=1e-6)
-            assert energy[b] == pytest.approx(ref["energy"], rel=1e-6)
-            assert t_end[b] == pytest.approx(ref["t_final"], rel=1e-6)
-            n_conv += int(ref["converged"])
-            n_fail += int(not ref["converged"])
-    return n_conv, n_fail
+    return agreement("attitude_lqr", cands, ("Q", "R"), _stabilizing_gains,
+                     lqr.reference_cost, check_gains=True)
+
+
+def _stabilizing_gains(batch: dict[str, np.ndarray], prob) -> np.ndarray:
+    G, ok = lqr.lqr_gains(batch["Q"], batch["R"], prob.inertia)
+    assert ok.all()
+    return G
 
 
 def test_production_matches_reference():

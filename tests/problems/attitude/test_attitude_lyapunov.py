@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from attitude_agreement import I_FULL, agreement, random_spd
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import make
@@ -25,42 +26,20 @@ from penaltyrun.problems.attitude import lyapunov as lyap
 
 CONF = Path(__file__).resolve().parents[3] / "penaltyrun" / "conf" / "problem"
 Q_EXPECTED = np.array([0.413836, -0.610042, 0.290580, 0.610042])
-I_FULL = ((10.0, 1.0, 0.5), (1.0, 15.0, -0.7), (0.5, -0.7, 20.0))
 GOOD = {"Kp": 3.0 * np.eye(3), "Kd": 6.0 * np.eye(3)}
 SLOW = {"Kp": 0.1 * np.eye(3), "Kd": 0.5 * np.eye(3)}
-INITIAL_CONDITIONS = (
-    ("detumble", {}),
-    ("rest_to_rest", {}),
-    ("detumble", {"attitude": (-120.0, 30.0, 150.0), "omega0": (0.02, 0.0, -0.01),
-                  "inertia": I_FULL}),
-)
-
-
-def random_spd(rng: np.random.Generator, n: int, lo: float, hi: float) -> np.ndarray:
-    """Random SPD matrix: random rotation, eigenvalues uniform in [lo, hi]."""
-    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    return Q @ np.diag(rng.uniform(lo, hi, n)) @ Q.T
 
 
 def _agreement(n_random: int, seed: int) -> tuple[int, int]:
     rng = np.random.default_rng(seed)
     cands = [GOOD, SLOW] + [{"Kp": random_spd(rng, 3, 0.1, 10.0),
                              "Kd": random_spd(rng, 3, 0.1, 10.0)} for _ in range(n_random)]
-    n_conv = n_fail = 0
-    for case, over in INITIAL_CONDITIONS:
-        prob = make("attitude_lyapunov", case, over)
-        batch = {k: np.stack([c[k] for c in cands]) for k in ("Kp", "Kd")}
-        be = prob.evaluate_batch(batch)
-        t_end, energy, _, _ = prob.run(np.concatenate([batch["Kp"], batch["Kd"]], axis=-1))
-        for b, cand in enumerate(cands):
-            ref = lyap.reference_cost(cand, prob.params)
-            assert bool(be.converged[b]) == ref["converged"], (case, b)
-            assert be.cost[b] == pytest.approx(ref["cost"], rel=1e-6)
-            assert energy[b] == pytest.approx(ref["energy"], rel=1e-6)
-            assert t_end[b] == pytest.approx(ref["t_final"], rel=1e-6)
-            n_conv += int(ref["converged"])
-            n_fail += int(not ref["converged"])
-    return n_conv, n_fail
+    return agreement("attitude_lyapunov", cands, ("Kp", "Kd"), _stacked_gains,
+                     lyap.reference_cost)
+
+
+def _stacked_gains(batch: dict[str, np.ndarray], _prob) -> np.ndarray:
+    return np.concatenate([batch["Kp"], batch["Kd"]], axis=-1)
 
 
 def test_production_matches_reference():

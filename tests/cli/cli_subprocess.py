@@ -1,0 +1,71 @@
+"""Helpers shared by the subprocess tests of the command line (the ``test_reliability*``
+files and the external dask cluster test): run ``python -m penaltyrun.cli`` or
+``penaltyrun.report_cli`` in a child process, wait for and read its job records, and pick
+out the one ``penaltyrun...`` error line a bad input must give."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import psutil
+
+#: Jobs of a few seconds each (long enough to kill something mid-run).
+SLOW_JOBS = ["problem=zermelo", "param=diagonal", "optimizer.n_particles=200",
+             "optimizer.iters=60", "optimizer.ftol_iter=100", "runner.report=false"]
+#: Jobs of well under a second each (one evaluation of K = I).
+FAST_JOBS = ["problem=zermelo", "optimizer=baseline", "runner.report=false"]
+
+
+def cli(*args: str, cwd: Path, timeout: float = 600, **kw) -> subprocess.CompletedProcess:
+    """Run ``python -m penaltyrun.cli *args`` in ``cwd`` to the end (``timeout`` in seconds),
+    capturing its output as text; ``kw`` goes to :func:`subprocess.run` (``env=`` ...)."""
+    return subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=timeout, **kw)
+
+
+def popen(*args: str, cwd: Path) -> subprocess.Popen:
+    """Start ``python -m penaltyrun.cli *args`` in ``cwd`` in a session of its own (so that
+    ``os.killpg`` reaches its workers), its output piped as text."""
+    return subprocess.Popen([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+def report(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run ``python -m penaltyrun.report_cli *args`` to the end, capturing its output."""
+    return subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", *args],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def wait_for_records(run: Path, n: int = 1, timeout: float = 600) -> None:
+    """Wait until the run directory ``run`` holds ``n`` job records (``timeout`` seconds)."""
+    deadline = time.monotonic() + timeout
+    while len(list((run / "jobs").glob("*.json"))) < n:
+        assert time.monotonic() < deadline, "no job record appeared"
+        time.sleep(0.2)
+
+
+def records(run: Path) -> list[dict]:
+    """The job records of the run directory ``run``, in file name order."""
+    return [json.loads(p.read_text()) for p in sorted((run / "jobs").glob("*.json"))]
+
+
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
+
+
+def one_error_line(proc: subprocess.CompletedProcess) -> str:
+    """The single ``penaltyrun...`` line on ``proc``'s standard error; fails on a traceback
+    or on any other number of such lines (``proc.stdout`` may be ``None``: not captured)."""
+    assert "Traceback" not in proc.stderr + (proc.stdout or ""), proc.stderr
+    lines = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("penaltyrun")]
+    assert len(lines) == 1, proc.stderr
+    return lines[0]

@@ -28,7 +28,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import parse_each
+from penaltyrun.overrides import parse_each, split_argv
 
 KEEP_FLAG = "--keep"
 #: What an evaluation that kept no run directory says on stderr.
@@ -58,33 +58,13 @@ def _hydra_parser() -> Any:
     return parser
 
 
-#: Hydra's options that take a value (``--info`` takes one only from its choices).
-VALUE_OPTIONS = ("--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--config-name",
-                 "-cn", "--config-dir", "-cd", "--experimental-rerun")
-INFO_CHOICES = ("all", "config", "defaults", "defaults-tree", "plugins", "searchpath")
-
-
 def options_first(argv: list[str]) -> list[str]:
     """``argv`` with the options (and their values) before the overrides, in their order.
 
     Hydra's parser refuses an option between overrides (``a=1 -m b=2``); penaltyrun accepts
     them anywhere, as a user writes them.
     """
-    options: list[str] = []
-    overrides: list[str] = []
-    i = 0
-    while i < len(argv):
-        arg = argv[i]
-        if arg.startswith("-"):
-            options.append(arg)
-            takes = arg in VALUE_OPTIONS or (arg in ("--info", "-i") and i + 1 < len(argv)
-                                             and argv[i + 1] in INFO_CHOICES)
-            if takes and i + 1 < len(argv):
-                options.append(argv[i + 1])
-                i += 1
-        else:
-            overrides.append(arg)
-        i += 1
+    options, overrides = split_argv(argv)
     return options + overrides
 
 

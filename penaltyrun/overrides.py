@@ -12,6 +12,33 @@ from typing import Any
 
 from penaltyrun.errors import ConfigError
 
+#: Hydra's options that take a value (``--info`` takes one only from its choices).
+VALUE_OPTIONS = ("--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--config-name",
+                 "-cn", "--config-dir", "-cd", "--experimental-rerun")
+INFO_CHOICES = ("all", "config", "defaults", "defaults-tree", "plugins", "searchpath")
+
+
+def split_argv(argv: list[str]) -> tuple[list[str], list[str]]:
+    """``argv`` split into Hydra's options with their values, and the overrides, each in
+    their order: the value of an option that takes one (``-p pkg=x``) is never an
+    override."""
+    options: list[str] = []
+    overrides: list[str] = []
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg.startswith("-"):
+            options.append(arg)
+            takes = arg in VALUE_OPTIONS or (arg in ("--info", "-i") and i + 1 < len(argv)
+                                             and argv[i + 1] in INFO_CHOICES)
+            if takes and i + 1 < len(argv):
+                options.append(argv[i + 1])
+                i += 1
+        else:
+            overrides.append(arg)
+        i += 1
+    return options, overrides
+
 
 def parse_each(args: Iterable[str], describe: Callable[[BaseException], str],
                parser: Any = None) -> list[Any]:

@@ -13,7 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun import cells, checks, userconf
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import parse_each
+from penaltyrun.overrides import parse_each, split_argv
 
 GROUPS = ("problem", "param", "optimizer", "experiment")
 #: Hydra settings the preflight needs to check the run directory.
@@ -54,7 +54,7 @@ def preflight(argv: list[str]) -> str:
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     source, argv = userconf.parse_source(argv)
-    args = [a for a in argv if ("=" in a or a.startswith("~")) and not a.startswith("-")]
+    args = [a for a in split_argv(argv)[1] if "=" in a or a.startswith("~")]
     parser = OverridesParser.create()
     parsed = parse_each(args, _first_line, parser)
     for o in parsed:

@@ -241,7 +241,8 @@ class Context:
 
     def table_value(self, name: str, stem: str, column: str, where: dict | None = None,
                     spec: str = ".4g") -> str:
-        """One entry of a report table: the row matching ``where`` must be unique.
+        """One entry of a report table (text as the report wrote it, a number formatted with
+        ``spec``): the row matching ``where`` must be unique.
 
         Raises
         ------
@@ -252,7 +253,11 @@ class Context:
         report_table(stem)
         if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
             raise ValueError(f"{name}: its report wrote no {stem} table")
-        return fmt(self.table_number(name, stem, column, where), spec)
+        frame = _select(self.study(name).table(stem), where)
+        if len(frame) != 1:
+            raise ValueError(f"{name}/{stem}: {len(frame)} rows match {where}, need one")
+        entry = frame[column].iloc[0]
+        return entry if isinstance(entry, str) else fmt(float(entry), spec)
 
     def table_number(self, name: str, stem: str, column: str,
                      where: dict | None = None) -> float:

@@ -54,6 +54,7 @@ def copied(tmp_path_factory):
     return where
 
 
+@pytest.mark.slow  # about 18 s: a whole tuning run and its report
 def test_readme_optimize_and_report_commands(copied):
     out = copied / "outputs" / "cartpole"
     df = read_results(out)

@@ -53,6 +53,7 @@ def test_yaml_is_a_valid_problem(folder):
     assert [s.size for s in prob.matrices] == [4, 2] and prob.u_max is not None
 
 
+@pytest.mark.slow  # about 18 s: a whole tuning run and its report
 def test_tune_and_report_commands(folder):
     for line in blocks("sh")[0].strip().splitlines():
         run(line, folder)

@@ -7,11 +7,23 @@
   examples every time and its result does not depend on luck, and no example database.
 
 ``HYPOTHESIS_PROFILE=dev|ci`` chooses a profile explicitly.
+
+And one guard: only the pytest process itself runs tests. A process forked from it that
+came back into pytest's loop instead of exiting would run tests of its own and write their
+progress into pytest's output (a stray "F" and dots in a progress line, with a summary that
+says nothing failed); :func:`pytest_runtest_protocol` ends such a process at once, silently,
+and leaves the name of the test it reached in ``<tmp>/penaltyrun-escaped-child-<pid>.txt``.
 """
 
 import os
+import tempfile
+from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, settings
+
+#: The pytest process; any other process reaching the test loop was forked from it.
+SESSION_PID = os.getpid()
 
 settings.register_profile(
     "dev", deadline=None, max_examples=50, suppress_health_check=[HealthCheck.too_slow],
@@ -22,3 +34,15 @@ settings.register_profile(
 )
 _in_ci = os.environ.get("CI", "").strip().lower() in ("true", "1", "yes")
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if _in_ci else "dev"))
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_protocol(item, nextitem):
+    """End a forked child that came back into the test loop, before it runs a test."""
+    if os.getpid() != SESSION_PID:
+        note = Path(tempfile.gettempdir()) / f"penaltyrun-escaped-child-{os.getpid()}.txt"
+        try:
+            note.write_text(f"forked from {SESSION_PID}; reached {item.nodeid}\n")
+        finally:
+            os._exit(70)
+    return None

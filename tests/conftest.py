@@ -11,8 +11,10 @@
 And one guard: only the pytest process itself runs tests. A process forked from it that
 came back into pytest's loop instead of exiting would run tests of its own and write their
 progress into pytest's output (a stray "F" and dots in a progress line, with a summary that
-says nothing failed); :func:`pytest_runtest_protocol` ends such a process at once, silently,
-and leaves the name of the test it reached in ``<tmp>/penaltyrun-escaped-child-<pid>.txt``.
+says nothing failed). :func:`pytest_runtest_makereport` and :func:`pytest_runtest_protocol`
+end such a process at once and silently, before it reports the test it was forked in or
+runs another, and leave where it got to, with the exception, in
+``<tmp>/penaltyrun-escaped-child-<pid>.txt``.
 """
 
 import os
@@ -36,13 +38,28 @@ _in_ci = os.environ.get("CI", "").strip().lower() in ("true", "1", "yes")
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if _in_ci else "dev"))
 
 
+def _end_escaped_child(what: str) -> None:
+    """In a process forked from pytest: leave the note and exit at once (70)."""
+    note = Path(tempfile.gettempdir()) / f"penaltyrun-escaped-child-{os.getpid()}.txt"
+    try:
+        with note.open("a") as out:
+            out.write(f"forked from {SESSION_PID}; {what}\n")
+    finally:
+        os._exit(70)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_makereport(item, call):
+    """End a forked child that returned into the test it was forked in, before pytest
+    reports that test from it; the note names the test, the phase and the exception."""
+    if os.getpid() != SESSION_PID:
+        exc = "" if call.excinfo is None else f": {call.excinfo.exconly()[:2000]}"
+        _end_escaped_child(f"returned into {item.nodeid} ({call.when}){exc}")
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_protocol(item, nextitem):
     """End a forked child that came back into the test loop, before it runs a test."""
     if os.getpid() != SESSION_PID:
-        note = Path(tempfile.gettempdir()) / f"penaltyrun-escaped-child-{os.getpid()}.txt"
-        try:
-            note.write_text(f"forked from {SESSION_PID}; reached {item.nodeid}\n")
-        finally:
-            os._exit(70)
+        _end_escaped_child(f"reached {item.nodeid}")
     return None

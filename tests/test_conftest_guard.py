@@ -27,3 +27,20 @@ def test_a_forked_child_reaching_the_test_loop_exits_and_leaves_a_note():
         assert note.read_text() == f"forked from {os.getpid()}; reached tests/x.py::test_y\n"
     finally:
         note.unlink(missing_ok=True)
+
+
+def test_a_forked_child_returning_into_its_test_exits_before_the_report():
+    item = types.SimpleNamespace(nodeid="tests/x.py::test_z")
+    call = types.SimpleNamespace(when="call", excinfo=None)
+    pid = os.fork()
+    if pid == 0:
+        conftest.pytest_runtest_makereport(item, call)
+        os._exit(0)  # not reached when the guard works
+    _, status = os.waitpid(pid, 0)
+    note = Path(tempfile.gettempdir()) / f"penaltyrun-escaped-child-{pid}.txt"
+    try:
+        assert os.WIFEXITED(status) and os.WEXITSTATUS(status) == 70
+        assert note.read_text() == (f"forked from {os.getpid()}; returned into "
+                                    "tests/x.py::test_z (call)\n")
+    finally:
+        note.unlink(missing_ok=True)

@@ -250,25 +250,23 @@ class Context:
             If ``stem`` is not a report table, the study's report did not write it, or no
             row or several rows match (the template's query is ambiguous).
         """
-        report_table(stem)
-        if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
-            raise ValueError(f"{name}: its report wrote no {stem} table")
-        frame = _select(self.study(name).table(stem), where)
-        if len(frame) != 1:
-            raise ValueError(f"{name}/{stem}: {len(frame)} rows match {where}, need one")
-        entry = frame[column].iloc[0]
+        entry = self._table_entry(name, stem, column, where)
         return entry if isinstance(entry, str) else fmt(float(entry), spec)
 
     def table_number(self, name: str, stem: str, column: str,
                      where: dict | None = None) -> float:
         """Like :meth:`table_value`, unformatted (for arithmetic in a template)."""
+        return float(self._table_entry(name, stem, column, where))
+
+    def _table_entry(self, name: str, stem: str, column: str, where: dict | None) -> Any:
+        """The raw entry of :meth:`table_value` (same checks, same errors)."""
         report_table(stem)
         if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
             raise ValueError(f"{name}: its report wrote no {stem} table")
         frame = _select(self.study(name).table(stem), where)
         if len(frame) != 1:
             raise ValueError(f"{name}/{stem}: {len(frame)} rows match {where}, need one")
-        return float(frame[column].iloc[0])
+        return frame[column].iloc[0]
 
     def verdict(self, name: str, spec: str = ".4g") -> str:
         """The report's verdict table of the study and, under it, its generated sentence per

@@ -80,11 +80,10 @@ def _few_pairs(h: dict) -> bool:
     return h["pairs"] < MIN_PAIRS and h["pairs"] < h["scenarios"] / 2
 
 
-def _reach_text(h: dict) -> str:
-    """The converged counts when too few held-out scenarios are converged in both."""
+def _reach_counts(h: dict) -> str:
+    """How many held-out scenarios each matrix brings to the target, in words."""
     n, d, f = _reached(h)
-    return (f"few held-out scenarios are converged under both matrices: diagonal reaches "
-            f"the target on {d} of {n}, full on {f} of {n}")
+    return f"diagonal reaches the target on {d} of {n}, full on {f} of {n}"
 
 
 def _held_text(h: dict | None) -> str:
@@ -196,11 +195,11 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
             parts.append(f"on the held-out scenarios there is no evidence of a difference at "
                          f"n = {h['pairs']} (full better on {better}, Holm p {_p(p)})")
         if _few_pairs(h):
-            parts.append(_reach_text(h))
+            parts.append("few held-out scenarios are converged under both matrices: "
+                         + _reach_counts(h))
     elif h is not None and h["scenarios"]:
-        n_all, n_diag, n_full = _reached(h)
-        parts.append(f"no held-out scenario is converged under both matrices (diagonal "
-                     f"reaches the target on {n_diag} of {n_all}, full on {n_full} of {n_all})")
+        parts.append(f"no held-out scenario is converged under both matrices "
+                     f"({_reach_counts(h)})")
     else:
         parts.append("no held-out result")
     tested = [r for r in budgets if r["equal_budget"] and np.isfinite(r["p_mwu"])]

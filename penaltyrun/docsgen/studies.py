@@ -222,24 +222,35 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     pq.write_table(table, tmp, compression="zstd", compression_level=19)
     os.replace(tmp, dest / RESULTS)
     if tables:
-        write_tables(dest / RESULTS, run_dir / "report", dest / TABLES)
+        write_tables(dest / RESULTS, run_dir / "report", dest / TABLES,
+                     label=_display_path(dest / RESULTS, root))
     write_provenance(root, dest, frame, commands)
     logger.info("study %s: %d records, %.1f MB", name, len(frame),
                 (dest / RESULTS).stat().st_size / 1e6)
     return dest / RESULTS
 
 
-def write_tables(results: Path, report_dir: Path, tables_dir: Path) -> None:
+def write_tables(results: Path, report_dir: Path, tables_dir: Path,
+                 label: str | None = None) -> None:
     """Build the report of ``results`` in ``report_dir`` and copy its tables (CSV,
-    Markdown) into ``tables_dir``; figures stay in the run directory."""
+    Markdown) into ``tables_dir``; figures stay in the run directory. ``label`` is how the
+    report names ``results`` (default: the path as given)."""
     from penaltyrun.report.build import build_report
-    build_report(results, report_dir)
+    build_report(results, report_dir, source_label=label)
     if tables_dir.exists():
         shutil.rmtree(tables_dir)
     tables_dir.mkdir(parents=True)
     for path in sorted(report_dir.iterdir()):
         if path.suffix in (".csv", ".md") and path.is_file():
             shutil.copy2(path, tables_dir / path.name)
+
+
+def _display_path(path: Path, root: Path) -> str:
+    """``path`` relative to the repository ``root`` when it lies inside it, else as given."""
+    try:
+        return Path(path).resolve().relative_to(Path(root).resolve()).as_posix()
+    except ValueError:
+        return str(path)
 
 
 def machine() -> dict[str, Any]:

@@ -217,7 +217,8 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
     return lines
 
 
-def build_report(src: Path, out: Path, paper: bool = True) -> Path:
+def build_report(src: Path, out: Path, paper: bool = True,
+                 source_label: str | None = None) -> Path:
     """Write tables (CSV + Markdown), figures (PNG), ``report.md`` and ``report.html``.
 
     Every file is first written into a temporary folder inside ``out`` and renamed into
@@ -232,6 +233,9 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
         Output folder (created).
     paper : bool
         Include the paper's numbers beside ours.
+    source_label : str, optional
+        How the report names its source (default ``src`` as given), e.g. a path relative
+        to a repository, so that a committed report does not carry a machine's path.
 
     Raises
     ------
@@ -244,7 +248,7 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
     try:
-        _write_report(src, df, tmp, paper)
+        _write_report(source_label or str(src), df, tmp, paper)
         for item in sorted(tmp.iterdir()):
             os.replace(item, out / item.name)
     finally:
@@ -253,7 +257,7 @@ def build_report(src: Path, out: Path, paper: bool = True) -> Path:
     return out
 
 
-def _write_report(src: Path, df: pd.DataFrame, out: Path, paper: bool) -> None:
+def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
     """Write every file of the report into ``out`` (see :func:`build_report`)."""
     summary = cell_summary(df)
     summary.to_csv(out / "summary.csv", index=False, encoding="utf-8")

@@ -42,6 +42,20 @@ def test_committed_study_data_fits_the_budget():
     assert total <= DATA_LIMIT_MB * 1e6
 
 
+def test_committed_reports_name_their_source_inside_the_repository():
+    for report in sorted((ROOT / "studies").glob("*/tables/report.md")):
+        source = report.read_text(encoding="utf-8").splitlines()[2]
+        study = report.parent.parent.name
+        assert source.startswith(f"Source: `studies/{study}/results.parquet`"), report
+
+
+def test_display_path_is_repository_relative_inside_and_unchanged_outside(tmp_path):
+    inside = ROOT / "studies" / "x" / "results.parquet"
+    assert studies._display_path(inside, ROOT) == "studies/x/results.parquet"
+    outside = tmp_path / "results.parquet"
+    assert studies._display_path(outside, ROOT) == str(outside)
+
+
 def test_unknown_study_is_one_clear_error():
     with pytest.raises(studies.StudyError, match="no study 'nope'"):
         studies.load_study(ROOT, "nope")
@@ -109,6 +123,13 @@ def zermelo_study(tmp_path_factory) -> Path:
     io.collect(tmp / "run")
     studies.merge_study(ROOT, "referee_zermelo", run_dir=tmp / "run", dest=tmp / "dest")
     return tmp / "dest"
+
+
+def test_a_report_names_its_source_by_the_label_given(zermelo_study, tmp_path):
+    studies.write_tables(zermelo_study / "results.parquet", tmp_path / "report",
+                         tmp_path / "tables", label="studies/tiny/results.parquet")
+    lines = (tmp_path / "tables" / "report.md").read_text(encoding="utf-8").splitlines()
+    assert lines[2].startswith("Source: `studies/tiny/results.parquet` — ")
 
 
 #: Tables the tiny Zermelo study's report must write (Zermelo declares no published

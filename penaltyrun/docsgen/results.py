@@ -51,6 +51,11 @@ class StudyData:
         """Whether the merged results are committed."""
         return (self.folder / RESULTS).is_file()
 
+    def has_table(self, stem: str) -> bool:
+        """Whether the study's report wrote table ``stem`` (a template's guard for tables a
+        report writes only for some problems, e.g. ``paper``)."""
+        return (self.folder / TABLES / f"{report_table(stem)}.csv").is_file()
+
     @property
     def make(self) -> str:
         """The make target that regenerates the study."""
@@ -260,8 +265,7 @@ class Context:
 
     def _table_entry(self, name: str, stem: str, column: str, where: dict | None) -> Any:
         """The raw entry of :meth:`table_value` (same checks, same errors)."""
-        report_table(stem)
-        if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
+        if not self.study(name).has_table(stem):
             raise ValueError(f"{name}: its report wrote no {stem} table")
         frame = _select(self.study(name).table(stem), where)
         if len(frame) != 1:

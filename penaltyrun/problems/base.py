@@ -150,6 +150,8 @@ class PaperValues:
         Published four-number summaries.
     runs : int or None
         Number of runs behind the published numbers (a median test needs it).
+    evaluations : mapping map → (min, median, max)
+        Published objective-function evaluations per run (where the source gives them).
     matrices : mapping map → {matrix name: ndarray}
         Published best matrices (the report evaluates them and measures the distance).
     claim : str
@@ -161,6 +163,7 @@ class PaperValues:
     median_cost: Mapping[str, float] = field(default_factory=dict)
     summaries: Mapping[str, tuple[float, float, float, float]] = field(default_factory=dict)
     runs: int | None = None
+    evaluations: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
     matrices: Mapping[str, Mapping[str, np.ndarray]] = field(default_factory=dict)
     claim: str = ""
 

@@ -178,16 +178,48 @@ def paper_rows(df: pd.DataFrame) -> pd.DataFrame:
                                            f" / {fmt(cost.mean() if cost.size else np.nan, 4)}",
                      "paper median / mean": f"{fmt(median, 4)} / {fmt(mean, 4)}",
                      "paper runs": paper.runs or "—", "source": paper.source,
+                     **_evaluation_entries(g, (paper.evaluations or {}).get(param)),
                      "p": median_test(cost, median, paper.runs or 0)
                      if np.isfinite(median) else np.nan})
     table = pd.DataFrame(rows)
     if not table.empty:
         table["Holm p"] = holm(table.pop("p").to_numpy(float))
+        if table[PAPER_EVALS].isna().all():  # no source gives evaluation counts
+            table = table.drop(columns=EVALUATION_COLUMNS)
     return table
+
+
+def _evaluation_entries(g: pd.DataFrame, published: tuple[float, float, float] | None
+                        ) -> dict[str, Any]:
+    """Our evaluations per start (median and range over every start of the cell) beside the
+    published ones, and the ratio of the medians (NaN where none are published)."""
+    ours = g["n_evals"].astype(float)
+    entries = {OUR_EVALS: f"{ours.median():.0f} ({ours.min():.0f}–{ours.max():.0f})",
+               PAPER_EVALS: np.nan, EVALS_RATIO: np.nan}
+    if published is not None:
+        low, median, high = published
+        entries.update({PAPER_EVALS: f"{median:.0f} ({low:.0f}–{high:.0f})",
+                        EVALS_RATIO: float(ours.median()) / float(median)})
+    return entries
+
+
+OUR_EVALS = "evaluations: ours median (range)"
+PAPER_EVALS = "evaluations: paper median (range)"
+EVALS_RATIO = "evaluations: median ours / paper"
+#: Columns of the paper table present only where a source publishes evaluation counts.
+EVALUATION_COLUMNS = [OUR_EVALS, PAPER_EVALS, EVALS_RATIO]
 
 
 PAPER_COLUMNS = ["optimizer", "map", "converged", "ours median / mean", "paper median / mean",
                  "paper runs", "source", "Holm p"]
+
+
+def _shown(table: pd.DataFrame) -> list[str]:
+    """Columns of the paper table's Markdown copy: with evaluation counts, the source (one
+    per case, in the CSV) makes room for them."""
+    if not set(EVALUATION_COLUMNS) <= set(table.columns):
+        return PAPER_COLUMNS
+    return [c for c in PAPER_COLUMNS if c != "source"] + EVALUATION_COLUMNS
 
 
 def paper_section(g: pd.DataFrame, table: pd.DataFrame) -> list[str]:
@@ -199,11 +231,12 @@ def paper_section(g: pd.DataFrame, table: pd.DataFrame) -> list[str]:
         sel = table[(table["problem"] == first["problem"]) & (table["case"] == first["case"])
                     & (table["variant"] == first["variant"])]
         if not sel.empty:
-            lines += [f"Beside the published values ({info.cost_label}). Holm p: Mood's "
+            source = f"; source: {info.paper.source}" if "source" not in _shown(sel) else ""
+            lines += [f"Beside the published values ({info.cost_label}{source}). Holm p: Mood's "
                       "median test (Fisher's exact test of above / below the published "
                       "median, which splits the published runs evenly by definition), Holm "
                       f"over {PAPER_FAMILY}. Optimizer implementations and budgets may "
-                      "differ from the published ones.", "", markdown(sel, PAPER_COLUMNS), ""]
+                      "differ from the published ones.", "", markdown(sel, _shown(sel)), ""]
     if info.paper is not None and info.paper.claim:
         lines += [f"Published claim ({info.paper.source}): {info.paper.claim}.", ""]
     return (["### Paper values", ""] + lines) if lines else []

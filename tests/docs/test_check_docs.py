@@ -121,10 +121,11 @@ def test_check_command_exit_code(repo):
 
 
 def test_fidelity_page_numbers_come_from_the_experiment_files(tmp_path):
-    """The fidelity-gap page is rendered from studies/fidelity_gap/*.csv: a changed value in
-    a committed CSV makes the committed page stale."""
+    """The fidelity-gap page is rendered from studies/fidelity_gap/*.csv (and the study it
+    ends with): a changed value in a committed CSV makes the committed page stale."""
     root = Path(__file__).resolve().parents[2]
-    shutil.copytree(root / "studies" / "fidelity_gap", tmp_path / "studies" / "fidelity_gap")
+    for folder in ("fidelity_gap", "pso_matlab_fidelity"):
+        shutil.copytree(root / "studies" / folder, tmp_path / "studies" / folder)
     (tmp_path / "studies" / "templates").mkdir()
     shutil.copy2(root / "studies" / "templates" / "fidelity.md",
                  tmp_path / "studies" / "templates")

@@ -40,6 +40,11 @@ COMPANION: dict[str, dict[str, tuple[float, float, float, float]]] = {
                             "cayley_tan": (48.60, 50.26, 50.23, 52.07)},
 }
 COMPANION_RUNS = 20
+#: The companion study's function evaluations per run (min, median, max) by case and map,
+#: where the authors published them (their unconstrained diagonal PSO cell).
+COMPANION_EVALS: dict[str, dict[str, tuple[float, float, float]]] = {
+    "schaub_detumble": {"diagonal": (4560, 12450, 35160)},
+}
 
 
 def _params(case: str, params: Mapping[str, Any]) -> Params:
@@ -72,7 +77,8 @@ def hooks(law: str) -> tuple[Callable[..., ReportInfo], Callable[..., dict[str, 
                                 mean_cost=PAPER_MEANS[(law, case)])
         elif law == "attitude_lyapunov" and case in COMPANION:
             paper = PaperValues(source="authors' companion study (MATLAB particleswarm)",
-                                summaries=COMPANION[case], runs=COMPANION_RUNS)
+                                summaries=COMPANION[case], runs=COMPANION_RUNS,
+                                evaluations=COMPANION_EVALS.get(case, {}))
         return ReportInfo(cost_name="J = ∫½‖u‖² dt", cost_unit="N²·m²·s",
                           holdout_description=holdout_description(p), paper=paper)
 
@@ -179,5 +185,5 @@ def horizon_study(jobs: Sequence[Mapping[str, Any]]) -> list[ReportSection]:
         figures=[("horizon study", fig)])]
 
 
-__all__ = ["COMPANION", "PAPER_MEANS", "holdout_description", "hooks", "horizon_study",
-           "paper_tables"]
+__all__ = ["COMPANION", "COMPANION_EVALS", "PAPER_MEANS", "holdout_description", "hooks",
+           "horizon_study", "paper_tables"]

@@ -14,7 +14,10 @@ progress into pytest's output (a stray "F" and dots in a progress line, with a s
 says nothing failed). :func:`pytest_runtest_makereport` and :func:`pytest_runtest_protocol`
 end such a process at once and silently, before it reports the test it was forked in or
 runs another, and leave where it got to, with the exception, in
-``<tmp>/penaltyrun-escaped-child-<pid>.txt``.
+``<tmp>/penaltyrun-escaped-child-<pid>.txt``. The one such escape seen (a pool worker
+terminated an instant after its fork ran the command line's SIGTERM handler, left installed
+by an in-process CLI test, and raised before multiprocessing could end it) is prevented in
+the pool itself (``tests/runner/test_pool_fork_signals.py``); the guard stays as a net.
 """
 
 import os

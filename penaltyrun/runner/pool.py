@@ -16,10 +16,17 @@ compiled kernel holds Python's GIL and so delays heartbeats, but its CPU time ad
 Workers never outlive the main process: on Linux the kernel sends them SIGKILL when it
 dies (``prctl(PR_SET_PDEATHSIG)``), and on every platform a watchdog thread in each worker
 exits it within :data:`WATCHDOG_S` seconds of noticing a new parent process id.
+
+A forked worker starts as a copy of the main process, signal handlers included. The
+signals of :data:`FORK_BLOCKED` are therefore blocked around the fork and unblocked in the
+worker once it has its own handlers: a SIGTERM sent to a worker that has just been forked
+(the pool replaces and stops workers at any moment) ends it instead of running the main
+process's handler in it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import faulthandler
 import logging
@@ -45,6 +52,11 @@ BEAT_S = 5.0
 #: Default of ``runner.stall_timeout`` (s).
 STALL_TIMEOUT_S = 600.0
 _PR_SET_PDEATHSIG = 1
+#: Signals blocked while a worker is forked: until the worker has its own handlers, the
+#: parent's (e.g. the command line's SIGTERM → KeyboardInterrupt) would run in the child
+#: and could raise in the child before multiprocessing's guard that ends it, so that the
+#: child went on running the parent's code (a second runner, a second pytest).
+FORK_BLOCKED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 JobFunc = Callable[[Job], dict[str, Any]]
 
@@ -109,6 +121,8 @@ def _worker_main(conn: Connection, parent_pid: int, func: JobFunc,
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the main process stops us
     for signum in (signal.SIGTERM, signal.SIGHUP):  # not the main process's handlers
         signal.signal(signum, signal.SIG_DFL)
+    if hasattr(signal, "pthread_sigmask"):  # blocked by the parent around the fork
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, FORK_BLOCKED)
     die_with_parent(parent_pid)
     lock = threading.Lock()
     _start_heartbeat(conn, lock, beat_s)
@@ -160,6 +174,21 @@ def failure_record(job: Job, error: str) -> dict[str, Any]:
             "seed": job.seed, "status": "failed", "error": error, **job.meta}
 
 
+@contextlib.contextmanager
+def signals_blocked(signums: tuple[int, ...]) -> Iterator[None]:
+    """Block ``signums`` in the calling thread for the block's duration (no-op where the
+    platform has no ``pthread_sigmask``); signals that arrive meanwhile are delivered when
+    the old mask is restored. A child forked inside the block starts with them blocked."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, signums)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 class _Worker:
     """One worker process, the job it is running (``None`` when idle) and when it was last
     seen alive (a heartbeat, a record or CPU progress)."""
@@ -168,7 +197,8 @@ class _Worker:
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_worker_main, args=(child, os.getpid(), func, beat_s),
                                 daemon=True, name="penaltyrun-worker")
-        self.proc.start()
+        with signals_blocked(FORK_BLOCKED):
+            self.proc.start()
         child.close()
         self.job: Job | None = None
         self.seen = time.monotonic()

@@ -17,10 +17,12 @@ runs another, and leave where it got to, with the exception, in
 ``<tmp>/penaltyrun-escaped-child-<pid>.txt``. The one such escape seen (a pool worker
 terminated an instant after its fork ran the command line's SIGTERM handler, left installed
 by an in-process CLI test, and raised before multiprocessing could end it) is prevented in
-the pool itself (``tests/runner/test_pool_fork_signals.py``); the guard stays as a net.
+the pool itself (``tests/runner/test_pool_fork_signals.py``); the guard stays as a net,
+and every test gets the session's signal handlers back when it ends.
 """
 
 import os
+import signal
 import tempfile
 from pathlib import Path
 
@@ -66,3 +68,20 @@ def pytest_runtest_protocol(item, nextitem):
     if os.getpid() != SESSION_PID:
         _end_escaped_child(f"reached {item.nodeid}")
     return None
+
+
+#: Signals whose handlers a test may install in the pytest process (the command line run
+#: in-process sets its SIGTERM / SIGHUP handlers).
+_RESTORED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                          if hasattr(signal, name))
+
+
+@pytest.fixture(autouse=True)
+def _restore_signal_handlers():
+    """Give every test the signal handlers the session started with: a handler installed
+    by one test (``penaltyrun.cli`` run in-process) must not act in later tests."""
+    saved = {signum: signal.getsignal(signum) for signum in _RESTORED_SIGNALS}
+    yield
+    for signum, handler in saved.items():
+        if signal.getsignal(signum) is not handler and handler is not None:
+            signal.signal(signum, handler)

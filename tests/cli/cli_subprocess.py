@@ -6,6 +6,7 @@ out the one ``penaltyrun...`` error line a bad input must give."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 import time
@@ -27,12 +28,21 @@ def cli(*args: str, cwd: Path, timeout: float = 600, **kw) -> subprocess.Complet
                           capture_output=True, text=True, timeout=timeout, **kw)
 
 
+def _default_sigint() -> None:
+    """In the child before ``exec``: SIGINT at its default action, as under a terminal."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def popen(*args: str, cwd: Path) -> subprocess.Popen:
     """Start ``python -m penaltyrun.cli *args`` in ``cwd`` in a session of its own (so that
-    ``os.killpg`` reaches its workers), its output piped as text."""
+    ``os.killpg`` reaches its workers), its output piped as text.
+
+    SIGINT starts at its default action: a shell runs a background job with SIGINT
+    ignored, a child inherits that, and Python then installs no Ctrl-C handler, so a suite
+    started with ``make test &`` would otherwise send Ctrl-C to a run that ignores it."""
     return subprocess.Popen([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_default_sigint)
 
 
 def report(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from cli_subprocess import popen
 
 from penaltyrun.io import RESULTS_FILE
 
@@ -148,9 +149,7 @@ def test_ctrl_c_keeps_finished_jobs_and_resume_completes(tmp_path):
     args = ["problem=zermelo", "param=full", "runner.n_starts=8", "runner.workers=2",
             "optimizer.n_particles=400", "optimizer.iters=200", "optimizer.ftol_iter=200",
             "runner.report=false", f"hydra.run.dir={run}"]
-    proc = subprocess.Popen([sys.executable, "-m", "penaltyrun.cli", *args], cwd=tmp_path,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+    proc = popen(*args, cwd=tmp_path)
     deadline = time.monotonic() + 120
     while not list((run / "jobs").glob("*.json")) and time.monotonic() < deadline:
         time.sleep(0.2)

@@ -80,6 +80,7 @@ def test_bad_input_is_one_readable_error(tmp_path, args, fragments):
     assert not (tmp_path / "run" / "jobs").exists()
 
 
+@pytest.mark.slow  # about 20 s: two whole runs with reports
 def test_optimize_writes_parquet_report_and_resumes(tmp_path):
     run = tmp_path / "run"
     args = ["problem=zermelo", "param=diagonal", "runner.n_starts=3", "runner.workers=2",
@@ -109,6 +110,7 @@ def test_optimize_writes_parquet_report_and_resumes(tmp_path):
     assert set(df["seed"]) <= set(df2["seed"])
 
 
+@pytest.mark.slow  # about 15 s: a sweep of two runs and a report
 def test_multirun_sweep_and_report_command(tmp_path):
     sweep = tmp_path / "sweep"
     cli("-m", "param=diagonal,full", "runner.n_starts=2", "optimizer.iters=25",

@@ -52,6 +52,7 @@ def test_failed_job_gives_exit_code_3_and_a_summary_line(tmp_path):
     assert "ZeroDivisionError" in last and "retry_failed=true" in last
 
 
+@pytest.mark.slow  # about 15 s: a run, a damaged record, a resume
 def test_truncated_job_record_is_moved_aside_and_rerun(tmp_path):
     """Row 3: truncate a record, then resume (and the report on bad Parquet files, row 4)."""
     run = tmp_path / "run"

@@ -9,6 +9,7 @@ import signal
 import time
 
 import pandas as pd
+import pytest
 from cli_subprocess import FAST_JOBS, SLOW_JOBS, cli, one_error_line, popen, records, report
 
 from penaltyrun.io import RESULTS_FILE
@@ -40,6 +41,7 @@ def test_second_run_into_a_busy_directory_is_refused_and_a_dead_one_never_blocks
     assert len(pd.read_parquet(run / RESULTS_FILE)) == 4
 
 
+@pytest.mark.slow  # about 11 s: three runs into one directory
 def test_resume_with_another_seed_or_holdout_never_mixes(tmp_path):
     run = tmp_path / "run"
     base = [*FAST_JOBS, "runner.n_starts=4", f"hydra.run.dir={run}"]

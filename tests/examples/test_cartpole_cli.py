@@ -44,11 +44,24 @@ def run_documented(line: str, cwd: Path) -> subprocess.CompletedProcess:
     return proc
 
 
-@pytest.fixture(scope="module")
-def copied(tmp_path_factory):
+def copy_example(tmp_path_factory) -> Path:
+    """A copy of the example outside the repository, as a user would have it."""
     where = tmp_path_factory.mktemp("outside") / "cartpole"
     shutil.copytree(EXAMPLE, where, ignore=shutil.ignore_patterns("outputs", "__pycache__"))
     assert not str(where).startswith(str(EXAMPLE.parents[1]))
+    return where
+
+
+@pytest.fixture(scope="module")
+def example(tmp_path_factory):
+    """The copied example with nothing run in it yet."""
+    return copy_example(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def copied(tmp_path_factory):
+    """A copy in which the README's first block (optimize + report) has run."""
+    where = copy_example(tmp_path_factory)
     for line in readme_blocks("sh")[0].strip().splitlines():  # optimize + report
         run_documented(line, where)
     return where
@@ -82,14 +95,15 @@ def test_readme_study_commands(copied):
     assert "| lqr | default |" in (out / "report" / "report.md").read_text()
 
 
-def test_readme_evaluate_command(copied):
+def test_readme_evaluate_command(example):
     line = next(ln for block in readme_blocks("sh") for ln in block.splitlines()
                 if "mode=evaluate" in ln)
-    result = json.loads(run_documented(line, copied).stdout.strip().splitlines()[-1])
+    result = json.loads(run_documented(line, example).stdout.strip().splitlines()[-1])
     assert result["problem"] == "lqr" and np.shape(result["gain"]) == (1, 4)
     assert np.isfinite(result["cost"])
 
 
+@pytest.mark.slow  # it reads the exported matrices of the README's tuning run (about 18 s)
 def test_readme_python_control_snippet(copied):
     pytest.importorskip("control")
     script = copied / "snippet.py"

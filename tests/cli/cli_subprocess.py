@@ -9,6 +9,7 @@ import json
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -26,6 +27,67 @@ def cli(*args: str, cwd: Path, timeout: float = 600, **kw) -> subprocess.Complet
     capturing its output as text; ``kw`` goes to :func:`subprocess.run` (``env=`` ...)."""
     return subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
                           capture_output=True, text=True, timeout=timeout, **kw)
+
+
+#: One interpreter imports the command line once, then runs each case of the JSON list on
+#: its standard input (``{"args": [...], "cwd": "..."}``) in a child forked for it, exactly
+#: as ``python -m penaltyrun.cli`` would run it after its imports: own standard streams
+#: (files), own exit code; the list of results is its standard output.
+_FORKED_CLI = textwrap.dedent("""
+    import json, logging, os, sys, traceback
+    import penaltyrun.cli as cli
+
+    results = []
+    for case in json.load(sys.stdin):
+        streams = [os.path.join(case["cwd"], name) for name in (".cli-out", ".cli-err")]
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:
+            code = 1
+            try:
+                os.chdir(case["cwd"])
+                for fd, path in zip((1, 2), streams):
+                    os.dup2(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC), fd)
+                sys.argv = ["penaltyrun", *case["args"]]
+                try:
+                    cli.main()
+                    code = 0
+                except SystemExit as exc:
+                    code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+                    if exc.code is not None and not isinstance(exc.code, int):
+                        print(exc.code, file=sys.stderr)
+                except BaseException:
+                    traceback.print_exc()
+            finally:
+                try:
+                    sys.stdout.flush()
+                    sys.stderr.flush()
+                    logging.shutdown()
+                finally:
+                    os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        out, err = (open(path, encoding="utf-8").read() for path in streams)
+        for path in streams:
+            os.remove(path)
+        results.append({"returncode": os.waitstatus_to_exitcode(status),
+                        "stdout": out, "stderr": err})
+    json.dump(results, sys.stdout)
+""")
+
+
+def cli_forked(cases: list[tuple[list[str], Path]], timeout: float = 600
+               ) -> list[subprocess.CompletedProcess]:
+    """Run ``penaltyrun *args`` in ``cwd`` for every ``(args, cwd)`` of ``cases``, each in a
+    process of its own forked from one interpreter that imported the command line once
+    (the imports are most of a short run's time: bad-input checks then cost milliseconds,
+    not seconds each). Returns one completed process per case, in order."""
+    payload = json.dumps([{"args": list(args), "cwd": str(cwd)} for args, cwd in cases])
+    proc = subprocess.run([sys.executable, "-X", "utf8", "-c", _FORKED_CLI], input=payload,
+                          capture_output=True, text=True, timeout=timeout, check=True)
+    return [subprocess.CompletedProcess(["penaltyrun", *args], r["returncode"], r["stdout"],
+                                        r["stderr"])
+            for (args, _), r in zip(cases, json.loads(proc.stdout))]
 
 
 def _default_sigint() -> None:

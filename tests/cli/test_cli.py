@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from cli_subprocess import popen
+from cli_subprocess import cli_forked, popen
 
 from penaltyrun.io import RESULTS_FILE
 
@@ -44,40 +44,52 @@ def test_evaluate_accepts_plus_form(tmp_path):
         assert json.loads(proc.stdout.strip().splitlines()[-1])["converged"]
 
 
-@pytest.mark.parametrize(
-    ("args", "fragments"),
-    [
-        (["problem=nope"], ["problem", "zermelo"]),
-        (["param=spiral"], ["param", "diagonal", "givens"]),
-        (["optimizer=adam"], ["optimizer", "pso"]),
-        (["case=Z"], ["case", "allowed: default"]),
-        (["optimizer.n_particles=0"], ["optimizer.n_particles", "positive"]),
-        (["optimizer.iters=-5"], ["optimizer.iters", "positive"]),
-        (["runner.n_starts=0"], ["runner.n_starts", "positive"]),
-        (["runner.workers=0"], ["runner.workers", "positive"]),
-        (["runner.backend=slurm"], ["runner.backend", "local, dask"]),
-        (["mode=train"], ["mode", "optimize, evaluate, report"]),
-        (["mode=evaluate"], ["matrices.K", "missing"]),
-        (["mode=evaluate", "matrices.K=[[1,2],[3,4]]"], ["matrices.K", "not symmetric"]),
-        (["mode=evaluate", "matrices.K=[[1,2],[2,1]]"], ["matrices.K", "positive definite"]),
-        (["mode=evaluate", "matrices.K=[[1,0,0],[0,1,0],[0,0,1]]"], ["matrices.K", "2x2"]),
-        (["mode=evaluate", "matrices.K=[[1,0],[0,1]]", "matrices.Kp=[[1]]"],
-         ["matrices.Kp", "not a matrix"]),
-        (["mode=evaluate", "matrices.K=[[1,0],[0"], ["matrices.K"]),
-        (["mode=report"], ["report.input", "missing"]),
-        (["param.eig_bounds=[0,10]"], ["param.eig_bounds"]),
-        (["problem.params.speed=2"], ["problem.params.speed"]),
-    ],
-)
-def test_bad_input_is_one_readable_error(tmp_path, args, fragments):
-    proc = cli("runner.n_starts=1", *args, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path,
-               check=False)
+#: Bad command lines and the fragments their one error must name.
+BAD_INPUTS = [
+    (["problem=nope"], ["problem", "zermelo"]),
+    (["param=spiral"], ["param", "diagonal", "givens"]),
+    (["optimizer=adam"], ["optimizer", "pso"]),
+    (["case=Z"], ["case", "allowed: default"]),
+    (["optimizer.n_particles=0"], ["optimizer.n_particles", "positive"]),
+    (["optimizer.iters=-5"], ["optimizer.iters", "positive"]),
+    (["runner.n_starts=0"], ["runner.n_starts", "positive"]),
+    (["runner.workers=0"], ["runner.workers", "positive"]),
+    (["runner.backend=slurm"], ["runner.backend", "local, dask"]),
+    (["mode=train"], ["mode", "optimize, evaluate, report"]),
+    (["mode=evaluate"], ["matrices.K", "missing"]),
+    (["mode=evaluate", "matrices.K=[[1,2],[3,4]]"], ["matrices.K", "not symmetric"]),
+    (["mode=evaluate", "matrices.K=[[1,2],[2,1]]"], ["matrices.K", "positive definite"]),
+    (["mode=evaluate", "matrices.K=[[1,0,0],[0,1,0],[0,0,1]]"], ["matrices.K", "2x2"]),
+    (["mode=evaluate", "matrices.K=[[1,0],[0,1]]", "matrices.Kp=[[1]]"],
+     ["matrices.Kp", "not a matrix"]),
+    (["mode=evaluate", "matrices.K=[[1,0],[0"], ["matrices.K"]),
+    (["mode=report"], ["report.input", "missing"]),
+    (["param.eig_bounds=[0,10]"], ["param.eig_bounds"]),
+    (["problem.params.speed=2"], ["problem.params.speed"]),
+]
+
+
+@pytest.fixture(scope="module")
+def bad_input_runs(tmp_path_factory):
+    """Every bad command line run at once (each in a process of its own, forked from one
+    interpreter that imported the command line), with its own working directory."""
+    cwds = [tmp_path_factory.mktemp("bad") for _ in BAD_INPUTS]
+    runs = cli_forked([(["runner.n_starts=1", *args, f"hydra.run.dir={cwd / 'run'}"], cwd)
+                       for (args, _), cwd in zip(BAD_INPUTS, cwds)])
+    return list(zip(runs, cwds))
+
+
+@pytest.mark.parametrize("case", range(len(BAD_INPUTS)),
+                         ids=[" ".join(args) for args, _ in BAD_INPUTS])
+def test_bad_input_is_one_readable_error(bad_input_runs, case):
+    proc, cwd = bad_input_runs[case]
+    fragments = BAD_INPUTS[case][1]
     assert proc.returncode != 0
     assert "Traceback" not in proc.stderr + proc.stdout
     for fragment in fragments:
         assert fragment in proc.stderr, proc.stderr
     assert len(proc.stderr.strip().splitlines()) <= 6, proc.stderr
-    assert not (tmp_path / "run" / "jobs").exists()
+    assert not (cwd / "run" / "jobs").exists()
 
 
 @pytest.mark.slow  # about 20 s: two whole runs with reports
@@ -142,6 +154,7 @@ def test_report_of_missing_input_is_clear(tmp_path):
     assert "does not exist" in proc.stderr and "Traceback" not in proc.stderr
 
 
+@pytest.mark.slow  # about 25 s; SIGTERM, handled the same way, stays in the default suite
 def test_ctrl_c_keeps_finished_jobs_and_resume_completes(tmp_path):
     """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) mid-run.
 

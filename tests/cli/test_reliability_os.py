@@ -121,6 +121,7 @@ def test_disk_full_while_writing_records_is_one_line_and_resume_finishes(tmp_pat
                for p in (small_tmpfs / "jobs").glob("*.json"))
 
 
+@pytest.mark.slow  # about 6 s (the record-writing case stays in the default suite)
 def test_disk_full_while_writing_the_parquet_is_one_line(tmp_path, small_tmpfs):
     run = small_tmpfs / "run"
     args = [*FAST_JOBS, "runner.n_starts=2", f"hydra.run.dir={run}"]

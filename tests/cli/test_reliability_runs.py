@@ -15,6 +15,7 @@ from cli_subprocess import FAST_JOBS, SLOW_JOBS, cli, one_error_line, popen, rec
 from penaltyrun.io import RESULTS_FILE
 
 
+@pytest.mark.slow  # about 8 s: three runs
 def test_second_run_into_a_busy_directory_is_refused_and_a_dead_one_never_blocks(tmp_path):
     run = tmp_path / "run"
     first = popen(*SLOW_JOBS, "runner.n_starts=4", "runner.workers=1", f"hydra.run.dir={run}",
@@ -83,6 +84,7 @@ def test_records_are_checked_on_resume(tmp_path):
     assert sorted(df["start"]) == [0, 1, 2, 3] and set(df["status"]) == {"ok"}
 
 
+@pytest.mark.slow  # about 8 s: two runs and reports
 def test_report_counts_a_copied_run_once_and_skips_foreign_files(tmp_path):
     run = tmp_path / "all" / "run"
     assert cli(*FAST_JOBS, "runner.n_starts=3", f"hydra.run.dir={run}",

@@ -90,6 +90,17 @@ def cli_forked(cases: list[tuple[list[str], Path]], timeout: float = 600
             for (args, _), r in zip(cases, json.loads(proc.stdout))]
 
 
+def bad_command_lines(cases: list[tuple[list[str], list[str]]], tmp_path_factory
+                      ) -> list[tuple[subprocess.CompletedProcess, Path]]:
+    """Run every ``(args, fragments)`` of ``cases`` as ``penaltyrun runner.n_starts=1 *args``
+    in a fresh working directory of its own (with :func:`cli_forked`, all at once); returns
+    each run and its directory, in order."""
+    cwds = [tmp_path_factory.mktemp("bad") for _ in cases]
+    runs = cli_forked([(["runner.n_starts=1", *args, f"hydra.run.dir={cwd / 'run'}"], cwd)
+                       for (args, _), cwd in zip(cases, cwds)])
+    return list(zip(runs, cwds))
+
+
 def _default_sigint() -> None:
     """In the child before ``exec``: SIGINT at its default action, as under a terminal."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)

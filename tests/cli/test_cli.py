@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from cli_subprocess import cli_forked, popen
+from cli_subprocess import bad_command_lines, popen
 
 from penaltyrun.io import RESULTS_FILE
 
@@ -73,10 +73,7 @@ BAD_INPUTS = [
 def bad_input_runs(tmp_path_factory):
     """Every bad command line run at once (each in a process of its own, forked from one
     interpreter that imported the command line), with its own working directory."""
-    cwds = [tmp_path_factory.mktemp("bad") for _ in BAD_INPUTS]
-    runs = cli_forked([(["runner.n_starts=1", *args, f"hydra.run.dir={cwd / 'run'}"], cwd)
-                       for (args, _), cwd in zip(BAD_INPUTS, cwds)])
-    return list(zip(runs, cwds))
+    return bad_command_lines(BAD_INPUTS, tmp_path_factory)
 
 
 @pytest.mark.parametrize("case", range(len(BAD_INPUTS)),

@@ -2,7 +2,7 @@
 
 
 import pytest
-from cli_subprocess import cli_forked
+from cli_subprocess import bad_command_lines
 
 #: Bad optimizer settings and the fragments their one error line must name.
 BAD_SETTINGS = [
@@ -23,10 +23,7 @@ BAD_SETTINGS = [
 @pytest.fixture(scope="module")
 def bad_setting_runs(tmp_path_factory):
     """Every bad setting run at once, each in a process of its own (see ``cli_forked``)."""
-    cwds = [tmp_path_factory.mktemp("bad") for _ in BAD_SETTINGS]
-    runs = cli_forked([(["runner.n_starts=1", *args, f"hydra.run.dir={cwd / 'run'}"], cwd)
-                       for (args, _), cwd in zip(BAD_SETTINGS, cwds)])
-    return list(zip(runs, cwds))
+    return bad_command_lines(BAD_SETTINGS, tmp_path_factory)
 
 
 @pytest.mark.parametrize("case", range(len(BAD_SETTINGS)),

@@ -235,8 +235,7 @@ class Context:
         ValueError
             If ``stem`` is not a table the report writes (:func:`report_table`).
         """
-        report_table(stem)
-        if not (self.study(name).folder / TABLES / f"{stem}.csv").is_file():
+        if not self.study(name).has_table(stem):
             return f"*The report of `{name}` has no `{stem}` table.*"
         frame = _select(self.study(name).table(stem), where)
         if frame.empty:
@@ -276,7 +275,7 @@ class Context:
         """The report's verdict table of the study and, under it, its generated sentence per
         row (a note when the report wrote no verdict)."""
         table = self.csv(name, "verdict", spec=spec)
-        if not (self.study(name).folder / TABLES / "verdict.csv").is_file():
+        if not self.study(name).has_table("verdict"):
             return table
         sentences = self.study(name).table("verdict").get("sentence")
         lines = [f"- {s}" for s in ([] if sentences is None else sentences.dropna())]
@@ -286,7 +285,7 @@ class Context:
         """The report's held-out table (``holdout.csv``: one row per cell × full map and
         per best-known pair, paired by scenario) as one Markdown table per problem × case,
         under a heading naming it."""
-        if not (self.study(name).folder / TABLES / "holdout.csv").is_file():
+        if not self.study(name).has_table("holdout"):
             return "*The study's report has no held-out table.*"
         frame = self.study(name).table("holdout")
         parts = []

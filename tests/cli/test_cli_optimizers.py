@@ -1,6 +1,5 @@
 """Command-line errors of the budget, CMA-ES, grid and warm-start settings (one line, exit 2)."""
 
-
 import pytest
 from cli_subprocess import bad_command_lines
 

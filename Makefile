@@ -16,6 +16,9 @@ VENV_PYTHON := $(VENV)/bin/python
 endif
 PIP ?= $(PYTHON) -m pip
 PYTEST_ARGS ?=
+# Test processes of `make test` (pytest-xdist; auto: one per core). Each test file runs
+# whole in one process, so a module's expensive fixtures are built once.
+TEST_WORKERS ?= auto
 WORKERS ?= 2
 
 .PHONY: help venv install install-dev install-locked run test test-slow test-reference lint bench \
@@ -68,8 +71,8 @@ run: install  ## small default experiment end to end: optimize → Parquet → r
 	$(PYTHON) -m penaltyrun.report_cli outputs/quickstart -o outputs/quickstart/report
 	@echo "report: outputs/quickstart/report/report.md"
 
-test: install-dev  ## run the default test suite (slow tests excluded)
-	$(PYTHON) -m pytest -q $(PYTEST_ARGS)
+test: install-dev  ## run the default test suite (slow tests excluded), one test process per core
+	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 test-slow: install-dev  ## run only the long tests
 	$(PYTHON) -m pytest -q -m slow $(PYTEST_ARGS)

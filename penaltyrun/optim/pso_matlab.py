@@ -117,7 +117,8 @@ class PSOMatlabSettings(CommonSettings):
         MinNeighborsFraction in (0, 1]: minNeighborhoodSize = max(2, ⌊S · fraction⌋).
     function_tolerance : float
         FunctionTolerance (≥ 0): stall when the best value changed by less than this,
-        relative to max(1, |best|), over ``max_stall_iterations`` iterations (0: never).
+        relative to max(1, |best|), over ``max_stall_iterations`` iterations (0: never
+        under ``stall_test="page"``; under ``"code"``, only on an exactly flat window).
     max_stall_iterations : int
         MaxStallIterations (the stall window), ≥ 1.
     initial_swarm_span : float

@@ -298,7 +298,9 @@ class Context:
         return "\n\n".join(parts)
 
     def provenance(self, name: str) -> str:
-        """One paragraph: jobs, machine, package versions and commits of the study's data."""
+        """One paragraph: jobs, machine and package versions of the study's data. The git
+        commits of its records stay in ``studies/<name>/provenance.json`` (user pages carry
+        no commit hashes); the paragraph says how many there are and where."""
         info = self.study(name).provenance
         if not info:
             return ""
@@ -307,7 +309,7 @@ class Context:
         if len(in_records) == 1:  # the versions the records carry win over the merge's
             try:
                 packages = {k: v for k, v in json.loads(in_records[0]).items()
-                            if isinstance(v, str)}
+                            if isinstance(v, str) and k != "git_commit"}
             except (ValueError, AttributeError):
                 pass
         versions = ", ".join(f"{k} {v}" for k, v in sorted(packages.items()))
@@ -317,7 +319,8 @@ class Context:
         statuses = ", ".join(f"{v} {k}" for k, v in sorted(info.get("status", {}).items()))
         return (f"Data: {info.get('jobs')} jobs ({statuses}); "
                 f"machine: {host.get('cpu')}, {host.get('cores')} cores, {host.get('os')}; "
-                f"versions: {versions}; commits: {', '.join(info.get('git_commits', []))}.")
+                f"versions: {versions}; git commits of the records: "
+                f"{len(info.get('git_commits', []))} (`studies/{name}/provenance.json`).")
 
 
 def paper_claim(problem: str, case: str) -> str:

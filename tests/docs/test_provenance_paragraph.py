@@ -1,0 +1,43 @@
+"""The provenance paragraph of a results page: versions and machine, no commit hashes."""
+
+import re
+
+from penaltyrun.docsgen import results
+
+
+def test_paragraph_counts_commits_and_names_none(monkeypatch):
+    info = {"jobs": 3, "status": {"ok": 3}, "machine": {"cpu": "cpu", "cores": 2, "os": "os"},
+            "packages": {"numpy": "2.0"}, "packages_in_records": [],
+            "git_commits": ["a" * 40, "b" * 40]}
+
+    class Study:
+        provenance = info
+
+    context = results.Context.__new__(results.Context)
+    monkeypatch.setattr(results.Context, "study", lambda self, name: Study())
+    text = context.provenance("demo")
+    assert "numpy 2.0" in text and "2 cores" in text
+    assert "git commits of the records: 2 (`studies/demo/provenance.json`)" in text
+    assert not re.search(r"\b[0-9a-f]{40}\b", text)
+
+
+def test_versions_from_the_records_leave_their_commit_out(monkeypatch):
+    record = '{"numpy": "2.0", "git_commit": "' + "c" * 40 + '"}'
+
+    class Study:
+        provenance = {"jobs": 1, "status": {"ok": 1}, "machine": {}, "packages": {},
+                      "packages_in_records": [record], "git_commits": ["c" * 40]}
+
+    context = results.Context.__new__(results.Context)
+    monkeypatch.setattr(results.Context, "study", lambda self, name: Study())
+    text = context.provenance("demo")
+    assert "numpy 2.0" in text and "c" * 40 not in text
+
+
+def test_no_user_page_carries_a_commit_hash():
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    pages = [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
+    carrying = [p.relative_to(root).as_posix() for p in pages
+                if re.search(r"\b[0-9a-f]{40}\b", p.read_text(encoding="utf-8"))]
+    assert carrying == []

@@ -21,7 +21,7 @@ PYTEST_ARGS ?=
 TEST_WORKERS ?= auto
 WORKERS ?= 2
 
-.PHONY: help venv install install-dev install-locked run test test-slow test-reference lint bench \
+.PHONY: help venv install install-dev install-locked run test test-random test-slow test-reference lint bench \
 	reproduce-tables reproduce-zermelo reproduce-attitude reproduce-lowthrust referee-zermelo \
 	referee-attitude report docs docs-serve docs-results check-docs lock study-list clean
 
@@ -73,6 +73,18 @@ run: install  ## small default experiment end to end: optimize → Parquet → r
 
 test: install-dev  ## run the default test suite (slow tests excluded), one test process per core
 	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
+
+# The default suite in one process, test files and the tests inside each in a random order
+# (pytest-random-order): an import-order dependence shows here whatever the file order of
+# `make test`. The seed is printed; RANDOM_SEED=N repeats an order.
+ifndef RANDOM_SEED
+RANDOM_SEED := $(shell python3 -c "import random; print(random.randrange(10**6))")
+endif
+
+test-random: install-dev  ## the default suite serially in a random module order (seed printed; RANDOM_SEED=N repeats it)
+	@echo "test-random: --random-order-seed=$(RANDOM_SEED)"
+	$(PYTHON) -m pytest -q -p no:cacheprovider --random-order-bucket=module \
+		--random-order-seed=$(RANDOM_SEED) $(PYTEST_ARGS)
 
 test-slow: install-dev  ## run only the long tests
 	$(PYTHON) -m pytest -q -m slow $(PYTEST_ARGS)

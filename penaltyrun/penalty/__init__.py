@@ -2,7 +2,7 @@
 
 from penaltyrun.penalty.layout import DecisionLayout, build_layout
 from penaltyrun.penalty.maps import ALIASES, KINDS, Parameterization, make
-from penaltyrun.penalty.selector import selected_quadratic, selector
+from penaltyrun.penalty.selection import selected_quadratic, selector
 
 __all__ = [
     "ALIASES",

@@ -10,7 +10,7 @@ import importlib
 from typing import Any
 
 _NAMES = {
-    "BACKENDS": "execute", "check_settings": "execute", "execute": "execute",
+    "BACKENDS": "executor", "check_settings": "executor", "execute": "executor",
     "forecast_cell": "forecast", "log_forecast": "forecast",
     "JOB_STATUSES": "validate", "run_job": "job",
     "check_runner_options": "options",

@@ -49,7 +49,7 @@ def test_longest_first_order_is_stable_and_keeps_unknowns_last():
 
 
 def test_execute_dispatches_longest_first(tmp_path, monkeypatch):
-    ex = importlib.import_module("penaltyrun.runner.execute")  # the module, not the function
+    ex = importlib.import_module("penaltyrun.runner.executor")
     jobs = plan_jobs("zermelo", "default", "full", "pso", n_starts=3, root_seed=0)
     seen = []
     monkeypatch.setattr(ex, "run_job", lambda job: seen.append(job.job_id) or

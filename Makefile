@@ -92,8 +92,9 @@ test-slow: install-dev  ## run only the long tests
 test-reference: install-dev  ## run the very long reference checks (hours; not in CI)
 	$(PYTHON) -m pytest -q -m reference $(PYTEST_ARGS)
 
-lint: install-dev  ## ruff
+lint: install-dev  ## ruff and the layering contract (import-linter, [tool.importlinter] in pyproject.toml)
 	$(PYTHON) -m ruff check penaltyrun tests bench examples
+	$(PYTHON) -c "import sys; from importlinter.cli import lint_imports_command; sys.exit(lint_imports_command())"
 
 bench: install  ## benchmarks (ratios against references measured in the same run)
 	$(PYTHON) bench/bench_zermelo.py

@@ -59,6 +59,8 @@ def repo(tmp_path: Path) -> Path:
     (templates / "demo.md").write_text(TEMPLATE)
     (templates / "answers.md").write_text(ANSWERS)
     (tmp_path / "README.md").write_text(README)
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "docs" / "index.md").write_text(README.replace("# demo", "# home"))
     return tmp_path
 
 
@@ -83,6 +85,8 @@ def test_numbers_come_from_the_data(repo):
     assert "| full | — | 2 | 2 | 24.83 |" in page
     readme = (repo / "README.md").read_text()
     assert "| demo | 24.91 |" in readme and readme.endswith("end\n")
+    home = (repo / "docs" / "index.md").read_text()
+    assert home == readme.replace("# demo", "# home")
     assert results.check(repo, reference=False) == []
 
 
@@ -99,6 +103,10 @@ def test_a_number_edited_by_hand_fails_check_docs(repo, tmp_path):
     page.write_text(page.read_text().replace("26.5219", "26.5218"))
     readme.write_text(readme.read_text().replace("24.91", "24.90"))
     assert any("README.md" in p for p in results.check(copy, reference=False))
+    readme.write_text(readme.read_text().replace("24.90", "24.91"))
+    home = copy / "docs" / "index.md"
+    home.write_text(home.read_text().replace("24.91", "24.90"))
+    assert [p for p in results.check(copy, reference=False) if "index.md" in p]
 
 
 def test_new_data_makes_committed_pages_stale(repo):

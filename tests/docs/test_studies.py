@@ -95,6 +95,8 @@ def render_pages_with(name: str | list[str], dest: Path, root: Path) -> str:
             shutil.copytree(folder, root / "studies" / folder.name)
     shutil.copytree(ROOT / "studies" / "templates", root / "studies" / "templates")
     shutil.copy2(ROOT / "README.md", root)
+    (root / "docs").mkdir(exist_ok=True)
+    shutil.copy2(ROOT / "docs" / "index.md", root / "docs")
     text = "\n".join(results.render(root, reference=False).values())
     for other in names:
         assert f"study-{other}`" not in text

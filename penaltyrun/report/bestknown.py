@@ -7,8 +7,9 @@ over every converged start of every optimizer, budget and warm-start variant tha
 the same problem (equal ``problem_variant``); the baseline (K = I) is not a search and does
 not enter. Evidence for a best-known value (:data:`LEVELS`): *certified* when the grid
 optimizer (exhaustive grid + local search) reached it within :data:`CERTIFY_RTOL` relative;
-*agreement (k optimizers, n starts)* when k ≥ 2 different optimizers did; otherwise *single
-optimizer*.
+*agreement (k optimizers; reached by m of n starts)* when k ≥ 2 different optimizers did;
+otherwise *single optimizer (reached by m of n starts)*: m of the cell's n starts (every
+optimizer, converged or not) came within the tolerance.
 """
 
 from __future__ import annotations
@@ -61,6 +62,8 @@ def best_known(df: pd.DataFrame) -> pd.DataFrame:
     whose best is within :data:`CERTIFY_RTOL`), and per-optimizer bests (``best_<opt>``).
     """
     df = with_problem_variant(df)
+    tuned = df[df["optimizer"] != "baseline"]
+    n_starts = tuned.groupby(KEY + [tuned["param"].map(family).rename("family")]).size()
     ok = df[converged(df) & (df["optimizer"] != "baseline")]
     rows = []
     for key, g in ok.groupby(KEY + [ok["param"].map(family).rename("family")], sort=True):
@@ -69,7 +72,7 @@ def best_known(df: pd.DataFrame) -> pd.DataFrame:
         per_opt = g.groupby("optimizer")["best_cost"].min().astype(float)
         agree = [o for o, v in per_opt.items() if within(v, ref)]
         n_at = int(sum(within(float(v), ref) for v in g["best_cost"].astype(float)))
-        level, evidence = _evidence(agree, n_at)
+        level, evidence = _evidence(agree, n_at, int(n_starts.loc[key]))
         certified = level == "certified"
         rows.append({
             **dict(zip(KEY + ["family"], key)), "best_known": ref,
@@ -84,15 +87,15 @@ def best_known(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _evidence(agree: list[str], n_at: int) -> tuple[str, str]:
-    """(level, text) of a best-known value reached by the optimizers ``agree`` (``n_at``
-    converged starts within :data:`CERTIFY_RTOL`)."""
+def _evidence(agree: list[str], n_at: int, n_starts: int) -> tuple[str, str]:
+    """(level, text) of a best-known value reached by the optimizers ``agree`` (``n_at`` of
+    the cell's ``n_starts`` starts, every optimizer, within :data:`CERTIFY_RTOL`)."""
     if EXHAUSTIVE in agree:
         return "certified", "certified (grid + local search)"
-    starts = f"{n_at} start" + ("s" if n_at != 1 else "")
+    reached = f"reached by {n_at} of {n_starts} starts"
     if len(agree) >= 2:
-        return "agreement", f"agreement ({len(agree)} optimizers, {starts})"
-    return "single optimizer", f"single optimizer ({agree[0]}, {starts})"
+        return "agreement", f"agreement ({len(agree)} optimizers; {reached})"
+    return "single optimizer", f"single optimizer ({agree[0]}; {reached})"
 
 
 def best_rows(df: pd.DataFrame) -> dict[str, pd.Series]:

@@ -60,13 +60,13 @@ def test_best_known_takes_converged_non_baseline_starts_of_every_full_map():
     ({"pso": 4.0, "grid": 4.0003}, "certified", "pso",  # the grid is 7.5e-5 above: reached
      "certified (grid + local search)"),
     ({"pso": 4.0, "de": 4.0 * (1 + 0.9e-4)}, "agreement", "pso, de",  # two optimizers agree
-     "agreement (2 optimizers, 3 starts)"),
+     "agreement (2 optimizers; reached by 3 of 3 starts)"),
     ({"pso": 4.0, "de": 4.0 * (1 + 2e-4)}, "single optimizer", "—",  # too far apart
-     "single optimizer (pso, 2 starts)"),
+     "single optimizer (pso; reached by 2 of 3 starts)"),
     ({"pso": 4.0}, "single optimizer", "—",  # one optimizer, however many starts
-     "single optimizer (pso, 2 starts)"),
+     "single optimizer (pso; reached by 2 of 2 starts)"),
     ({"grid": 4.002, "pso": 4.0}, "single optimizer", "—",  # the grid did not reach it
-     "single optimizer (pso, 2 starts)"),
+     "single optimizer (pso; reached by 2 of 3 starts)"),
 ])
 def test_evidence_levels(costs, level, by, evidence):
     """Certified only by the grid; two optimizers that agree are *agreement*, not

@@ -262,12 +262,16 @@ def install_signal_handlers() -> None:
 
 def _discard_run_dir() -> None:
     """Remove the run directory Hydra created for a run that failed before doing anything
-    (it holds only Hydra's ``.hydra/`` and the log), so a mistake leaves nothing behind."""
+    (it holds only Hydra's ``.hydra/`` and the log), so a mistake leaves nothing behind.
+    A directory without ``.hydra/`` is not Hydra's own, e.g. the current directory of an
+    evaluation that writes nothing: it is never touched."""
     try:
         out = Path(HydraConfig.get().runtime.output_dir)
     except (ValueError, AttributeError):
         return
-    if out.is_dir() and all(p.name == ".hydra" or p.suffix == ".log" for p in out.iterdir()):
+    if not (out / ".hydra").is_dir() or out.resolve() == Path.cwd().resolve():
+        return
+    if all(p.name == ".hydra" or p.suffix == ".log" for p in out.iterdir()):
         shutil.rmtree(out, ignore_errors=True)
 
 

@@ -7,7 +7,7 @@ import sys
 import textwrap
 
 import pytest
-from cli_subprocess import FAST_JOBS, cli_forked, one_error_line, report
+from cli_subprocess import FAST_JOBS, cli, cli_forked, one_error_line, report
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -104,6 +104,21 @@ def test_the_fixes_run(tmp_path):
     assert (cwd / "résultats" / RESULTS_FILE).is_file()
     assert len(list((cwd / "sweep").rglob(RESULTS_FILE))) == 1
     assert runs[3].stdout.count('"converged": true') == 2
+
+
+def test_a_refused_evaluation_leaves_the_current_directory_alone(tmp_path):
+    """An evaluation writes nothing, so its Hydra run directory is the current one: a
+    matrix refused inside the run must not remove it with the log files in it; a run
+    directory Hydra made for the evaluation (hydra.run.dir) is removed."""
+    here = tmp_path / "here"
+    here.mkdir()
+    (here / "notes.log").write_text("mine")
+    bad = "matrices.K=[[1,0,0],[0,1,0],[0,0,1]]"  # refused inside the run: its size
+    for extra in ([], [f"hydra.run.dir={tmp_path / 'made'}"]):
+        proc = cli("mode=evaluate", bad, *extra, cwd=here, timeout=300)
+        assert proc.returncode == 2 and "2x2" in one_error_line(proc)
+    assert (here / "notes.log").read_text() == "mine"
+    assert not (tmp_path / "made").exists()
 
 
 @pytest.mark.parametrize("value, yaml", [

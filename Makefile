@@ -36,11 +36,31 @@ $(VENV_PYTHON):
 		"apt-get install python3-venv)" >&2; rm -rf $(VENV); exit 1; }
 	$(PYTHON) -m pip install -q --upgrade pip
 
-install: $(VENV_PYTHON)  ## install penaltyrun (editable) with its runtime dependencies
-	$(PIP) install -q -e .
+# Installing is done once: a stamp file in the environment records it, and every target
+# that needs penaltyrun installed depends on the stamp, which is remade only when
+# pyproject.toml changes (or the environment is new). `make install` / `make install-dev`
+# named on the command line always reinstall.
+STAMP_DIR := $(if $(strip $(VENV)),$(VENV),.)
+INSTALLED := $(STAMP_DIR)/.installed
+INSTALLED_DEV := $(STAMP_DIR)/.installed-dev
+ifneq ($(filter install,$(MAKECMDGOALS)),)
+.PHONY: $(INSTALLED)
+endif
+ifneq ($(filter install-dev,$(MAKECMDGOALS)),)
+.PHONY: $(INSTALLED_DEV)
+endif
 
-install-dev: $(VENV_PYTHON)  ## install penaltyrun with test, lint and documentation tools
+install: $(INSTALLED)  ## install penaltyrun (editable) with its runtime dependencies
+
+$(INSTALLED): pyproject.toml | $(VENV_PYTHON)
+	$(PIP) install -q -e .
+	@touch $@
+
+install-dev: $(INSTALLED_DEV)  ## install penaltyrun with test, lint and documentation tools
+
+$(INSTALLED_DEV): pyproject.toml | $(VENV_PYTHON)
 	$(PIP) install -q -e ".[dev]"
+	@touch $@ $(INSTALLED)
 
 # requirements.lock pins every package version that made the committed study data
 # (`make lock` writes it from this environment). LOCKED=true makes the study and reproduce
@@ -57,6 +77,7 @@ endif
 install-locked: $(VENV_PYTHON)  ## install the exact versions of requirements.lock, then penaltyrun (editable)
 	$(PIP) install -q -r $(LOCK_FILE)
 	$(PIP) install -q --no-deps -e .
+	@touch $(INSTALLED)
 
 lock: install-dev  ## pin this environment's versions of penaltyrun's dependencies into requirements.lock (uv)
 	$(PYTHON) -m pip freeze --exclude-editable > $(LOCK_FILE).constraints

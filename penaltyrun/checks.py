@@ -305,6 +305,38 @@ def sweep_variants(parsed: list[Any], dry: list[str]) -> list[list[str]]:
     return variants
 
 
+#: Config groups and subtrees that ``mode=evaluate`` does not read: it evaluates the given
+#: ``matrices.*`` (and ``scalars.*``) on the problem and case.
+EVALUATE_IGNORES = ("param", "optimizer", "runner", "report")
+
+
+def check_evaluate_sweeps(parsed: list[Any]) -> None:
+    """Refuse, in a sweep of ``mode=evaluate``, a sweep over a key that evaluation does not
+    read (:data:`EVALUATE_IGNORES`): every value would evaluate the same matrices again.
+
+    Parameters
+    ----------
+    parsed : list of hydra Override
+        The overrides of the command line (and of the config's ``hydra.sweeper.params``).
+
+    Raises
+    ------
+    ConfigError
+        Naming the key, why, and what to sweep instead.
+    """
+    if any(o.key_or_group == "mode" and o.is_sweep_override() for o in parsed):
+        return  # some cells optimize: their sweeps matter
+    for o in parsed:
+        root = o.key_or_group.lstrip("+~").split(".", 1)[0]
+        if not o.is_sweep_override() or root not in EVALUATE_IGNORES:
+            continue
+        values = list(o.sweep_string_iterator())
+        raise ConfigError(o.key_or_group, f"mode=evaluate does not read {root}: the sweep "
+                          f"over {', '.join(values)} would evaluate the same matrices "
+                          f"{len(values)} times; drop it (sweep matrices.*, problem, case or "
+                          "problem.params.* instead)")
+
+
 def check_variant(compose: Callable[..., DictConfig], overrides: list[str],
                   config_name: str = "config") -> None:
     """Compose one sweep variant with ``compose`` (Hydra's) and check its options."""

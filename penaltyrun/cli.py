@@ -44,9 +44,11 @@ from penaltyrun.errors import (
 from penaltyrun.preflight import preflight
 from penaltyrun.streams import (
     EXIT_ENVIRONMENT,
+    end_if_pipe_closed,
     ensure_utf8_mode,
     flush_stdout,
     print_error,
+    print_for_reader,
     stdout_broken,
     stdout_error_line,
     watch_stdout,
@@ -140,7 +142,8 @@ def _progress(cfg: DictConfig, jobs: list[Any], run_dir: Path) -> Any:
 
     rc = cfg.runner
     done = progress.finished_before(jobs, run_dir, bool(rc.resume), bool(rc.retry_failed))
-    return progress.job_bar(len(jobs), done, progress.wanted(rc.get("progress", "auto")))
+    return progress.job_bar(len(jobs), done, progress.wanted(rc.get("progress", "auto")),
+                            workers=progress.slots(rc, len(jobs) - done))
 
 
 def summarize(path: Path, run_dir: Path) -> dict[str, int]:
@@ -259,12 +262,16 @@ def install_signal_handlers() -> None:
 
 def _discard_run_dir() -> None:
     """Remove the run directory Hydra created for a run that failed before doing anything
-    (it holds only Hydra's ``.hydra/`` and the log), so a mistake leaves nothing behind."""
+    (it holds only Hydra's ``.hydra/`` and the log), so a mistake leaves nothing behind.
+    A directory without ``.hydra/`` is not Hydra's own, e.g. the current directory of an
+    evaluation that writes nothing: it is never touched."""
     try:
         out = Path(HydraConfig.get().runtime.output_dir)
     except (ValueError, AttributeError):
         return
-    if out.is_dir() and all(p.name == ".hydra" or p.suffix == ".log" for p in out.iterdir()):
+    if not (out / ".hydra").is_dir() or out.resolve() == Path.cwd().resolve():
+        return
+    if all(p.name == ".hydra" or p.suffix == ".log" for p in out.iterdir()):
         shutil.rmtree(out, ignore_errors=True)
 
 
@@ -297,7 +304,7 @@ def print_version(argv: list[str]) -> bool:
     """``--version``: print penaltyrun's version (Hydra would print its own); True if so."""
     if "--version" not in argv:
         return False
-    print(f"penaltyrun {__version__}")
+    print_for_reader(f"penaltyrun {__version__}")
     return True
 
 
@@ -316,8 +323,7 @@ def main() -> None:
     if "--hydra-help" in argv:
         return _hydra_main()
     if clihelp.wants_help(argv):
-        print(clihelp.render(argv))
-        return flush_stdout()
+        return print_for_reader(clihelp.render(argv))
     install_signal_handlers()
     argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(argv)))
     args = _guard(lambda: cliargs.check_options(argv))
@@ -356,7 +362,11 @@ def report_main(argv: list[str] | None = None) -> None:
     if argv is None:
         ensure_utf8_mode(sys.argv)
     watch_stdout()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit:  # --help, --version or a usage error: printed already
+        end_if_pipe_closed()
+        raise
     from penaltyrun import report
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")

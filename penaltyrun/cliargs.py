@@ -7,7 +7,10 @@ code of an internal error. Here every such mistake becomes one line
 
 * :func:`check_options` checks the flags with Hydra's own argument parser before anything
   else runs;
-* :func:`check_sweeps` refuses a comma list (a sweep) without ``-m``;
+* :func:`check_sweeps` refuses a comma list (a sweep) without ``-m``, ``hydra.run.dir``
+  as the run directory of a sweep (``-m`` writes under ``hydra.sweep.dir``), MATLAB
+  matrix syntax (:func:`matlab_to_yaml`) and an unquoted value with characters Hydra's
+  grammar reads only inside quotes (a unicode run directory), each with the fix;
 * :func:`hydra_errors` turns an error Hydra raises while it composes a config (e.g. a bad
   value inside an experiment profile's ``hydra.sweeper.params``, met when the sweep reaches
   that cell) into one line, and leaves a real bug in penaltyrun's code a traceback (exit 1).
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import os
 import re
+import shlex
 import shutil
 import sys
 import tempfile
@@ -32,8 +36,9 @@ from penaltyrun.overrides import parse_each, split_argv
 
 KEEP_FLAG = "--keep"
 #: What an evaluation that kept no run directory says on stderr.
-EVALUATE_NOTHING_WRITTEN = ("penaltyrun: evaluate: nothing written (pass --keep or "
-                            "hydra.run.dir=DIR to keep Hydra's config and log)")
+EVALUATE_NOTHING_WRITTEN = ("penaltyrun: evaluate: nothing written (pass --keep, or "
+                            "hydra.run.dir=DIR (with -m hydra.sweep.dir=DIR), to keep "
+                            "Hydra's config and log)")
 #: Exceptions raised inside penaltyrun's task function (bugs): kept as tracebacks.
 _TASK_ERRORS: list[BaseException] = []
 
@@ -86,14 +91,24 @@ def check_options(argv: list[str]) -> Any:
 
 
 def check_sweeps(overrides: list[str], multirun: bool) -> list[Any]:
-    """Refuse a sweep (``param=diagonal,full``, ``range(3)``, ...) without ``-m``.
+    """Refuse a sweep (``param=diagonal,full``, ``range(3)``, ...) without ``-m``, and the
+    command lines Hydra would otherwise run in a way the user did not mean (see the module
+    docstring), each with one line naming the fix.
 
     Returns
     -------
     list
         Hydra's parsed overrides.
     """
-    parsed = parse_each(overrides, _one_line)
+    parsed = []
+    for arg in overrides:
+        _check_matlab(arg)
+        try:
+            parsed += parse_each([arg], _one_line)
+        except ConfigError:
+            _check_unquoted(arg)
+            raise
+    _check_run_dir_key(parsed, multirun)
     if not multirun:
         for o in parsed:
             if o.is_sweep_override():
@@ -103,6 +118,69 @@ def check_sweeps(overrides: list[str], multirun: bool) -> list[Any]:
                 raise ConfigError(o.key_or_group, f"{value!r} is a sweep: add -m to sweep"
                                   + hint)
     return parsed
+
+
+#: A number as MATLAB and YAML both write it.
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def matlab_to_yaml(value: str) -> str | None:
+    """The YAML form of a MATLAB matrix literal (``[1 0; 0 1]`` → ``[[1,0],[0,1]]``, a row
+    ``[1 2 3]`` → ``[1,2,3]``), or None if ``value`` is not one (YAML lists, anything else).
+
+    A value is MATLAB syntax when it is one pair of brackets around numbers and it has a
+    ``;`` between rows or two numbers separated by blanks only.
+    """
+    text = value.strip()
+    if not (text.startswith("[") and text.endswith("]")):
+        return None
+    body = text[1:-1].strip()
+    if "[" in body or "]" in body or not body:
+        return None
+    if ";" not in body and not re.search(r"[\d.]\s+[-+\d.]", body):
+        return None
+    rows = [row.strip() for row in body.split(";")]
+    if rows[-1] == "":  # [1 0; 0 1;]
+        rows.pop()
+    cells = [[t for t in re.split(r"[\s,]+", row) if t] for row in rows]
+    if not cells or not all(cells) or not all(re.fullmatch(_NUMBER, t)
+                                              for row in cells for t in row):
+        return None
+    rendered = ["[" + ",".join(row) + "]" for row in cells]
+    return rendered[0] if ";" not in body else "[" + ",".join(rendered) + "]"
+
+
+def _check_matlab(arg: str) -> None:
+    """Refuse ``key=[1 0; 0 1]`` with the YAML form of the same matrix."""
+    key, eq, value = arg.partition("=")
+    fixed = matlab_to_yaml(value) if eq else None
+    if fixed is not None:
+        raise ConfigError(key.lstrip("+~"), f"MATLAB matrix syntax {value.strip()!r} is not "
+                          f"read: write the YAML form {shlex.quote(f'{key}={fixed}')} (a "
+                          "list of rows, commas between entries)")
+
+
+def _check_unquoted(arg: str) -> None:
+    """An override that does not parse because its unquoted value has characters Hydra's
+    grammar reads only inside quotes (``hydra.run.dir=runs/résumé``): the quoted form."""
+    key, eq, value = arg.partition("=")
+    odd = sorted({ch for ch in value if not ch.isascii()})
+    if not eq or not odd or value[:1] in ("'", '"') or value[:1] == "[":
+        return
+    quote = '"' if '"' not in value else "'"
+    raise ConfigError(key.lstrip("+~"), f"Hydra reads {''.join(odd)!r} only inside quotes: "
+                      f"write {shlex.quote(f'{key}={quote}{value}{quote}')}")
+
+
+def _check_run_dir_key(parsed: list[Any], multirun: bool) -> None:
+    """Refuse ``hydra.run.dir`` as the only run directory of a sweep: ``-m`` ignores it and
+    writes under ``hydra.sweep.dir`` (default ``outputs/multirun/<date>/<time>``)."""
+    given = {o.key_or_group: o for o in parsed}
+    if multirun and "hydra.run.dir" in given and "hydra.sweep.dir" not in given:
+        value = given["hydra.run.dir"].input_line.split("=", 1)[1]
+        raise ConfigError("hydra.run.dir", "a sweep (-m) ignores hydra.run.dir and writes "
+                          f"to outputs/multirun/...: write hydra.sweep.dir={value} (one "
+                          "subfolder per cell)")
 
 
 def evaluate_overrides(parsed: list[Any], multirun: bool, keep: bool) -> list[str]:

@@ -78,6 +78,8 @@ def preflight(argv: list[str]) -> str:
                 raise
             raise ConfigError(exc.key, f"{exc.message} (a sweep value of the config's "
                               "hydra.sweeper.params)", allowed=exc.allowed) from None
+        if multirun and cfg.mode == "evaluate":
+            checks.check_evaluate_sweeps(parsed + profile)
         return str(cfg.mode)
 
 
@@ -140,6 +142,9 @@ def _check_choices(parsed: list[Any], source: userconf.ConfigSource,
         allowed = userconf.group_options(o.key_or_group, source, hydra_overrides)
         for value in values:
             if value not in allowed:
+                hint = userconf.misplaced(o.key_or_group, value, source, searchpath)
+                if hint:
+                    raise ConfigError(o.key_or_group, f"unknown choice {value!r}: {hint}")
                 raise ConfigError(o.key_or_group, f"unknown choice {value!r}", allowed=allowed)
             choices.append((o.key_or_group, value))
     userconf.check_files(source, searchpath, choices)

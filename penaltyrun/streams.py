@@ -1,6 +1,8 @@
 """The process's streams: UTF-8 whatever the locale, and a stdout that cannot be written
 (``/dev/full``, a closed pipe) as one line on stderr and exit code :data:`EXIT_ENVIRONMENT`
-instead of a traceback at interpreter shutdown. Used by :mod:`penaltyrun.cli`.
+instead of a traceback at interpreter shutdown; help and version text piped into a reader
+that stops early (``| head``) end quietly (:func:`print_for_reader`). Used by
+:mod:`penaltyrun.cli`.
 """
 
 from __future__ import annotations
@@ -95,6 +97,25 @@ def stdout_broken() -> OSError | None:
 def stdout_error_line(exc: OSError) -> str:
     """The one line of a stdout that cannot be written."""
     return f"cannot write standard output: {exc.strerror or exc}"
+
+
+def print_for_reader(text: str) -> None:
+    """Print ``text`` (help, version) on stdout. A reader that stopped reading early
+    (``penaltyrun --help | head``) has what it wanted: the process ends quietly with exit
+    code 0; any other failure to write is :func:`flush_stdout`'s one line."""
+    try:
+        print(text)
+    except BrokenPipeError:
+        pass
+    end_if_pipe_closed()
+    flush_stdout()
+
+
+def end_if_pipe_closed() -> None:
+    """Exit quietly (code 0) if stdout is a pipe its reader has closed; stdout then goes to
+    ``/dev/null``, so nothing fails again at interpreter shutdown."""
+    if isinstance(stdout_broken(), BrokenPipeError):
+        sys.exit(0)
 
 
 def flush_stdout() -> None:

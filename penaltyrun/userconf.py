@@ -110,16 +110,49 @@ def parse_source(argv: list[str]) -> tuple[ConfigSource, list[str]]:
         primary = (local or Path(given)).expanduser().resolve()
         if not primary.is_dir():
             raise ConfigError("--config-path", f"{primary} is not a directory")
-    if not (primary / f"{name}.yaml").is_file():
-        raise ConfigError("--config-name" if "--config-name" in found else "--config-path",
-                          f"no primary config {name}.yaml in {primary}")
     dirs: tuple[Path, ...] = ()
     if "--config-dir" in found:
         extra = Path(found["--config-dir"]).expanduser().resolve()
         if not extra.is_dir():
             raise ConfigError("--config-dir", f"{extra} is not a directory")
         dirs = (extra,)
+    if "--config-name" in found:  # a group's file named as the primary config
+        for folder in (primary, *dirs):
+            if (folder / f"{name}.yaml").is_file():
+                _check_primary(folder / f"{name}.yaml")
+    if not (primary / f"{name}.yaml").is_file():
+        raise ConfigError("--config-name" if "--config-name" in found else "--config-path",
+                          f"no primary config {name}.yaml in {primary}")
     return ConfigSource(primary, name, dirs), rest
+
+
+def _check_primary(path: Path) -> None:
+    """Refuse a ``--config-name`` file that is a group's config (``name: lqr`` and its
+    settings, no ``defaults`` list), e.g. a problem file given as the primary config.
+
+    Raises
+    ------
+    ConfigError
+        Naming the group folder the file belongs in and the command line that uses it.
+    """
+    import yaml
+
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return  # check_yaml names the problem
+    if not isinstance(data, dict) or "defaults" in data or "name" not in data:
+        return
+    group = "problem"
+    for candidate in ("problem", "param", "optimizer"):
+        names = [f.stem for f in (CONF_DIR / candidate).glob("*.yaml")]
+        if str(data["name"]) in names:
+            group = candidate
+            break
+    raise ConfigError("--config-name", f"{_shown(path)} is a {group} config (name: "
+                      f"{data['name']}), not a primary config: move it to "
+                      f"{_shown(path.parent / group / path.name)} and pass --config-dir "
+                      f"{_shown(path.parent)} {group}={path.stem}")
 
 
 @contextmanager
@@ -174,6 +207,63 @@ def search_dirs(source: ConfigSource, searchpath: list[str]) -> list[Path]:
     dirs = [*source.config_dirs, source.primary]
     dirs += [d for d in map(_searchpath_dir, searchpath) if d is not None]
     return dirs
+
+
+def _shown(path: Path) -> str:
+    """``path`` relative to the current directory when it is below it."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve())) or "."
+    except ValueError:
+        return str(path)
+
+
+def misplaced(group: str, value: str, source: ConfigSource, searchpath: list[str]
+              ) -> str | None:
+    """Where a config file that ``group=value`` did not find really is, and the fix; None
+    when no such file is near.
+
+    Hydra finds ``<dir>/<group>/<value>.yaml`` only, ``<dir>`` a config directory
+    (``--config-dir``, ``hydra.searchpath``). Looked at: a path given as the choice
+    (``problem=myconf/plant.yaml``), ``<value>.yaml`` at the top of a config directory or in
+    another group's folder, and ``<value>.yaml`` in the current directory or one folder
+    below it, directly or in a ``<group>/`` folder, when the current directory is not
+    searched.
+    """
+    name = Path(value).name.removesuffix(".yaml").removesuffix(".yml")
+    if "/" in value or os.sep in value or value.endswith((".yaml", ".yml")):
+        given = Path(value).expanduser()
+        found = given if given.is_file() else given.with_name(f"{name}.yaml")
+        if not found.is_file():
+            return (f"a choice is the name of a file in a config directory's {group}/ "
+                    f"folder, not a path: {group}={name} with --config-dir DIR")
+        folder = found.parent
+        if folder.name == group:
+            return f"a choice is a name, not a path: pass --config-dir " \
+                   f"{_shown(folder.parent)} {group}={name}"
+        return (f"{_shown(found)} must be in a {group}/ folder: move it to "
+                f"{_shown(folder / group / (name + '.yaml'))} and pass --config-dir "
+                f"{_shown(folder)} {group}={name}")
+    dirs = [d for d in search_dirs(source, searchpath) if d.resolve() != CONF_DIR]
+    for folder in dirs:
+        for found in [folder / f"{name}.yaml",
+                      *sorted(folder.glob(f"*/{name}.yaml"))]:
+            if found.is_file():
+                return (f"{_shown(found)} is outside the {group}/ folder Hydra searches: "
+                        f"move it to {_shown(folder / group / (name + '.yaml'))}")
+    here = Path.cwd()
+    if any(d.resolve() == here.resolve() for d in dirs):
+        return None
+    for found in [here / group / f"{name}.yaml", *sorted(here.glob(f"*/{group}/{name}.yaml"))]:
+        if found.is_file():
+            return f"{_shown(found)} is not searched: pass --config-dir " \
+                   f"{_shown(found.parent.parent)}"
+    for found in [here / f"{name}.yaml", *sorted(here.glob(f"*/{name}.yaml"))]:
+        if found.is_file():
+            conf = found.parent if found.parent != here else here / "conf"
+            return (f"{_shown(found)} is not searched: move it to "
+                    f"{_shown(conf / group / (name + '.yaml'))} and pass --config-dir "
+                    f"{_shown(conf)} {group}={name}")
+    return None
 
 
 def check_yaml(path: Path, key: str) -> None:

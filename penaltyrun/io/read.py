@@ -13,6 +13,9 @@ of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLU
 * a status other than ok / diverged / failed is kept but marked: ``status_known`` is False
   for its rows and ``df.attrs["unknown_statuses"]`` maps each such status to its count, so
   a report can say so instead of counting it;
+* a run directory with finished job records (``jobs/*.json``) but no ``results.parquet``
+  (an interrupted run, or one still running) is read from its records, with one warning
+  saying so and naming ``runner.resume=true``;
 * reading many files shows a progress bar on a terminal (a log line every few seconds
   elsewhere).
 """
@@ -37,8 +40,10 @@ from penaltyrun.io.schema import (
     TIMESTAMP_COLUMNS,
     _upgrade_settings,
     find_results,
+    to_table,
     to_timestamp,
 )
+from penaltyrun.runner.records import CORRUPT_DIR, JOBS_DIR, load_record
 from penaltyrun.runner.validate import JOB_STATUSES
 
 logger = logging.getLogger(__name__)
@@ -105,7 +110,11 @@ def _read_one(path: Path) -> pd.DataFrame:
     OSError, pyarrow.ArrowException
         It cannot be read as Parquet.
     """
-    table = pq.read_table(path)
+    return _frame(pq.read_table(path), path)
+
+
+def _frame(table: pa.Table, path: Path) -> pd.DataFrame:
+    """:func:`_read_one` of a table already read from ``path``."""
     problem = check_table(table)
     if problem:
         raise ValueError(problem)
@@ -123,6 +132,47 @@ def _read_one(path: Path) -> pd.DataFrame:
     frame.attrs = {}
     frame["_source"] = str(path)
     return frame
+
+
+def unfinished_runs(path: Path) -> list[Path]:
+    """Run directories at or below ``path`` that hold job records (``jobs/*.json``) but no
+    ``results.parquet``: a run that was interrupted (or is still running)."""
+    path = Path(path)
+    if not path.is_dir():
+        return []
+    runs = {p.parent.parent for p in path.rglob(f"{JOBS_DIR}/*.json")
+            if CORRUPT_DIR not in p.parts and p.is_file()}
+    return sorted(r for r in runs if not (r / RESULTS_FILE).exists())
+
+
+def read_records(run_dir: Path) -> pd.DataFrame:
+    """The finished job records of a run directory without ``results.parquet``, as
+    :func:`_read_one` reads a results file; one warning saying how many, and that
+    ``runner.resume=true`` finishes the run (unusable records are left out and named,
+    never moved: the run may still be going).
+
+    Raises
+    ------
+    ValueError
+        No record in ``run_dir/jobs`` can be used.
+    """
+    run_dir = Path(run_dir)
+    records, bad = [], []
+    for f in sorted((run_dir / JOBS_DIR).glob("*.json")):
+        record, reason = load_record(f)
+        if record is None:
+            bad.append(f"{f.name} ({reason})")
+        else:
+            records.append(record)
+    if bad:
+        logger.warning("left out %d unusable job records of %s: %s", len(bad), run_dir,
+                       "; ".join(bad[:3]) + (" ..." if len(bad) > 3 else ""))
+    if not records:
+        raise ValueError(f"no usable job record in {run_dir / JOBS_DIR}")
+    logger.warning("%s has no %s (the run was interrupted, or is still running): reporting "
+                   "its %d finished job records; to finish it, rerun the same command with "
+                   "runner.resume=true", run_dir, RESULTS_FILE, len(records))
+    return _frame(to_table(records, run_id=run_dir.name), run_dir / JOBS_DIR)
 
 
 class _Progress:
@@ -208,15 +258,24 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
     Raises
     ------
     FileNotFoundError
-        If there is no results file under ``path``.
+        If there is no results file, and no run directory with job records, under
+        ``path``.
     ResultsUnreadableError
         If there are results files but none of them can be used.
     """
-    paths = find_results(path) if isinstance(path, (str, Path)) else [Path(p) for p in path]
-    if not paths:
-        raise FileNotFoundError(f"no {RESULTS_FILE} found under {path}")
+    single = isinstance(path, (str, Path))
+    paths = find_results(path) if single else [Path(p) for p in path]
+    unfinished = unfinished_runs(path) if single else []
+    if not paths and not unfinished:
+        raise FileNotFoundError(f"no {RESULTS_FILE} (and no job records) found under {path}")
     frames = []
     skipped: dict[str, str] = {}
+    for run_dir in unfinished:
+        try:
+            frames.append(read_records(run_dir))
+        except ValueError as exc:
+            logger.warning("skipped run directory %s: %s", run_dir, exc)
+            skipped[str(run_dir)] = str(exc)
     progress = _Progress(len(paths))
     try:
         for p in paths:

@@ -21,6 +21,7 @@ from typing import Any
 from penaltyrun.errors import ConfigError, RunInterruptedError
 from penaltyrun.runner import lock
 from penaltyrun.runner.dask_backend import import_distributed, run_dask
+from penaltyrun.runner.eta import DispatchEta
 from penaltyrun.runner.job import run_job
 from penaltyrun.runner.options import BACKENDS, RUNNER_OPTIONS, check_value, resolve_workers
 from penaltyrun.runner.plan import Job, order_longest_first
@@ -44,6 +45,15 @@ def _swarm_stream(todo: list[Job], workers: int, scheduler: str | None, max_retr
 
     return run_swarm(todo, workers, scheduler, max_retries, worker_timeout, chunks,
                      stall_timeout)
+
+
+def dispatch_slots(workers: int, n_todo: int, backend: str = "local",
+                   scheduler: str | None = None, evaluate_on: str = "local") -> int | None:
+    """Jobs that run at once: ``workers`` (1 in turn), ``None`` when unknown here (a remote
+    dask scheduler, or candidates evaluated across the cluster)."""
+    if evaluate_on == "dask" or (backend == "dask" and scheduler):
+        return None
+    return 1 if workers == 1 or n_todo <= 1 else int(workers)
 
 
 def check_settings(workers: Any, backend: Any, evaluate_on: Any = "local",
@@ -139,17 +149,19 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
     else:
         stream = run_pool(todo, workers, max_retries, stall_timeout=stall_timeout)
     written = []
+    eta = DispatchEta(len(todo), dispatch_slots(workers, len(todo), backend, scheduler,
+                                                evaluate_on))
     t0 = time.perf_counter()
     try:
         for i, (job, record) in enumerate(stream, start=1):
             written.append(write_record(run_dir, job, record))
             elapsed = time.perf_counter() - t0
-            eta = elapsed / i * (len(todo) - i)
+            left = eta.finished(elapsed, record.get("wall_time_s"))
             cost = record.get("best_cost")
             logger.info("[%d/%d] %s: %s%s (%.1f s; elapsed %.0f s, ETA %.0f s)", i, len(todo),
                         job.job_id, record.get("status"),
                         f", cost {cost:.6g}" if isinstance(cost, float) else "",
-                        record.get("wall_time_s", float("nan")), elapsed, eta)
+                        record.get("wall_time_s", float("nan")), elapsed, left)
             if on_record is not None:
                 on_record(record)
     except KeyboardInterrupt as exc:

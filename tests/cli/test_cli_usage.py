@@ -137,7 +137,8 @@ def test_hydra_help_is_hydras(tmp_path):
     (["-m", "hydra/sweeper=foo", "mode=plan"], ["hydra/sweeper: unknown choice 'foo'"]),
 ])
 def test_hydra_mistakes_are_one_line(tmp_path, args, fragments):
-    line = one_error_line(cli(*args, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path))
+    key = "hydra.sweep.dir" if "-m" in args else "hydra.run.dir"
+    line = one_error_line(cli(*args, f"{key}={tmp_path / 'run'}", cwd=tmp_path))
     for fragment in fragments:
         assert fragment in line, line
     assert not (tmp_path / "run").exists()
@@ -180,10 +181,10 @@ def test_evaluate_writes_nothing_and_says_so(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout.strip().splitlines()[-1])["converged"] is True
     assert proc.stderr.strip().splitlines() == [
-        "penaltyrun: evaluate: nothing written (pass --keep or hydra.run.dir=DIR to keep "
-        "Hydra's config and log)"]
+        "penaltyrun: evaluate: nothing written (pass --keep, or hydra.run.dir=DIR (with -m "
+        "hydra.sweep.dir=DIR), to keep Hydra's config and log)"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tmp"]
-    sweep = cli("-m", "mode=evaluate", K2, "runner.seed=1,2", cwd=tmp_path,
+    sweep = cli("-m", "mode=evaluate", K2 + ",[[2,0],[0,2]]", cwd=tmp_path,
                 env={"TMPDIR": str(tmp_path / "tmp")})
     assert sweep.returncode == 0, sweep.stderr
     assert sweep.stdout.count('"converged": true') == 2

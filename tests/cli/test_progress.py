@@ -28,6 +28,30 @@ def test_bar_counts_jobs_with_eta_and_statuses():
     assert "<" in text  # elapsed<remaining: the ETA
 
 
+def test_bar_eta_is_the_dispatchs_given_the_workers(monkeypatch):
+    """4 jobs of 30 s on 2 workers: after the first one, 30 s are left (tqdm's rate would
+    say 90 s: one job per 30 s)."""
+    def bar_after(n_records):  # the bar as drawn last (on closing)
+        clock = iter([0.0, 30.0, 30.0, 60.0, 60.0])
+        monkeypatch.setattr(progress.time, "perf_counter", lambda: next(clock))
+        out = io.StringIO()
+        with progress.job_bar(4, enabled=True, file=out, workers=2) as on_record:
+            for _ in range(n_records):
+                on_record({"status": "ok", "wall_time_s": 30.0})
+        return out.getvalue().split("\r")[-1]
+
+    first = bar_after(1)
+    assert "1/4" in first and "ETA=00:30" in first and "<" not in first
+    assert "ETA=00:00" in bar_after(4)
+
+
+def test_slots_from_runner_settings():
+    assert progress.slots({"workers": 2}, 10) == 2
+    assert progress.slots({"workers": 2}, 1) == 1
+    assert progress.slots({"workers": 3, "backend": "dask", "scheduler": "tcp://h:1"},
+                          10) is None
+
+
 def test_no_bar_when_disabled_or_nothing_to_do():
     with progress.job_bar(3, enabled=False) as on_record:
         assert on_record is None

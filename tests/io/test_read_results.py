@@ -141,3 +141,33 @@ def test_status_only_record_never_reaches_the_table(tmp_path, only):
     (run / "jobs").mkdir(parents=True)
     (run / "jobs" / "x.json").write_text(json.dumps(only))
     assert len(read_results(collect(run))) == 0
+
+
+def test_interrupted_run_is_read_from_its_records(tmp_path, caplog):
+    """A run stopped before it wrote results.parquet: its finished records are read, with
+    one warning naming runner.resume=true; a finished run beside it is read as usual."""
+    write_run(tmp_path / "done", [record(0, config_hash="h0")])
+    jobs = tmp_path / "stopped" / "jobs"
+    jobs.mkdir(parents=True)
+    for r in (record(0), record(1)):
+        write_text_atomic(jobs / f"{r['job_id']}.json", json.dumps(r))
+    (jobs / "half.json").write_text('{"job_id": ')
+    (jobs / "corrupt").mkdir()
+    (jobs / "corrupt" / "old.json").write_text(json.dumps(record(5)))
+    assert read.unfinished_runs(tmp_path) == [tmp_path / "stopped"]
+    with caplog.at_level(logging.WARNING):
+        df = read_results(tmp_path)
+    assert sorted(df["start"]) == [0, 0, 1] and set(df["run_id"]) == {"done", "stopped"}
+    said = [r.getMessage() for r in caplog.records if "no results.parquet" in r.getMessage()]
+    assert len(said) == 1 and "2 finished job records" in said[0]
+    assert "runner.resume=true" in said[0]
+    assert any("half.json" in r.getMessage() for r in caplog.records)
+    assert (jobs / "half.json").exists()  # named, never moved: the run may still be going
+    assert len(read_results(tmp_path / "stopped")) == 2
+
+
+def test_records_that_are_all_unusable_are_no_results(tmp_path):
+    (tmp_path / "run" / "jobs").mkdir(parents=True)
+    (tmp_path / "run" / "jobs" / "x.json").write_text("garbage")
+    with pytest.raises(read.ResultsUnreadableError, match="no readable results"):
+        read_results(tmp_path)

@@ -51,7 +51,8 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> LQRProblem:
         m_hint = len(params.input_weight)
     elif isinstance(params.u_max, tuple):
         m_hint = len(params.u_max)
-    plant = load({k: getattr(params, k) for k in _params.PLANT_KEYS}, n_hint, m_hint)
+    plant = load({**{k: getattr(params, k) for k in _params.PLANT_KEYS}, "dt": params.dt},
+                 n_hint, m_hint)
     logger.debug("lqr plant from %s: n=%d, m=%d", plant.source, plant.n_states,
                  plant.n_inputs)
     return LQRProblem(case, params, plant)

@@ -178,7 +178,8 @@ def dlqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
             good = np.all(np.isfinite(P), axis=(1, 2))
             P = np.where(good[:, None, None], P, 0.0)
             K = _discrete_gain(A, B, R, P)
-            res = np.where(good, discrete_residual(A, B, Q, R, P), np.inf)
+            res = discrete_residual(A, B, Q, R, P)
+            res = np.where(good & np.isfinite(res), res, np.inf)
             ok = good & (res < RESIDUAL_TOL) & _schur_stable(A, B, K)
         except np.linalg.LinAlgError:
             P = np.zeros((n_c, n, n))

@@ -65,7 +65,8 @@ class Params(ParamsMixin, TrainingParams):
     plant_file : str or None
         ``.mat`` / ``.npz`` file holding ``A`` and ``B``.
     plant : str or None
-        ``module:attribute`` of a continuous python-control ``StateSpace`` or an (A, B) pair.
+        ``module:attribute`` of a python-control ``StateSpace`` (continuous, or discrete with
+        its ``dt``) or an (A, B) pair.
     dynamics : str or None
         ``module:function`` of a vectorized nonlinear model f(X, U) → Ẋ.
     x0 : tuple or None
@@ -121,7 +122,8 @@ class Params(ParamsMixin, TrainingParams):
         Constraint: every output with y_i(0) ≠ 0 stays within ``settling_band`` |y_i(0)| of
         0 from this time on (time unit).
     settling_band : float
-        Band of the settling time, a fraction of |y_i(0)| (default 0.02, as step_info).
+        Band of the settling time, a fraction of |y_i(0)| (default 0.02, as
+        python-control's ``step_info``).
     overshoot_max : float or None
         Constraint: max over t of −y_i(t)/y_i(0) at most this (percent).
     disk_margin_min : float or None

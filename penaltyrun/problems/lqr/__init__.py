@@ -76,7 +76,9 @@ def report_info(case: str, params: Mapping[str, Any]) -> Any:
                    "the sphere whose radius is the mean norm of the training states x0")
     else:
         holdout = ""
-    return ReportInfo(cost_name="J = mean over x0 of ∫₀ᵀ (xᵀW_x x + uᵀW_u u) dt",
+    name = ("J = mean over x0 of Σ_k<T/dt (x[k]ᵀW_x x[k] + u[k]ᵀW_u u[k])" if p.dt is not None
+            else "J = mean over x0 of ∫₀ᵀ (xᵀW_x x + uᵀW_u u) dt")
+    return ReportInfo(cost_name=name,
                       cost_unit=str(p.cost_unit), holdout_description=holdout)
 
 

@@ -10,7 +10,8 @@
   Q = C_qᵀ Q̃ C_q + Q₀ (:func:`q_structure`); (A, Q^½) must be detectable, checked once by
   the PBH test since ker Q = ker C_q ∩ ker Q₀ for every Q̃.
 * **Constraints** (:class:`Limits`): ``settling_time_max``, ``overshoot_max`` (of the
-  outputs ``outputs`` from every start) and ``disk_margin_min`` (at the plant input), with
+  outputs ``outputs`` from every start) and ``disk_margin_min`` (at the plant input; or
+  ``gain_margin_min`` / ``phase_margin_min``, the disk-based margins it implies), with
   the measures of :mod:`~penaltyrun.problems.lqr.margins`. A start of a candidate that
   violates any has status ``constraint`` and the graded penalty of
   :mod:`~penaltyrun.problems.lqr.problem` on v = the summed relative excesses
@@ -117,6 +118,8 @@ class Limits:
     ----------
     settling_time_max, overshoot_max, disk_margin_min : float or None
         Limits (time unit, percent, dimensionless); ``None``: not constrained.
+        ``disk_margin_min`` is the largest α of ``disk_margin_min``, ``gain_margin_min``
+        and ``phase_margin_min`` (:func:`~penaltyrun.problems.lqr.margins.alpha_for`).
     band : float
         Settling band (fraction of |y_i(0)|).
     outputs : ndarray, shape (p, n)
@@ -157,7 +160,9 @@ class Limits:
         C = np.eye(n_plant) if p.outputs is None else \
             pm.matrix("outputs", p.outputs, n_plant, "one row per constrained output")
         C = np.hstack([C, np.zeros((C.shape[0], plant.n_states - n_plant))])
-        return cls(p.settling_time_max, p.overshoot_max, p.disk_margin_min,
+        alpha = max(p.disk_margin_min or 0.0,
+                    margins.alpha_for(p.gain_margin_min, p.phase_margin_min))
+        return cls(p.settling_time_max, p.overshoot_max, alpha if alpha > 0 else None,
                    float(p.settling_band), C,
                    margins.frequency_grid(plant.A, plant.dt, int(p.margin_points)),
                    plant.A, plant.B, plant.dt, int(p.response_points), responses)

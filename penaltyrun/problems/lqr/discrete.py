@@ -4,7 +4,8 @@ The cost of one start is the sum over the N = ceil(T / dt) steps k = 0 … N−1
 x[k]ᵀ W_x x[k] + u[k]ᵀ W_u u[k], the cost whose infinite-horizon minimum over gains is
 x0ᵀ P x0 with P from the discrete Riccati equation of (A, B, W_x, W_u) (python-control's
 ``dlqr`` cost; it is not multiplied by dt). Every trajectory is stepped exactly (no
-integration error), all candidates and starts in one batch.
+integration error), all candidates and starts in one batch (:func:`simulate`); a linear loop
+without input limits sums in closed form by doubling (:func:`linear_sum`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,42 @@ HORIZON, DIVERGED, NONFINITE = 0, 1, 2
 def n_steps(t_max: float, dt: float) -> int:
     """Steps N = ceil(T / dt) (at least 1; T a whole number of steps up to 1e-9)."""
     return max(1, math.ceil(t_max / dt - 1e-9))
+
+
+def linear_sum(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, steps: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Cost and final state of unsaturated linear loops, x0ᵀ (Σ_{k<N} (A_clᵀ)^k W A_cl^k) x0
+    and A_cl^N x0, by doubling (O(log N) batched products instead of N steps).
+
+    Parameters
+    ----------
+    A_cl : ndarray, shape (C, n, n)
+    W : ndarray, shape (C, n, n)
+        Stage weight W_x + Kᵀ W_u K.
+    X0 : ndarray, shape (k, n)
+    steps : int
+
+    Returns
+    -------
+    cost : ndarray, shape (C, k)
+    x_final : ndarray, shape (C, k, n)
+    """
+    n_c, n = A_cl.shape[0], A_cl.shape[1]
+    S_block, A_block = W.copy(), A_cl.copy()          # 2^j terms, A_cl^(2^j)
+    S = np.zeros((n_c, n, n))
+    P = np.broadcast_to(np.eye(n), (n_c, n, n)).copy()  # A_cl^(terms so far)
+    remaining = steps
+    with np.errstate(all="ignore"):
+        while remaining:
+            if remaining & 1:
+                S = S + np.swapaxes(P, 1, 2) @ S_block @ P
+                P = P @ A_block
+            remaining >>= 1
+            if remaining:
+                S_block = S_block + np.swapaxes(A_block, 1, 2) @ S_block @ A_block
+                A_block = A_block @ A_block
+    cost = np.einsum("ki,cij,kj->ck", X0, S, X0)
+    return cost, np.einsum("cij,kj->cki", P, X0)
 
 
 def simulate(A: np.ndarray, B: np.ndarray, K: np.ndarray, X0: np.ndarray, Wx: np.ndarray,
@@ -89,4 +126,4 @@ def simulate(A: np.ndarray, B: np.ndarray, K: np.ndarray, X0: np.ndarray, Wx: np
     return out
 
 
-__all__ = ["DIVERGED", "HORIZON", "NONFINITE", "n_steps", "simulate"]
+__all__ = ["DIVERGED", "HORIZON", "NONFINITE", "linear_sum", "n_steps", "simulate"]

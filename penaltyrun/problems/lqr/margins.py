@@ -83,6 +83,21 @@ def disk_gain_phase(alpha: float) -> tuple[float, float]:
     return float(20.0 * np.log10(gain)), float(np.degrees(2.0 * np.arctan(alpha / 2.0)))
 
 
+def alpha_for(gain_margin_db: float | None = None, phase_margin_deg: float | None = None
+              ) -> float:
+    """The smallest balanced disk margin α whose disk-based gain margin is at least
+    ``gain_margin_db`` (dB, > 0) and whose phase margin is at least ``phase_margin_deg``
+    (degrees, in (0, 180)): the inverse of :func:`disk_gain_phase`, 0 when neither is
+    given."""
+    need = 0.0
+    if gain_margin_db is not None:
+        g = 10.0 ** (gain_margin_db / 20.0)
+        need = max(need, 2.0 * (g - 1.0) / (g + 1.0))
+    if phase_margin_deg is not None:
+        need = max(need, 2.0 * float(np.tan(np.radians(phase_margin_deg) / 2.0)))
+    return need
+
+
 def settling_overshoot(t: np.ndarray, y: np.ndarray, band: float
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Settling time and overshoot of every response, worst over its outputs.
@@ -145,5 +160,5 @@ def sample_linear(A_cl: np.ndarray, X0: np.ndarray, t: np.ndarray) -> np.ndarray
     return out
 
 
-__all__ = ["disk_gain_phase", "disk_margin", "disk_margin_curve", "frequency_grid",
+__all__ = ["alpha_for", "disk_gain_phase", "disk_margin", "disk_margin_curve", "frequency_grid",
            "sample_linear", "settling_overshoot"]

@@ -129,6 +129,10 @@ class Params(ParamsMixin, TrainingParams):
     disk_margin_min : float or None
         Constraint: balanced (skew 0) disk margin α of the loop broken at the plant
         input at least this (dimensionless; α = 1 ⇔ gain margin [1/3, 3], 53.1° phase).
+    gain_margin_min, phase_margin_min : float or None
+        Constraint in the units engineers quote: the disk-based gain margin (dB) and phase
+        margin (degrees, below 180) the loop must keep, i.e. the disk margin α they imply
+        (the larger of the two and ``disk_margin_min`` applies).
     response_points : int
         Samples of the continuous-time response of the settling and overshoot constraints
         (uniform on [0, T]).
@@ -173,6 +177,8 @@ class Params(ParamsMixin, TrainingParams):
     settling_band: float = 0.02
     overshoot_max: float | None = None
     disk_margin_min: float | None = None
+    gain_margin_min: float | None = None
+    phase_margin_min: float | None = None
     response_points: int = 1001
     margin_points: int = 400
     setup: str = ""
@@ -304,9 +310,12 @@ def scalars(p: Params) -> None:
     _number("atol", p.atol)
     _number("settling_band", p.settling_band)
     for key in ("settle_tol", "failure_penalty", "x_bound", "dt", "settling_time_max",
-                "disk_margin_min"):
+                "disk_margin_min", "gain_margin_min", "phase_margin_min"):
         if getattr(p, key) is not None:
             _number(key, getattr(p, key))
+    if p.phase_margin_min is not None and not p.phase_margin_min < 180.0:
+        raise ConfigError(f"{PREFIX}.phase_margin_min", f"must be below 180 (degrees), got "
+                          f"{p.phase_margin_min!r}")
     if p.overshoot_max is not None:
         _number("overshoot_max", p.overshoot_max, positive=False)
         if p.overshoot_max < 0:

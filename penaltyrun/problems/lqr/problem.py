@@ -173,12 +173,19 @@ class LQRProblem:
         codes = np.full((n_c, n_k), "converged", dtype=object)
         good = np.flatnonzero(ok)
         steps = None
-        if good.size and self.dt is not None:
+        history = self.limits.needs_history(metrics)
+        if good.size and self.dt is not None and self.plant.linear and self.u_max is None \
+                and not history:
+            A_cl = self.plant.A - self.plant.B @ K[good]
+            W = self.Wx + np.swapaxes(K[good], 1, 2) @ self.Wu @ K[good]
+            J[good], x_final[good] = discrete.linear_sum(
+                A_cl, W, X0, discrete.n_steps(self.t_max, self.dt))
+        elif good.size and self.dt is not None:
             cand = np.repeat(good, n_k)
             steps = discrete.simulate(self.plant.A, self.plant.B, K[cand],
                                       np.tile(X0, (good.size, 1)), self.Wx, self.Wu,
                                       self.u_max, discrete.n_steps(self.t_max, self.dt),
-                                      self._bound(X0), history=self.limits.needs_history(metrics))
+                                      self._bound(X0), history=history)
             J[good] = steps["cost"].reshape(good.size, n_k)
             t_end[good] = (steps["k_end"] * self.dt).reshape(good.size, n_k)
             x_final[good] = steps["x_final"].reshape(good.size, n_k, -1)

@@ -123,3 +123,36 @@ def test_response_constraints_need_a_loop_they_can_sample():
     assert err.value.key == "problem.params.overshoot_max" and "u_max" in str(err.value)
     prob = lqr.make_problem("default", {**OSC, "u_max": 1.0, "disk_margin_min": 0.1})
     assert prob.evaluate({"Q": np.eye(2), "R": np.eye(1)})["settling_time"] == [None, None]
+
+
+def test_gain_and_phase_margin_keys_are_the_disk_margin_they_imply():
+    rng = np.random.default_rng(8)
+    A, B = rng.normal(size=(3, 3)), rng.normal(size=(3, 1))
+    K = control.lqr(A, B, np.eye(3), np.eye(1))[0]
+    omega = margins.frequency_grid(A, None, 200)
+    dm, dgm, dpm = control.disk_margins(control.ss(A, B, K, 0), omega)
+    assert margins.alpha_for(gain_margin_db=dgm) == pytest.approx(dm, rel=1e-9)
+    assert margins.alpha_for(phase_margin_deg=dpm) == pytest.approx(dm, rel=1e-9)
+    assert margins.alpha_for() == 0.0
+    Q, R = np.diag([1.0, 0.01]), np.array([[0.05]])
+    free = lqr.make_problem("default", OSC).evaluate({"Q": Q, "R": R})["disk_margin"]
+    for key, value in (("gain_margin_min", free["gain_margin_db"]),
+                       ("phase_margin_min", free["phase_margin_deg"])):
+        loose = lqr.make_problem("default", {**OSC, key: 0.99 * value})
+        tight = lqr.make_problem("default", {**OSC, key: 1.01 * value})
+        assert loose.evaluate({"Q": Q, "R": R})["status"] == "converged"
+        assert tight.evaluate({"Q": Q, "R": R})["status"] == "constraint"
+    with pytest.raises(ConfigError, match="below 180"):
+        lqr.make_problem("default", {**OSC, "phase_margin_min": 180})
+
+
+def test_continuous_siso_lqr_keeps_the_classical_disk_margin():
+    # Kalman's return-difference inequality |1 + L(jω)| ≥ 1 gives |S − ½| ≤ 3/2: α ≥ 2/3
+    rng = np.random.default_rng(9)
+    for _ in range(20):
+        n = int(rng.integers(1, 6))
+        A, B = rng.normal(size=(n, n)), rng.normal(size=(n, 1))
+        C = rng.normal(size=(1, n))
+        K = control.lqr(A, B, C.T @ C + 1e-3 * np.eye(n), np.eye(1) * rng.uniform(0.01, 10))[0]
+        alpha = margins.disk_margin(A, B, K[None], margins.frequency_grid(A, None, 400))[0]
+        assert alpha >= 2.0 / 3.0 - 1e-9

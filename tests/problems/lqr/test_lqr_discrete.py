@@ -131,3 +131,31 @@ def test_bad_discrete_input(params, key, words):
     with pytest.raises(ConfigError) as err:
         lqr.make_problem("default", params)
     assert err.value.key == key and words in str(err.value)
+
+
+@pytest.mark.parametrize("steps", [1, 2, 3, 7, 64, 301])
+def test_doubling_sum_equals_stepping(steps):
+    rng = np.random.default_rng(steps)
+    A, B, Q, R = random_case(rng, 3, 2, 4)
+    A = 0.9 * A / np.max(np.abs(np.linalg.eigvals(A)))
+    K, ok, _ = dlqr_gains(A, B, Q, R)
+    X0 = rng.normal(size=(5, 3))
+    Wx, Wu = np.diag([1.0, 2.0, 0.5]), np.diag([0.3, 1.0])
+    W = Wx + np.swapaxes(K, 1, 2) @ Wu @ K
+    cost, x_end = discrete.linear_sum(A - B @ K, W, X0, steps)
+    run = discrete.simulate(A, B, np.repeat(K, 5, 0), np.tile(X0, (4, 1)), Wx, Wu, None,
+                            steps, 1e12)
+    np.testing.assert_allclose(cost, run["cost"].reshape(4, 5), rtol=1e-11)
+    np.testing.assert_allclose(x_end, run["x_final"].reshape(4, 5, 3), rtol=1e-9,
+                               atol=1e-12)
+
+
+def test_batch_costs_take_the_closed_form_path():
+    prob = lqr.make_problem("default", {**PLANT, "t_max": 3.05})
+    Q = np.stack([np.eye(2), np.diag([3.0, 0.2])])
+    R = np.stack([np.eye(1), 2 * np.eye(1)])
+    batch = prob.evaluate_batch({"Q": Q, "R": R})
+    for c in range(2):
+        ref = reference.discrete_linear_cost(prob.plant.A, prob.plant.B, Q[c], R[c], prob.Wx,
+                                             prob.Wu, prob.x0, 31)
+        assert batch.cost[c] == pytest.approx(ref.mean(), rel=1e-12)

@@ -78,6 +78,15 @@ def pad(states: np.ndarray, n: int) -> np.ndarray:
     return np.hstack([states, np.zeros((states.shape[0], n - states.shape[1]))])
 
 
+def includes_integrators(states: Any, n: int) -> bool:
+    """Whether given states (a list of states, or one flat state) have all n entries,
+    integrator states included."""
+    if states is None:
+        return False
+    first = states[0] if len(states) and isinstance(states[0], (tuple, list)) else states
+    return len(first) == n
+
+
 def pad_weight(value: Any, n_plant: int, n: int) -> np.ndarray:
     """``state_weight`` for the (augmented) n states: given for n states, or for the plant's
     n_plant states (zero weight on the integrators)."""
@@ -248,4 +257,4 @@ class Limits:
                            "settling_band": self.band}}
 
 
-__all__ = ["Limits", "augment", "pad", "pad_weight", "q_structure"]
+__all__ = ["Limits", "augment", "includes_integrators", "pad", "pad_weight", "q_structure"]

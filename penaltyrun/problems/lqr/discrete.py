@@ -126,4 +126,23 @@ def simulate(A: np.ndarray, B: np.ndarray, K: np.ndarray, X0: np.ndarray, Wx: np
     return out
 
 
-__all__ = ["DIVERGED", "HORIZON", "NONFINITE", "linear_sum", "n_steps", "simulate"]
+def histories(A: np.ndarray, B: np.ndarray, K: np.ndarray, X0: np.ndarray, Wx: np.ndarray,
+              Wu: np.ndarray, u_max: np.ndarray | None, t_max: float, dt: float,
+              bound: float) -> dict[str, np.ndarray]:
+    """Every step of one gain K (m × n) from every start X0 (k × n), for plots: ``t``
+    (N+1,) = k dt, ``x`` (k, N+1, n), ``u`` (k, N+1, m) (the input held over its step, its
+    last value repeated at T) and the running cost ``J`` (k, N+1)."""
+    steps = n_steps(t_max, dt)
+    run = simulate(A, B, np.repeat(K[None], len(X0), 0), X0, Wx, Wu, u_max, steps, bound,
+                   history=True)
+    x = np.swapaxes(run["x"], 0, 1)
+    u = np.swapaxes(run["u"], 0, 1)
+    u = np.concatenate([u, u[:, -1:]], axis=1)
+    stage = (np.einsum("kti,ij,ktj->kt", x[:, :-1], Wx, x[:, :-1])
+             + np.einsum("kti,ij,ktj->kt", u[:, :-1], Wu, u[:, :-1]))
+    J = np.concatenate([np.zeros((len(X0), 1)), np.cumsum(stage, axis=1)], axis=1)
+    return {"t": np.arange(steps + 1) * dt, "x": x, "u": u, "J": J}
+
+
+__all__ = ["DIVERGED", "HORIZON", "NONFINITE", "histories", "linear_sum", "n_steps",
+           "simulate"]

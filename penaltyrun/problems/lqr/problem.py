@@ -97,7 +97,7 @@ class LQRProblem:
         self.plant = cons.augment(plant, p.integral_outputs)
         n, m = self.plant.n_states, self.plant.n_inputs
         self.dt = self.plant.dt
-        if _full(p.x0, n):
+        if cons.includes_integrators(p.x0, n):
             self.x0 = pm.states("x0", p.x0, n)
         else:
             self.x0 = cons.pad(pm.states("x0", np.eye(self.n_plant) if p.x0 is None else p.x0,
@@ -324,7 +324,9 @@ class LQRProblem:
         if not ok[0]:
             raise ConfigError("matrices", "no stabilizing Riccati solution for these Q, R")
         if self.dt is not None:
-            return self._stepped(K[0])
+            return discrete.histories(self.plant.A, self.plant.B, K[0], self.x0, self.Wx,
+                                      self.Wu, self.u_max, self.t_max, float(self.dt),
+                                      self._bound(self.x0))
         K = K[0]
         n = self.plant.n_states
         t = np.linspace(0.0, self.t_max, n_points)
@@ -346,21 +348,6 @@ class LQRProblem:
             us.append(loop.feedback_input(np.repeat(K[None], n_points, 0), x, self.u_max))
             js.append(J)
         return {"t": t, "x": np.asarray(xs), "u": np.asarray(us), "J": np.asarray(js)}
-
-    def _stepped(self, K: np.ndarray) -> dict[str, np.ndarray]:
-        """:meth:`simulate` of a discrete-time loop: every step (t = k dt), the input held
-        over its step (its last value repeated at T)."""
-        steps = discrete.n_steps(self.t_max, float(self.dt))
-        run = discrete.simulate(self.plant.A, self.plant.B, np.repeat(K[None], len(self.x0), 0),
-                                self.x0, self.Wx, self.Wu, self.u_max, steps,
-                                self._bound(self.x0), history=True)
-        x = np.swapaxes(run["x"], 0, 1)
-        u = np.swapaxes(run["u"], 0, 1)
-        u = np.concatenate([u, u[:, -1:]], axis=1)
-        stage = (np.einsum("kti,ij,ktj->kt", x[:, :-1], self.Wx, x[:, :-1])
-                 + np.einsum("kti,ij,ktj->kt", u[:, :-1], self.Wu, u[:, :-1]))
-        J = np.concatenate([np.zeros((len(self.x0), 1)), np.cumsum(stage, axis=1)], axis=1)
-        return {"t": np.arange(steps + 1) * float(self.dt), "x": x, "u": u, "J": J}
 
     # -- scenarios --------------------------------------------------------------------------
     def training_scenario(self) -> dict[str, Any]:
@@ -400,8 +387,10 @@ class LQRProblem:
         if p.holdout_x0 is not None:
             if len(p.holdout_x0) == 0:
                 return np.zeros((0, n))
-            held = pm.states("holdout_x0", p.holdout_x0, n) if _full(p.holdout_x0, n) else \
-                cons.pad(pm.states("holdout_x0", p.holdout_x0, self.n_plant), n)
+            if cons.includes_integrators(p.holdout_x0, n):
+                held = pm.states("holdout_x0", p.holdout_x0, n)
+            else:
+                held = cons.pad(pm.states("holdout_x0", p.holdout_x0, self.n_plant), n)
             for x in held:
                 if np.any(np.all(np.isclose(self.x0, x, rtol=0.0, atol=1e-9), axis=1)):
                     raise ConfigError(f"{pm.PREFIX}.holdout_x0", f"start {x.tolist()} is also "
@@ -434,14 +423,6 @@ class LQRProblem:
                 "converged": res["status"][0] == "converged",
                 "status": np.asarray(res["status"][0], dtype=object),
                 "t_final": res["t_final"][0]}
-
-
-def _full(states: Any, n: int) -> bool:
-    """Whether given states already include the integrator states (n entries each)."""
-    if states is None:
-        return False
-    first = states[0] if len(states) and isinstance(states[0], (tuple, list)) else states
-    return len(first) == n
 
 
 __all__ = ["CUT_MARGIN", "HARD_FACTOR", "STATUSES", "LQRProblem"]

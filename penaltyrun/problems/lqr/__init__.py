@@ -79,7 +79,8 @@ def report_info(case: str, params: Mapping[str, Any]) -> Any:
     name = ("J = mean over x0 of Σ_k<T/dt (x[k]ᵀW_x x[k] + u[k]ᵀW_u u[k])" if p.dt is not None
             else "J = mean over x0 of ∫₀ᵀ (xᵀW_x x + uᵀW_u u) dt")
     return ReportInfo(cost_name=name,
-                      cost_unit=str(p.cost_unit), holdout_description=holdout)
+                      cost_unit=_params.cost_unit(p, p.dt is not None),
+                      holdout_description=holdout)
 
 
 def report_plots(sims: Mapping[str, Mapping[str, Any]], case: str,

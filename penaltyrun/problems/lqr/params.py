@@ -87,7 +87,8 @@ class Params(ParamsMixin, TrainingParams):
     settle_tol : float or None
         A run with ‖x(T)‖ > settle_tol·‖x0‖ is ``not_settled`` (graded penalty).
     cost_unit : str
-        Unit of the cost, shown in reports.
+        Unit of the cost, shown in reports (the default reads "summed over steps" instead
+        of "× time" for a discrete-time plant).
     q_bounds, r_bounds : tuple of float
         Eigenvalue (diagonal-entry) bounds of the tuned Q and R.
     failure_penalty : float or None
@@ -232,6 +233,17 @@ def build_params(case: str, overrides: Mapping[str, Any]) -> Params:
     return replace(params, setup=setup_label(asdict(params)))
 
 
+DISCRETE_UNIT = "weighted state², summed over steps (user units)"
+
+
+def cost_unit(p: Params, discrete: bool) -> str:
+    """The cost unit to show: ``cost_unit``, or for a discrete plant left at the default,
+    :data:`DISCRETE_UNIT`."""
+    if discrete and p.cost_unit == Params.cost_unit:
+        return DISCRETE_UNIT
+    return str(p.cost_unit)
+
+
 def _number(key: str, value: Any, positive: bool = True) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
         raise ConfigError(f"{PREFIX}.{key}", f"must be a finite number, got {value!r}")
@@ -347,6 +359,6 @@ def matrix(key: str, value: Any, cols: int, what: str) -> np.ndarray:
     return arr
 
 
-__all__ = ["CASES", "DEFAULT_CASE", "KNOWN_ANSWER", "PLANT_KEYS", "PREFIX", "Params",
-           "VARIANT_IGNORE", "bounds", "build_params", "setup_label", "limits", "matrix", "scalars",
-           "states", "weight"]
+__all__ = ["CASES", "DEFAULT_CASE", "DISCRETE_UNIT", "KNOWN_ANSWER", "PLANT_KEYS", "PREFIX",
+           "Params", "VARIANT_IGNORE", "bounds", "build_params", "cost_unit", "limits",
+           "matrix", "scalars", "setup_label", "states", "weight"]

@@ -121,7 +121,7 @@ class LQRProblem:
     @property
     def cost_unit(self) -> str:
         """Unit of the cost (``cost_unit``), for reports."""
-        return str(self.params.cost_unit)
+        return pm.cost_unit(self.params, self.dt is not None)
 
     def _optimum(self) -> float:
         """J* = mean x0ᵀ P(W_x, W_u) x0: the cost of the LQR of the performance weights on

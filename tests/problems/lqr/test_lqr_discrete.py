@@ -159,3 +159,12 @@ def test_batch_costs_take_the_closed_form_path():
         ref = reference.discrete_linear_cost(prob.plant.A, prob.plant.B, Q[c], R[c], prob.Wx,
                                              prob.Wu, prob.x0, 31)
         assert batch.cost[c] == pytest.approx(ref.mean(), rel=1e-12)
+
+
+def test_default_cost_unit_says_summed_over_steps():
+    prob = lqr.make_problem("default", PLANT)
+    assert "summed over steps" in prob.cost_unit
+    assert "summed over steps" in lqr.report_info("default", PLANT).cost_unit
+    assert "Σ" in lqr.report_info("default", PLANT).cost_name
+    named = lqr.make_problem("default", {**PLANT, "cost_unit": "m^2"})
+    assert named.cost_unit == "m^2"

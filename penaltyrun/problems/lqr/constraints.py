@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems.base import check_spd
 from penaltyrun.problems.lqr import margins
 from penaltyrun.problems.lqr import params as pm
 from penaltyrun.problems.lqr.plant import Plant, check_detectable, check_stabilizable
@@ -117,6 +118,35 @@ def q_structure(plant: Plant, q_output: Any, q_fixed: Any) -> tuple[np.ndarray, 
         key = f"{pm.PREFIX}.{'q_output' if q_output is not None else 'q_fixed'}"
         check_detectable(plant.A, np.vstack([C, root]), key, plant.dt)
     return C, Q0
+
+
+def given_q(value: Any, size: int, plant: Plant, C: np.ndarray, Q0: np.ndarray
+            ) -> np.ndarray:
+    """A Q̃ given by the user (``mode=evaluate``, ``matrices.Q``): symmetric positive
+    semi-definite — e.g. python-control's Q = CᵀC with zeros on the diagonal — as long as
+    the Riccati equation's Q = C_qᵀ Q̃ C_q + Q₀ keeps (A, Q^½) detectable.
+
+    Raises
+    ------
+    ConfigError
+        Under ``matrices.Q``: malformed, not symmetric, indefinite or undetectable (naming
+        the mode).
+    """
+    try:
+        return check_spd("matrices.Q", value, size)
+    except ConfigError as err:
+        if "positive definite" not in err.message:
+            raise
+    arr = np.asarray(value, dtype=float)
+    low = float(np.linalg.eigvalsh(arr)[0])
+    if low < -1e-12 * max(1.0, float(np.abs(arr).max())):
+        raise ConfigError("matrices.Q", f"matrix is not positive semi-definite (smallest "
+                          f"eigenvalue {low:.3g})")
+    lam, V = np.linalg.eigh(C.T @ arr @ C + Q0)
+    root = (V * np.sqrt(np.clip(lam, 0.0, None))).T
+    check_detectable(plant.A, root, "matrices.Q", plant.dt,
+                     fix="weight one of these states in matrices.Q")
+    return arr
 
 
 @dataclass(frozen=True)
@@ -257,4 +287,5 @@ class Limits:
                            "settling_band": self.band}}
 
 
-__all__ = ["Limits", "augment", "includes_integrators", "pad", "pad_weight", "q_structure"]
+__all__ = ["Limits", "augment", "given_q", "includes_integrators", "pad", "pad_weight",
+           "q_structure"]

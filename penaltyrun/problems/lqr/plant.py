@@ -133,8 +133,9 @@ def check_stabilizable(A: np.ndarray, B: np.ndarray, key: str, dt: float | None 
                           "is not reachable through B, so no Q, R gives a stabilizing gain")
 
 
-def check_detectable(A: np.ndarray, C: np.ndarray, key: str, dt: float | None = None
-                     ) -> None:
+def check_detectable(A: np.ndarray, C: np.ndarray, key: str, dt: float | None = None,
+                     fix: str = "add a row to q_output or a q_fixed entry on one of these "
+                                "states") -> None:
     """PBH test of (A, C), C (p × n) with ker C = ker Q: every eigenvalue λ of A outside
     the stability region has rank [A − λI; C] = n; else the stabilizing Riccati solution
     does not exist for any tuned Q̃.
@@ -149,8 +150,8 @@ def check_detectable(A: np.ndarray, C: np.ndarray, key: str, dt: float | None = 
         big = np.flatnonzero(np.abs(v) > 1e-6 * np.abs(v).max())
         raise ConfigError(key, f"(A, Q^1/2) is not detectable: the mode of A at {_mode(lam)} "
                           f"(states {', '.join(str(int(i)) for i in big)}, 0-based) is not "
-                          "stable and Q = C_qᵀ Q̃ C_q + q_fixed does not weight it; add a row to "
-                          "q_output or a q_fixed entry on one of these states")
+                          f"stable and the Riccati equation's Q = C_qᵀ Q̃ C_q + q_fixed does not "
+                          f"weight it; {fix}")
 
 
 def resolve(spec: Any, key: str) -> Any:

@@ -264,7 +264,11 @@ class LQRProblem:
             if mats.get(spec.name) is None:
                 raise ConfigError(f"matrices.{spec.name}", f"missing matrix ({spec.size}x"
                                   f"{spec.size})")
-            out.append(check_spd(f"matrices.{spec.name}", mats[spec.name], spec.size))
+            if spec.name == "Q":
+                out.append(cons.given_q(mats["Q"], spec.size, self.plant, self.q_output,
+                                        self.q_fixed))
+            else:
+                out.append(check_spd(f"matrices.{spec.name}", mats[spec.name], spec.size))
         return out[0], out[1]
 
     def evaluate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None

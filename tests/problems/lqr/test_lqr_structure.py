@@ -107,3 +107,15 @@ def test_integrating_an_output_with_a_zero_at_the_origin_is_refused():
                                      "integral_outputs": [[0, 1]]})
     assert err.value.key == "problem.params.integral_outputs"
     assert "zero at s = 0" in str(err.value)
+
+
+def test_evaluate_accepts_python_controls_semidefinite_q():
+    prob = lqr.make_problem("default", {"A": A2, "B": B2})
+    out = prob.evaluate({"Q": C2.T @ C2, "R": [[1.0]]})  # zeros on the diagonal
+    np.testing.assert_allclose(out["gain"], control.lqr(np.array(A2), np.array(B2),
+                                                        C2.T @ C2, np.eye(1))[0], rtol=1e-9)
+    with pytest.raises(ConfigError) as err:
+        prob.evaluate({"Q": [[0.0, 0.0], [0.0, 1.0]], "R": [[1.0]]})
+    assert err.value.key == "matrices.Q" and "weight one of these states" in str(err.value)
+    with pytest.raises(ConfigError, match="not positive semi-definite"):
+        prob.evaluate({"Q": [[1.0, 0.0], [0.0, -1.0]], "R": [[1.0]]})

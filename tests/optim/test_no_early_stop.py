@@ -41,7 +41,7 @@ def test_the_claim_is_found_where_it_is_made():
 def test_profile_spends_its_whole_budget(profile, objective):
     options = yaml.safe_load((PROFILES / f"{profile}.yaml").read_text())
     name = options.pop("name")
-    options["max_evals"] = budget = 3000 if options.get("max_evals", 0) > 3000 else \
+    options["max_evals"] = budget = 1500 if options.get("max_evals", 0) > 1500 else \
         options["max_evals"]
     settings = make_settings(name, options)
     with warnings.catch_warnings():

@@ -63,7 +63,8 @@ class Params(ParamsMixin, TrainingParams):
     A, B : tuple of tuple of float or None
         Plant matrices, n × n and n × m (see :mod:`penaltyrun.problems.lqr.plant`).
     plant_file : str or None
-        ``.mat`` / ``.npz`` file holding ``A`` and ``B``.
+        ``.mat`` / ``.npz`` / ``.yaml`` file holding ``A`` and ``B`` (optionally ``dt``; a
+        YAML file may hold ``constants`` for expressions in its numbers).
     plant : str or None
         ``module:attribute`` of a python-control ``StateSpace`` (continuous, or discrete with
         its ``dt``) or an (A, B) pair.

@@ -5,8 +5,9 @@ Sources (keys of ``problem.params``), checked in this order:
 
 * ``A`` (n × n) and ``B`` (n × m) as nested lists (a flat list of n numbers is a single
   input column);
-* ``plant_file``: a ``.mat`` (MATLAB, read by :func:`scipy.io.loadmat`) or ``.npz`` file
-  holding arrays ``A`` and ``B``;
+* ``plant_file``: a ``.mat`` (MATLAB, read by :func:`scipy.io.loadmat`), ``.npz`` or
+  ``.yaml`` file holding ``A`` and ``B`` (and optionally ``dt``; a YAML file may also hold
+  ``constants`` for expressions in its numbers);
 * ``plant: module:attribute``: a python-control ``StateSpace`` (any object with ``A``,
   ``B`` and ``dt``: 0 or ``None`` continuous, a positive number discrete) or an ``(A, B)``
   pair;
@@ -171,7 +172,26 @@ def resolve(spec: Any, key: str) -> Any:
     return obj
 
 
-def _from_file(path: Any, key: str) -> tuple[Any, Any]:
+def _from_yaml(file: Path, key: str) -> dict[str, Any]:
+    """A YAML plant file: ``A``, ``B``, optional ``dt`` and ``constants``; numbers may be
+    expressions over the constants (:mod:`~penaltyrun.problems.lqr.expr`)."""
+    import yaml
+
+    from penaltyrun.problems.lqr import expr
+
+    data = yaml.safe_load(file.read_text())
+    if not isinstance(data, Mapping):
+        raise ConfigError(key, f"{file.name} must be a mapping with A and B")
+    unknown = sorted(set(data) - {"A", "B", "dt", "constants"})
+    if unknown:
+        raise ConfigError(key, f"{file.name}: unknown key {unknown[0]!r} (allowed: A, B, dt, "
+                          "constants)")
+    names = expr.resolve_constants(data.get("constants"), f"{key}:constants")
+    return {k: expr.resolve_value(v, names, f"{key}:{k}") for k, v in data.items()
+            if k != "constants"}
+
+
+def _from_file(path: Any, key: str) -> tuple[Any, Any, float | None]:
     file = Path(str(path)).expanduser()
     if not file.is_file():
         raise ConfigError(key, f"no such file: {file}")
@@ -183,16 +203,22 @@ def _from_file(path: Any, key: str) -> tuple[Any, Any]:
             data: Mapping[str, Any] = loadmat(file)
         elif suffix == ".npz":
             data = dict(np.load(file, allow_pickle=False))
+        elif suffix in (".yaml", ".yml"):
+            data = _from_yaml(file, key)
         else:
-            raise ConfigError(key, f"unsupported file type {suffix!r} (use .mat or .npz)")
+            raise ConfigError(key, f"unsupported file type {suffix!r} (use .mat, .npz or "
+                              ".yaml)")
     except ConfigError:
         raise
-    except Exception as exc:  # a damaged file: scipy / numpy raise many kinds
+    except Exception as exc:  # a damaged file: scipy / numpy / yaml raise many kinds
         raise ConfigError(key, f"cannot read {file}: {' '.join(str(exc).split())}") from None
     for name in ("A", "B"):
         if name not in data:
             raise ConfigError(key, f"{file.name} has no variable {name!r} (need A and B)")
-    return data["A"], data["B"]
+    dt = data.get("dt")
+    if dt is not None:
+        dt = float(np.asarray(dt, dtype=float).ravel()[0])
+    return data["A"], data["B"], dt
 
 
 def _from_object(spec: Any, key: str) -> tuple[Any, Any, float | None]:
@@ -273,13 +299,12 @@ def load(params: Mapping[str, Any], n_hint: int | None = None, m_hint: int | Non
         if params.get("B") is None:
             raise ConfigError(f"{PREFIX}.B", "missing: A is given, B (n x m) is needed too")
         A, B = check_pair(params["A"], params["B"], f"{PREFIX}.A", f"{PREFIX}.B")
-    elif source == "plant_file":
-        A, B = check_pair(*_from_file(params["plant_file"], key), key, key)
-    elif source == "plant":
-        a, b, obj_dt = _from_object(params["plant"], key)
+    elif source in ("plant_file", "plant"):
+        a, b, obj_dt = (_from_file if source == "plant_file" else _from_object)(
+            params[source], key)
         A, B = check_pair(a, b, key, key)
         if obj_dt is not None and dt is not None and not np.isclose(obj_dt, dt, rtol=1e-12):
-            raise ConfigError(f"{PREFIX}.dt", f"dt = {dt} but {params['plant']} has dt = "
+            raise ConfigError(f"{PREFIX}.dt", f"dt = {dt} but {params[source]} has dt = "
                               f"{obj_dt}; drop dt (the system's is used) or make them agree")
         dt = obj_dt if dt is None else dt
     elif params.get("dynamics") is None:

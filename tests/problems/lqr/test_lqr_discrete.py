@@ -168,3 +168,19 @@ def test_default_cost_unit_says_summed_over_steps():
     assert "Σ" in lqr.report_info("default", PLANT).cost_name
     named = lqr.make_problem("default", {**PLANT, "cost_unit": "m^2"})
     assert named.cost_unit == "m^2"
+
+
+def test_yaml_plant_file_with_expressions_and_dt(tmp_path):
+    (tmp_path / "plant.yaml").write_text(
+        "constants: {Ts: 0.1, h: 'Ts**2/2'}\nA: [[1, Ts], [0, 1]]\nB: [[h], [Ts]]\ndt: Ts\n")
+    prob = lqr.make_problem("default", {"plant_file": str(tmp_path / "plant.yaml")})
+    assert prob.dt == 0.1
+    np.testing.assert_allclose(prob.plant.B, [[0.005], [0.1]], rtol=1e-15)
+    with pytest.raises(ConfigError, match="has dt = 0.1"):
+        lqr.make_problem("default", {"plant_file": str(tmp_path / "plant.yaml"), "dt": 0.2})
+    (tmp_path / "bad.yaml").write_text("A: [[1]]\nB: [[1]]\nC: [[1]]\n")
+    with pytest.raises(ConfigError, match="unknown key 'C'"):
+        lqr.make_problem("default", {"plant_file": str(tmp_path / "bad.yaml")})
+    (tmp_path / "evil.yaml").write_text("A: [['__import__(\"os\")']]\nB: [[1]]\n")
+    with pytest.raises(ConfigError, match="not an allowed function"):
+        lqr.make_problem("default", {"plant_file": str(tmp_path / "evil.yaml")})

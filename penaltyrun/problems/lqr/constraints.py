@@ -269,10 +269,12 @@ class Limits:
 
     def report(self, res: Mapping[str, np.ndarray]) -> dict[str, Any]:
         """The measures of candidate 0 of :meth:`measure`'s output, JSON-serializable:
-        ``disk_margin`` (α, gain margin in dB, phase margin in degrees), per start
+        ``disk_margin`` (α, gain margin in dB — null when unbounded — and phase margin in
+        degrees), per start
         ``settling_time`` and ``overshoot`` (null where not measurable), and ``limits``."""
         alpha = float(res["disk_margin"][0])
         gain, phase = margins.disk_gain_phase(alpha) if np.isfinite(alpha) else (None, None)
+        gain = gain if gain is None or np.isfinite(gain) else None  # α ≥ 2: unbounded
 
         def listed(values: np.ndarray) -> list[float | None]:
             return [None if np.isnan(v) else float(v) for v in values]

@@ -3,6 +3,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import lqr
@@ -119,3 +121,29 @@ def test_evaluate_accepts_python_controls_semidefinite_q():
     assert err.value.key == "matrices.Q" and "weight one of these states" in str(err.value)
     with pytest.raises(ConfigError, match="not positive semi-definite"):
         prob.evaluate({"Q": [[1.0, 0.0], [0.0, -1.0]], "R": [[1.0]]})
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 5), seed=st.integers(0, 2**31 - 1), discrete=st.booleans())
+def test_pbh_detectability_matches_the_modes_built_invisible(n, seed, discrete):
+    # A = T diag(λ) T⁻¹ with distinct real modes; C sees mode i iff column i of C T is not 0
+    from penaltyrun.problems.lqr.plant import check_detectable
+
+    rng = np.random.default_rng(seed)
+    lam = rng.permutation(np.linspace(-1.5, 1.5, n) + rng.uniform(-0.1, 0.1))
+    lam = lam + 0.05 * np.sign(lam)  # keep away from the stability boundary
+    if discrete:
+        lam = 1.0 + 0.4 * lam      # |λ| < 1 ⇔ the continuous mode was stable
+    T = rng.normal(size=(n, n)) + 2 * np.eye(n)
+    A = T @ np.diag(lam) @ np.linalg.inv(T)
+    seen = rng.random(n) < 0.5
+    M = rng.normal(size=(n, n)) * seen  # columns of invisible modes are zero
+    C = M @ np.linalg.inv(T)
+    stable = np.abs(lam) < 1.0 if discrete else lam < 0.0
+    expected = bool(np.all(seen | stable))
+    try:
+        check_detectable(A, C, "k", 0.1 if discrete else None)
+        found = True
+    except ConfigError:
+        found = False
+    assert found == expected

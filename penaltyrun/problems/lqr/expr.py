@@ -108,10 +108,15 @@ def evaluate(text: str, names: Mapping[str, float], key: str) -> float:
         raise ConfigError(key, f"expression longer than {_MAX_LENGTH} characters")
     try:
         tree = ast.parse(text.strip(), mode="eval")
+    except RecursionError:
+        raise ConfigError(key, f"expression nested too deeply: {text[:40]!r}...") from None
     except SyntaxError as exc:
         raise ConfigError(key, f"cannot parse {text!r} as arithmetic ({exc.msg}); quote "
                           "expressions in YAML, e.g. \"r/J\"") from None
-    value = _walk(tree.body, names, key, text)
+    try:
+        value = _walk(tree.body, names, key, text)
+    except RecursionError:
+        raise ConfigError(key, f"expression nested too deeply: {text[:40]!r}...") from None
     if isinstance(value, complex) or not math.isfinite(value):
         raise ConfigError(key, f"{text!r} evaluates to {value!r}, not a finite real number")
     return float(value)

@@ -281,10 +281,11 @@ class LQRProblem:
             ``problem``, ``case``, ``cost`` (objective, ``cost_unit``), ``converged``,
             ``status``, ``t_final`` (largest end time), ``t_max``, ``optimum`` (J* of the
             linear model, infinite horizon), ``cost_unit``, ``method`` (``closed_form``,
-            ``integrated`` or ``stepped`` for a discrete plant), ``gain`` (m × n, u = −gain x), ``closed_loop_poles`` (real,
-            imaginary parts), ``failure_penalty``, and per start: ``start_costs``,
-            ``start_status``, ``final_state_ratio`` (‖x(T)‖ / ‖x0‖); then ``dt``,
-            ``state_penalty`` (the Riccati equation's Q) and the constraint measures
+            ``integrated`` or ``stepped`` for a discrete plant), ``gain`` (m × n,
+            u = −gain x), ``closed_loop_poles`` (real, imaginary parts),
+            ``failure_penalty``, and per start: ``start_costs``, ``start_status``,
+            ``final_state_ratio`` (‖x(T)‖ / ‖x0‖); then ``dt``, ``state_penalty`` (the
+            Riccati equation's Q) and the constraint measures
             (:meth:`~penaltyrun.problems.lqr.constraints.Limits.report`).
         """
         Q, R = self._check(mats)

@@ -42,6 +42,12 @@ def test_refusals_name_the_key(text, words):
     assert err.value.key == "problem.params.A" and words in str(err.value)
 
 
+@pytest.mark.parametrize("text", ["-" * 999 + "1", "(" * 300 + "1" + ")" * 300, "x" * 1001])
+def test_pathological_text_is_a_config_error(text):
+    with pytest.raises(ConfigError):
+        expr.evaluate(text, NAMES, "k")
+
+
 def test_constants_build_on_each_other_and_reach_every_numeric_key():
     prob = lqr.make_problem("default", {
         "constants": {"J": 4.0, "b": "J/8", "w": "sqrt(J)"},

@@ -7,8 +7,12 @@ over the training starts ``x0``. Modules: :mod:`~penaltyrun.problems.lqr.plant` 
 and their checks), :mod:`~penaltyrun.problems.lqr.params` (parameters, the known-answer
 set-up), :mod:`~penaltyrun.problems.lqr.riccati` (batched gains),
 :mod:`~penaltyrun.problems.lqr.problem` (the problem object),
-:mod:`~penaltyrun.problems.lqr.plots` (figures) and
-:mod:`~penaltyrun.problems.lqr.reference` (independent scipy references).
+:mod:`~penaltyrun.problems.lqr.plots` (figures),
+:mod:`~penaltyrun.problems.lqr.expr` (arithmetic in the YAML),
+:mod:`~penaltyrun.problems.lqr.discrete` (discrete-time loops),
+:mod:`~penaltyrun.problems.lqr.constraints` (semi-definite Q, integral action,
+constraints), :mod:`~penaltyrun.problems.lqr.margins` (disk margin, settling time,
+overshoot) and :mod:`~penaltyrun.problems.lqr.reference` (independent scipy references).
 """
 
 from __future__ import annotations

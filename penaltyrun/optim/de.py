@@ -48,7 +48,8 @@ class DESettings(CommonSettings):
     iters : int
         Maximum generations.
     tol : float
-        Relative convergence tolerance of the population's cost spread.
+        Relative convergence tolerance of the population's cost spread; 0 turns the
+        convergence stop off (the run ends at ``iters`` or ``max_evals``).
     mutation : tuple of float
         Dithering range of the mutation constant.
     recombination : float
@@ -113,6 +114,10 @@ def run_de(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: 
             maxiter=settings.iters,
             popsize=settings.popsize,
             tol=settings.tol,
+            # scipy stops when std(costs) <= atol + tol·|mean(costs)|: with tol = atol = 0 a
+            # population of equal costs (a plateau, a converged swarm) still stops the run,
+            # so tol 0 also sets atol to -inf, a bound no spread is ever below.
+            atol=0.0 if settings.tol > 0 else -np.inf,
             mutation=tuple(settings.mutation),
             recombination=settings.recombination,
             polish=False,

@@ -83,7 +83,8 @@ class PSOSettings(CommonSettings):
         Inertia weight.
     ftol : float
         Relative stall tolerance: stop when the best cost changes by less than
-        ``ftol · (1 + |best|)`` for ``ftol_iter`` consecutive iterations.
+        ``ftol · (1 + |best|)`` for ``ftol_iter`` consecutive iterations; 0 turns the
+        stall rule off.
     ftol_iter : int
         Stall window (MATLAB's MaxStallIterations = 20).
     bh_strategy : str
@@ -161,7 +162,10 @@ def run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings:
         bounds=(lb, ub),
         bh_strategy=settings.bh_strategy,
         vh_strategy=settings.vh_strategy,
-        ftol=settings.ftol,
+        # ftol 0 (rule off) goes to pyswarms as its own "off", -inf: pyswarms multiplies ftol
+        # by 1 + |best so far|, which is inf before the first iteration, and 0 · inf is NaN
+        # (a RuntimeWarning per start); no relative change is ever below either value.
+        ftol=settings.ftol if settings.ftol > 0 else -np.inf,
         ftol_iter=settings.ftol_iter,
         init_pos=init_pos,
     )

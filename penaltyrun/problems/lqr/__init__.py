@@ -7,8 +7,12 @@ over the training starts ``x0``. Modules: :mod:`~penaltyrun.problems.lqr.plant` 
 and their checks), :mod:`~penaltyrun.problems.lqr.params` (parameters, the known-answer
 set-up), :mod:`~penaltyrun.problems.lqr.riccati` (batched gains),
 :mod:`~penaltyrun.problems.lqr.problem` (the problem object),
-:mod:`~penaltyrun.problems.lqr.plots` (figures) and
-:mod:`~penaltyrun.problems.lqr.reference` (independent scipy references).
+:mod:`~penaltyrun.problems.lqr.plots` (figures),
+:mod:`~penaltyrun.problems.lqr.expr` (arithmetic in the YAML),
+:mod:`~penaltyrun.problems.lqr.discrete` (discrete-time loops),
+:mod:`~penaltyrun.problems.lqr.constraints` (semi-definite Q, integral action,
+constraints), :mod:`~penaltyrun.problems.lqr.margins` (disk margin, settling time,
+overshoot) and :mod:`~penaltyrun.problems.lqr.reference` (independent scipy references).
 """
 
 from __future__ import annotations
@@ -51,7 +55,8 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> LQRProblem:
         m_hint = len(params.input_weight)
     elif isinstance(params.u_max, tuple):
         m_hint = len(params.u_max)
-    plant = load({k: getattr(params, k) for k in _params.PLANT_KEYS}, n_hint, m_hint)
+    plant = load({**{k: getattr(params, k) for k in _params.PLANT_KEYS}, "dt": params.dt},
+                 n_hint, m_hint)
     logger.debug("lqr plant from %s: n=%d, m=%d", plant.source, plant.n_states,
                  plant.n_inputs)
     return LQRProblem(case, params, plant)
@@ -75,8 +80,11 @@ def report_info(case: str, params: Mapping[str, Any]) -> Any:
                    "the sphere whose radius is the mean norm of the training states x0")
     else:
         holdout = ""
-    return ReportInfo(cost_name="J = mean over x0 of ∫₀ᵀ (xᵀW_x x + uᵀW_u u) dt",
-                      cost_unit=str(p.cost_unit), holdout_description=holdout)
+    name = ("J = mean over x0 of Σ_k<T/dt (x[k]ᵀW_x x[k] + u[k]ᵀW_u u[k])" if p.dt is not None
+            else "J = mean over x0 of ∫₀ᵀ (xᵀW_x x + uᵀW_u u) dt")
+    return ReportInfo(cost_name=name,
+                      cost_unit=_params.cost_unit(p, p.dt is not None),
+                      holdout_description=holdout)
 
 
 def report_plots(sims: Mapping[str, Mapping[str, Any]], case: str,

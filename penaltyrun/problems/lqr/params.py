@@ -20,6 +20,7 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import ParamsMixin
+from penaltyrun.problems.lqr import expr
 from penaltyrun.problems.multiscenario import TrainingParams
 
 PREFIX = "problem.params"
@@ -28,7 +29,10 @@ CASES = ("default",)
 DEFAULT_CASE = "default"
 #: Keys that do not define the tuned objective (left out of :attr:`Params.setup`).
 NOT_SETUP = ("holdout_x0", "holdout_n", "holdout_seed", "cost_unit", "train_scenarios",
-             "train_aggregate", "train_sample", "train_seed", "setup")
+             "train_aggregate", "train_sample", "train_seed", "setup", "constants")
+#: Keys whose strings are not arithmetic (names, paths, units, training scenarios).
+NOT_ARITHMETIC = ("plant_file", "plant", "dynamics", "cost_unit", "constants",
+                  "train_scenarios", "train_aggregate", "train_sample", "train_seed")
 
 #: The known-answer set-up (used when no plant is given).
 KNOWN_ANSWER: dict[str, Any] = {
@@ -59,9 +63,11 @@ class Params(ParamsMixin, TrainingParams):
     A, B : tuple of tuple of float or None
         Plant matrices, n × n and n × m (see :mod:`penaltyrun.problems.lqr.plant`).
     plant_file : str or None
-        ``.mat`` / ``.npz`` file holding ``A`` and ``B``.
+        ``.mat`` / ``.npz`` / ``.yaml`` file holding ``A`` and ``B`` (optionally ``dt``; a
+        YAML file may hold ``constants`` for expressions in its numbers).
     plant : str or None
-        ``module:attribute`` of a continuous python-control ``StateSpace`` or an (A, B) pair.
+        ``module:attribute`` of a python-control ``StateSpace`` (continuous, or discrete with
+        its ``dt``) or an (A, B) pair.
     dynamics : str or None
         ``module:function`` of a vectorized nonlinear model f(X, U) → Ẋ.
     x0 : tuple or None
@@ -82,7 +88,8 @@ class Params(ParamsMixin, TrainingParams):
     settle_tol : float or None
         A run with ‖x(T)‖ > settle_tol·‖x0‖ is ``not_settled`` (graded penalty).
     cost_unit : str
-        Unit of the cost, shown in reports.
+        Unit of the cost, shown in reports (the default reads "summed over steps" instead
+        of "× time" for a discrete-time plant).
     q_bounds, r_bounds : tuple of float
         Eigenvalue (diagonal-entry) bounds of the tuned Q and R.
     failure_penalty : float or None
@@ -93,6 +100,47 @@ class Params(ParamsMixin, TrainingParams):
         Tolerances of the integrator (saturated or nonlinear loops only).
     max_steps : int
         Trial-step cap per run of the integrator.
+    constants : tuple of (str, float) or None
+        Named numbers (given as a mapping; a value may be an expression over the names
+        before it) that every numeric key may use in expressions such as ``"r/J"``
+        (:mod:`~penaltyrun.problems.lqr.expr`).
+    dt : float or None
+        Sampling time of a discrete-time plant x[k+1] = A x[k] + B u[k] (time unit);
+        ``None``: continuous time. The gain is then the discrete LQR gain and the cost the
+        sum over the steps (see :mod:`~penaltyrun.problems.lqr.discrete`).
+    q_output : tuple or None
+        C_q (p × n): the tuned matrix is the p × p Q̃ and the Riccati equation uses
+        Q = C_qᵀ Q̃ C_q + ``q_fixed``; ``None``: C_q = I (Q̃ is n × n).
+    q_fixed : tuple or None
+        Q₀ (n × n, symmetric positive semi-definite, a flat list is a diagonal), a fixed
+        part added to the tuned one; ``None``: 0.
+    integral_outputs : tuple or None
+        C_I (q × n_plant): integral action on the outputs C_I x through q integrator
+        states ż = C_I x (discrete: z[k+1] = z[k] + dt C_I x[k]) appended to the state.
+    outputs : tuple or None
+        C_y (p × n_plant): outputs of the settling-time and overshoot constraints;
+        ``None``: every plant state.
+    settling_time_max : float or None
+        Constraint: every output with y_i(0) ≠ 0 stays within ``settling_band`` |y_i(0)| of
+        0 from this time on (time unit).
+    settling_band : float
+        Band of the settling time, a fraction of |y_i(0)| (default 0.02, as
+        python-control's ``step_info``).
+    overshoot_max : float or None
+        Constraint: max over t of −y_i(t)/y_i(0) at most this (percent).
+    disk_margin_min : float or None
+        Constraint: balanced (skew 0) disk margin α of the loop broken at the plant
+        input at least this (dimensionless; α = 1 ⇔ gain margin [1/3, 3], 53.1° phase).
+    gain_margin_min, phase_margin_min : float or None
+        Constraint in the units engineers quote: the disk-based gain margin (dB) and phase
+        margin (degrees, below 180) the loop must keep, i.e. the disk margin α they imply
+        (the larger of the two and ``disk_margin_min`` applies).
+    response_points : int
+        Samples of the continuous-time response of the settling and overshoot constraints
+        (uniform on [0, T]).
+    margin_points : int
+        Frequencies of the disk margin (log-spaced; up to the Nyquist frequency π/dt
+        in discrete time).
     setup : str
         Derived, not a config key: :func:`setup_label` of the other values.
     """
@@ -121,6 +169,20 @@ class Params(ParamsMixin, TrainingParams):
     rtol: float = 1e-10
     atol: float = 1e-12
     max_steps: int = 100_000
+    constants: tuple | None = None
+    dt: float | None = None
+    q_output: tuple | None = None
+    q_fixed: tuple | None = None
+    integral_outputs: tuple | None = None
+    outputs: tuple | None = None
+    settling_time_max: float | None = None
+    settling_band: float = 0.02
+    overshoot_max: float | None = None
+    disk_margin_min: float | None = None
+    gain_margin_min: float | None = None
+    phase_margin_min: float | None = None
+    response_points: int = 1001
+    margin_points: int = 400
     setup: str = ""
 
 
@@ -163,8 +225,24 @@ def build_params(case: str, overrides: Mapping[str, Any]) -> Params:
         raise ConfigError(f"{PREFIX}.{unknown[0]}", "unknown parameter", allowed=sorted(names))
     user_plant = any(overrides.get(k) is not None for k in PLANT_KEYS)
     merged = {**({} if user_plant else KNOWN_ANSWER), **dict(overrides)}
+    names = expr.resolve_constants(merged.get("constants"), f"{PREFIX}.constants")
+    merged = {k: v if k in NOT_ARITHMETIC else expr.resolve_value(v, names, f"{PREFIX}.{k}")
+              for k, v in merged.items()}
+    if names:
+        merged["constants"] = tuple(names.items())
     params = replace(Params(), **{k: _nested(v) for k, v in merged.items()})
     return replace(params, setup=setup_label(asdict(params)))
+
+
+DISCRETE_UNIT = "weighted state², summed over steps (user units)"
+
+
+def cost_unit(p: Params, discrete: bool) -> str:
+    """The cost unit to show: ``cost_unit``, or for a discrete plant left at the default,
+    :data:`DISCRETE_UNIT`."""
+    if discrete and p.cost_unit == Params.cost_unit:
+        return DISCRETE_UNIT
+    return str(p.cost_unit)
 
 
 def _number(key: str, value: Any, positive: bool = True) -> float:
@@ -243,18 +321,45 @@ def scalars(p: Params) -> None:
     _number("t_max", p.t_max)
     _number("rtol", p.rtol)
     _number("atol", p.atol)
-    for key in ("settle_tol", "failure_penalty", "x_bound"):
+    _number("settling_band", p.settling_band)
+    for key in ("settle_tol", "failure_penalty", "x_bound", "dt", "settling_time_max",
+                "disk_margin_min", "gain_margin_min", "phase_margin_min"):
         if getattr(p, key) is not None:
             _number(key, getattr(p, key))
-    for key in ("max_steps", "holdout_n", "holdout_seed"):
+    if p.phase_margin_min is not None and not p.phase_margin_min < 180.0:
+        raise ConfigError(f"{PREFIX}.phase_margin_min", f"must be below 180 (degrees), got "
+                          f"{p.phase_margin_min!r}")
+    if p.overshoot_max is not None:
+        _number("overshoot_max", p.overshoot_max, positive=False)
+        if p.overshoot_max < 0:
+            raise ConfigError(f"{PREFIX}.overshoot_max", f"must be >= 0 (percent), got "
+                              f"{p.overshoot_max!r}")
+    lowest = {"max_steps": 1, "holdout_n": 0, "holdout_seed": 0, "response_points": 3,
+              "margin_points": 2}
+    for key, low in lowest.items():
         value = getattr(p, key)
-        if isinstance(value, bool) or not isinstance(value, int) or value < (key == "max_steps"):
-            raise ConfigError(f"{PREFIX}.{key}", f"must be an integer >= "
-                              f"{int(key == 'max_steps')}, got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ConfigError(f"{PREFIX}.{key}", f"must be an integer >= {low}, got "
+                              f"{value!r}")
     if not isinstance(p.cost_unit, str):
         raise ConfigError(f"{PREFIX}.cost_unit", f"must be a string, got {p.cost_unit!r}")
 
 
-__all__ = ["CASES", "DEFAULT_CASE", "KNOWN_ANSWER", "PLANT_KEYS", "PREFIX", "Params",
-           "VARIANT_IGNORE", "bounds", "build_params", "setup_label", "limits", "scalars", "states",
-           "weight"]
+def matrix(key: str, value: Any, cols: int, what: str) -> np.ndarray:
+    """A p × ``cols`` numeric matrix (a flat list of ``cols`` numbers is one row)."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{PREFIX}.{key}", f"not a numeric matrix: {value!r}") from None
+    if arr.ndim == 1 and arr.size == cols:
+        arr = arr[None]
+    if arr.ndim != 2 or arr.shape[1] != cols or arr.shape[0] == 0 \
+            or not np.all(np.isfinite(arr)):
+        raise ConfigError(f"{PREFIX}.{key}", f"need finite rows of {cols} numbers ({what}), "
+                          f"got shape {arr.shape}")
+    return arr
+
+
+__all__ = ["CASES", "DEFAULT_CASE", "DISCRETE_UNIT", "KNOWN_ANSWER", "PLANT_KEYS", "PREFIX",
+           "Params", "VARIANT_IGNORE", "bounds", "build_params", "cost_unit", "limits",
+           "matrix", "scalars", "setup_label", "states", "weight"]

@@ -5,15 +5,20 @@ Sources (keys of ``problem.params``), checked in this order:
 
 * ``A`` (n × n) and ``B`` (n × m) as nested lists (a flat list of n numbers is a single
   input column);
-* ``plant_file``: a ``.mat`` (MATLAB, read by :func:`scipy.io.loadmat`) or ``.npz`` file
-  holding arrays ``A`` and ``B``;
-* ``plant: module:attribute``: a continuous-time python-control ``StateSpace`` (any object
-  with ``A`` and ``B`` and ``dt`` 0 or ``None``) or an ``(A, B)`` pair;
+* ``plant_file``: a ``.mat`` (MATLAB, read by :func:`scipy.io.loadmat`), ``.npz`` or
+  ``.yaml`` file holding ``A`` and ``B`` (and optionally ``dt``; a YAML file may also hold
+  ``constants`` for expressions in its numbers);
+* ``plant: module:attribute``: a python-control ``StateSpace`` (any object with ``A``,
+  ``B`` and ``dt``: 0 or ``None`` continuous, a positive number discrete) or an ``(A, B)``
+  pair;
 * ``dynamics: module:function``: a vectorized nonlinear model f(X, U) → Ẋ (X: (R, n),
   U: (R, m)) with the origin as equilibrium. A, B then come from one of the sources above
   when one is given, else from central differences of f at the origin (step
   :data:`FD_STEP` relative to 1; truncation error O(h²) ≈ 4e-11 times the third
   derivatives, round-off ≈ 1e-11 times the size of f).
+
+A discrete-time plant (key ``dt``, or a discrete ``StateSpace``) is x[k+1] = A x[k] + B u[k];
+its stability region is the unit disk instead of the left half-plane.
 
 Every malformed input is a :class:`~penaltyrun.errors.ConfigError` naming its key.
 """
@@ -51,6 +56,9 @@ class Plant:
     source : str
         Config key the linear model came from (``A``, ``plant_file``, ``plant`` or
         ``dynamics`` for Jacobians), used in error messages.
+    dt : float or None
+        Sampling time of a discrete-time plant (f is then the one-step map); ``None``:
+        continuous time.
     """
 
     A: np.ndarray
@@ -58,6 +66,7 @@ class Plant:
     f: Callable[[np.ndarray, np.ndarray], np.ndarray]
     linear: bool
     source: str
+    dt: float | None = None
 
     @property
     def n_states(self) -> int:
@@ -92,19 +101,58 @@ def check_pair(A: Any, B: Any, key_a: str, key_b: str) -> tuple[np.ndarray, np.n
     return A, B
 
 
-def check_stabilizable(A: np.ndarray, B: np.ndarray, key: str) -> None:
-    """PBH test: every eigenvalue λ of A with Re λ ≥ 0 has rank [A − λI, B] = n."""
+def unstable_modes(A: np.ndarray, M: np.ndarray, dt: float | None = None
+                   ) -> list[tuple[complex, np.ndarray]]:
+    """PBH test: the eigenvalues λ of A outside the stability region (Re λ ≥ 0, or |λ| ≥ 1
+    when ``dt`` is set) with rank [A − λI, M] < n, and a unit left null vector w of that
+    matrix (wᴴ (A − λI) = 0, wᴴ M = 0: the mode M cannot act on). Pass Cᵀ-style blocks
+    transposed for observability (detectability of (A, C) is stabilizability of (Aᵀ, Cᵀ)).
+    """
     n = A.shape[0]
-    scale = max(1.0, float(np.linalg.norm(np.hstack([A, B]))))
+    scale = max(1.0, float(np.linalg.norm(np.hstack([A, M]))))
+    found = []
     for lam in np.linalg.eigvals(A):
-        if lam.real < -1e-9 * scale:
+        outside = abs(lam) > 1.0 - 1e-9 * scale if dt else lam.real > -1e-9 * scale
+        if not outside:
             continue
-        sv = np.linalg.svd(np.hstack([A - lam * np.eye(n), B.astype(complex)]),
-                           compute_uv=False)
+        U, sv, _ = np.linalg.svd(np.hstack([A - lam * np.eye(n), M.astype(complex)]))
         if sv[n - 1] < 1e-9 * scale:
-            raise ConfigError(key, f"(A, B) is not stabilizable: the mode of A at "
-                              f"{lam.real:.4g}{lam.imag:+.4g}j is not reachable through B, "
-                              "so no Q, R gives a stabilizing gain")
+            found.append((complex(lam), U[:, n - 1]))
+    return found
+
+
+def _mode(lam: complex) -> str:
+    return f"{lam.real:.4g}{lam.imag:+.4g}j"
+
+
+def check_stabilizable(A: np.ndarray, B: np.ndarray, key: str, dt: float | None = None
+                       ) -> None:
+    """PBH test: every eigenvalue λ of A outside the stability region has
+    rank [A − λI, B] = n."""
+    for lam, _ in unstable_modes(A, B, dt)[:1]:
+        raise ConfigError(key, f"(A, B) is not stabilizable: the mode of A at {_mode(lam)} "
+                          "is not reachable through B, so no Q, R gives a stabilizing gain")
+
+
+def check_detectable(A: np.ndarray, C: np.ndarray, key: str, dt: float | None = None,
+                     fix: str = "add a row to q_output or a q_fixed entry on one of these "
+                                "states") -> None:
+    """PBH test of (A, C), C (p × n) with ker C = ker Q: every eigenvalue λ of A outside
+    the stability region has rank [A − λI; C] = n; else the stabilizing Riccati solution
+    does not exist for any tuned Q̃.
+
+    Raises
+    ------
+    ConfigError
+        Naming the undetectable mode, the states it moves and the fix.
+    """
+    for lam, w in unstable_modes(A.T, C.T, dt)[:1]:
+        v = np.conj(w)  # A v = λ v and C v = 0
+        big = np.flatnonzero(np.abs(v) > 1e-6 * np.abs(v).max())
+        raise ConfigError(key, f"(A, Q^1/2) is not detectable: the mode of A at {_mode(lam)} "
+                          f"(states {', '.join(str(int(i)) for i in big)}, 0-based) is not "
+                          f"stable and the Riccati equation's Q = C_qᵀ Q̃ C_q + q_fixed does not "
+                          f"weight it; {fix}")
 
 
 def resolve(spec: Any, key: str) -> Any:
@@ -124,7 +172,26 @@ def resolve(spec: Any, key: str) -> Any:
     return obj
 
 
-def _from_file(path: Any, key: str) -> tuple[Any, Any]:
+def _from_yaml(file: Path, key: str) -> dict[str, Any]:
+    """A YAML plant file: ``A``, ``B``, optional ``dt`` and ``constants``; numbers may be
+    expressions over the constants (:mod:`~penaltyrun.problems.lqr.expr`)."""
+    import yaml
+
+    from penaltyrun.problems.lqr import expr
+
+    data = yaml.safe_load(file.read_text())
+    if not isinstance(data, Mapping):
+        raise ConfigError(key, f"{file.name} must be a mapping with A and B")
+    unknown = sorted(set(data) - {"A", "B", "dt", "constants"})
+    if unknown:
+        raise ConfigError(key, f"{file.name}: unknown key {unknown[0]!r} (allowed: A, B, dt, "
+                          "constants)")
+    names = expr.resolve_constants(data.get("constants"), f"{key}:constants")
+    return {k: expr.resolve_value(v, names, f"{key}:{k}") for k, v in data.items()
+            if k != "constants"}
+
+
+def _from_file(path: Any, key: str) -> tuple[Any, Any, float | None]:
     file = Path(str(path)).expanduser()
     if not file.is_file():
         raise ConfigError(key, f"no such file: {file}")
@@ -136,28 +203,34 @@ def _from_file(path: Any, key: str) -> tuple[Any, Any]:
             data: Mapping[str, Any] = loadmat(file)
         elif suffix == ".npz":
             data = dict(np.load(file, allow_pickle=False))
+        elif suffix in (".yaml", ".yml"):
+            data = _from_yaml(file, key)
         else:
-            raise ConfigError(key, f"unsupported file type {suffix!r} (use .mat or .npz)")
+            raise ConfigError(key, f"unsupported file type {suffix!r} (use .mat, .npz or "
+                              ".yaml)")
     except ConfigError:
         raise
-    except Exception as exc:  # a damaged file: scipy / numpy raise many kinds
+    except Exception as exc:  # a damaged file: scipy / numpy / yaml raise many kinds
         raise ConfigError(key, f"cannot read {file}: {' '.join(str(exc).split())}") from None
     for name in ("A", "B"):
         if name not in data:
             raise ConfigError(key, f"{file.name} has no variable {name!r} (need A and B)")
-    return data["A"], data["B"]
+    dt = data.get("dt")
+    if dt is not None:
+        dt = float(np.asarray(dt, dtype=float).ravel()[0])
+    return data["A"], data["B"], dt
 
 
-def _from_object(spec: Any, key: str) -> tuple[Any, Any]:
+def _from_object(spec: Any, key: str) -> tuple[Any, Any, float | None]:
     obj = resolve(spec, key)
     if hasattr(obj, "A") and hasattr(obj, "B"):
         dt = getattr(obj, "dt", 0)
-        if dt not in (0, None) and not (isinstance(dt, (int, float)) and dt == 0):
-            raise ConfigError(key, f"{spec} is a discrete-time system (dt = {dt}); a "
-                              "continuous-time plant is needed")
-        return obj.A, obj.B
+        if dt is True or (dt is not None and not isinstance(dt, (int, float))):
+            raise ConfigError(key, f"{spec} is a discrete-time system with an unspecified "
+                              f"sampling time (dt = {dt!r}); give its dt")
+        return obj.A, obj.B, (float(dt) if dt else None)
     if isinstance(obj, (tuple, list)) and len(obj) == 2:
-        return obj[0], obj[1]
+        return obj[0], obj[1], None
     raise ConfigError(key, f"{spec} is a {type(obj).__name__}, not a StateSpace or an "
                       "(A, B) pair")
 
@@ -210,8 +283,10 @@ def load(params: Mapping[str, Any], n_hint: int | None = None, m_hint: int | Non
     ------
     ConfigError
         Naming the key: conflicting or missing sources, bad shapes, unreadable files,
-        missing module attributes, a non-stabilizable (A, B), a bad ``dynamics``.
+        missing module attributes, a non-stabilizable (A, B), a bad ``dynamics``, a
+        ``dt`` that contradicts the ``plant`` object's or comes with ``dynamics``.
     """
+    dt = params.get("dt")
     given = [k for k in ("A", "plant_file", "plant") if params.get(k) is not None]
     if params.get("B") is not None and "A" not in given:
         raise ConfigError(f"{PREFIX}.A", "B is given without A")
@@ -224,21 +299,28 @@ def load(params: Mapping[str, Any], n_hint: int | None = None, m_hint: int | Non
         if params.get("B") is None:
             raise ConfigError(f"{PREFIX}.B", "missing: A is given, B (n x m) is needed too")
         A, B = check_pair(params["A"], params["B"], f"{PREFIX}.A", f"{PREFIX}.B")
-    elif source == "plant_file":
-        A, B = check_pair(*_from_file(params["plant_file"], key), key, key)
-    elif source == "plant":
-        A, B = check_pair(*_from_object(params["plant"], key), key, key)
+    elif source in ("plant_file", "plant"):
+        a, b, obj_dt = (_from_file if source == "plant_file" else _from_object)(
+            params[source], key)
+        A, B = check_pair(a, b, key, key)
+        if obj_dt is not None and dt is not None and not np.isclose(obj_dt, dt, rtol=1e-12):
+            raise ConfigError(f"{PREFIX}.dt", f"dt = {dt} but {params[source]} has dt = "
+                              f"{obj_dt}; drop dt (the system's is used) or make them agree")
+        dt = obj_dt if dt is None else dt
     elif params.get("dynamics") is None:
         raise ConfigError(f"{PREFIX}.A", "no plant: give A and B, plant_file, plant or "
                           "dynamics")
     dyn_key = f"{PREFIX}.dynamics"
     if params.get("dynamics") is None:
-        check_stabilizable(A, B, f"{PREFIX}.B" if source == "A" else key)
+        check_stabilizable(A, B, f"{PREFIX}.B" if source == "A" else key, dt)
 
         def f_lin(X: np.ndarray, U: np.ndarray) -> np.ndarray:
             return X @ A.T + U @ B.T
 
-        return Plant(A, B, f_lin, True, source)
+        return Plant(A, B, f_lin, True, source, None if dt is None else float(dt))
+    if dt is not None:
+        raise ConfigError(f"{PREFIX}.dt", "a discrete-time plant must be linear: give A and B "
+                          "(or plant / plant_file) without dynamics, or drop dt")
     f = resolve(params["dynamics"], dyn_key)
     if source == "dynamics":
         _check_dynamics(f, n_hint, m_hint, dyn_key)
@@ -252,5 +334,5 @@ def load(params: Mapping[str, Any], n_hint: int | None = None, m_hint: int | Non
     return Plant(A, B, f, False, source)
 
 
-__all__ = ["FD_STEP", "PREFIX", "Plant", "check_pair", "check_stabilizable", "jacobians",
-           "load", "resolve"]
+__all__ = ["FD_STEP", "PREFIX", "Plant", "check_detectable", "check_pair",
+           "check_stabilizable", "jacobians", "load", "resolve", "unstable_modes"]

@@ -6,7 +6,9 @@ Per candidate (Q, R): K = R⁻¹BᵀP from the Riccati equation of (A, B, Q, R)
 
     J = mean over x0 ∈ ``x0`` of ∫₀ᵀ (xᵀ W_x x + uᵀ W_u u) dt.
 
-A linear plant without input limits is evaluated in closed form
+A discrete-time plant (``dt``) uses the discrete Riccati equation and steps its loop
+exactly (:mod:`~penaltyrun.problems.lqr.discrete`); otherwise a linear plant without input
+limits is evaluated in closed form
 (:func:`penaltyrun.dynamics.linear.quadratic_cost` with W = W_x + Kᵀ W_u K); input limits
 or a nonlinear ``dynamics`` go through the vectorized integrator
 :func:`penaltyrun.dynamics.linear_feedback.simulate`.
@@ -14,6 +16,8 @@ or a nonlinear ``dynamics`` go through the vectorized integrator
 Cost of one start (P = the failure penalty scale, r = ‖x(T)‖ / ‖x0‖):
 
 * ``converged``: J;
+* ``constraint`` (a constraint of :mod:`~penaltyrun.problems.lqr.constraints` violated by v,
+  the summed relative excess): J + P (1 + v / (1 + v));
 * ``not_settled`` (``settle_tol`` set and r > settle_tol): J + P (1 + r / (1 + r));
 * ``diverged`` (‖x‖ > ``x_bound``) or ``step_failure`` at time t_f:
   J(t_f) + P (2 + (T − t_f) / T) (the earlier, the worse);
@@ -43,15 +47,17 @@ from penaltyrun.dynamics import linear_feedback as loop
 from penaltyrun.dynamics.linear import quadratic_cost
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec, check_spd
+from penaltyrun.problems.lqr import constraints as cons
+from penaltyrun.problems.lqr import discrete
 from penaltyrun.problems.lqr import params as pm
 from penaltyrun.problems.lqr.plant import Plant
-from penaltyrun.problems.lqr.riccati import lqr_gains
+from penaltyrun.problems.lqr.riccati import dlqr_gains, lqr_gains
 
 logger = logging.getLogger(__name__)
 
 #: Statuses from best to worst: a candidate takes the worst of its starts, except that a
 #: candidate with a start cut by the exact cutoff is ``cutoff`` (its cost is a bound).
-STATUSES = ("converged", "not_settled", "diverged", "step_failure", "nonfinite",
+STATUSES = ("converged", "constraint", "not_settled", "diverged", "step_failure", "nonfinite",
             "care_failure", "cutoff")
 HARD_FACTOR = 10.0
 #: Relative margin by which the summed J must exceed a threshold before a candidate is cut.
@@ -59,10 +65,17 @@ CUT_MARGIN = 1e-9
 _LOOP_STATUS = {loop.HORIZON: "converged", loop.DIVERGED: "diverged",
                 loop.STEP_FAILURE: "step_failure", loop.NONFINITE: "nonfinite",
                 loop.CUTOFF: "cutoff"}
+_STEP_STATUS = {discrete.HORIZON: "converged", discrete.DIVERGED: "diverged",
+                discrete.NONFINITE: "nonfinite"}
 
 
 class LQRProblem:
-    """LQR tuning on a plant from the config; tuned matrices ``Q`` (n × n), ``R`` (m × m).
+    """LQR tuning on a plant from the config; tuned matrices ``Q`` (p × p: n × n, or the
+    rows of ``q_output``) and ``R`` (m × m).
+
+    With ``integral_outputs`` the plant is augmented by its integrator states
+    (:func:`~penaltyrun.problems.lqr.constraints.augment`) before anything else; ``plant``
+    is then the augmented one and ``n_plant`` the size of the user's state.
 
     Parameters
     ----------
@@ -79,18 +92,27 @@ class LQRProblem:
     def __init__(self, case: str, params: pm.Params, plant: Plant) -> None:
         self.case = case
         self.params = params
-        self.plant = plant
-        n, m = plant.n_states, plant.n_inputs
         p = params
-        self.x0 = pm.states("x0", np.eye(n) if p.x0 is None else p.x0, n)
-        self.Wx = pm.weight("state_weight", p.state_weight, n, definite=False)
+        self.n_plant = plant.n_states
+        self.plant = cons.augment(plant, p.integral_outputs)
+        n, m = self.plant.n_states, self.plant.n_inputs
+        self.dt = self.plant.dt
+        if cons.includes_integrators(p.x0, n):
+            self.x0 = pm.states("x0", p.x0, n)
+        else:
+            self.x0 = cons.pad(pm.states("x0", np.eye(self.n_plant) if p.x0 is None else p.x0,
+                                         self.n_plant), n)
+        self.Wx = cons.pad_weight(p.state_weight, self.n_plant, n)
         self.Wu = pm.weight("input_weight", p.input_weight, m, definite=True)
         self.u_max = pm.limits(p.u_max, m)
         self.t_max = float(p.t_max)
-        self.matrices = (MatrixSpec("Q", n, pm.bounds("q_bounds", p.q_bounds)),
+        self.q_output, self.q_fixed = cons.q_structure(self.plant, p.q_output, p.q_fixed)
+        self.matrices = (MatrixSpec("Q", self.q_output.shape[0],
+                                    pm.bounds("q_bounds", p.q_bounds)),
                          MatrixSpec("R", m, pm.bounds("r_bounds", p.r_bounds)))
         self.scalars: tuple[ScalarSpec, ...] = ()
-        self.closed_form = plant.linear and self.u_max is None
+        self.closed_form = plant.linear and self.u_max is None and self.dt is None
+        self.limits = cons.Limits.build(p, self.plant, self.n_plant, self.closed_form)
         self.optimum = self._optimum()
         self.penalty = float(p.failure_penalty) if p.failure_penalty is not None else \
             1000.0 * (self.optimum if np.isfinite(self.optimum) and self.optimum > 0 else 1.0)
@@ -99,39 +121,77 @@ class LQRProblem:
     @property
     def cost_unit(self) -> str:
         """Unit of the cost (``cost_unit``), for reports."""
-        return str(self.params.cost_unit)
+        return pm.cost_unit(self.params, self.dt is not None)
 
     def _optimum(self) -> float:
         """J* = mean x0ᵀ P(W_x, W_u) x0: the cost of the LQR of the performance weights on
         the linear model over an infinite horizon (NaN when W_x gives no stabilizing
         solution); the global optimum of an unsaturated linear plant as T → ∞."""
-        from scipy.linalg import solve_continuous_are
+        from scipy.linalg import solve_continuous_are, solve_discrete_are
 
+        solve = solve_continuous_are if self.dt is None else solve_discrete_are
         try:
-            P = solve_continuous_are(self.plant.A, self.plant.B, self.Wx, self.Wu)
+            P = solve(self.plant.A, self.plant.B, self.Wx, self.Wu)
         except (np.linalg.LinAlgError, ValueError):
             return float("nan")
         return float(np.mean(np.einsum("ki,ij,kj->k", self.x0, P, self.x0)))
 
     # -- evaluation -----------------------------------------------------------------------
+    def state_penalty(self, Q: np.ndarray) -> np.ndarray:
+        """The Riccati equation's Q = C_qᵀ Q̃ C_q + Q₀ of tuned Q̃ (C, p, p) → (C, n, n)."""
+        C = self.q_output
+        return C.T @ Q @ C + self.q_fixed
+
+    def gains(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(K, ok, failure) of tuned Q̃ (C, p, p), R (C, m, m): continuous or discrete LQR."""
+        solve = lqr_gains if self.dt is None else dlqr_gains
+        return solve(self.plant.A, self.plant.B, self.state_penalty(Q), R)
+
+    def _bound(self, X0: np.ndarray) -> float:
+        return self.params.x_bound or 1e4 * float(np.max(np.linalg.norm(X0, axis=1)))
+
     def rows(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray,
-             thresholds: np.ndarray | None = None) -> dict[str, np.ndarray]:
+             thresholds: np.ndarray | None = None, metrics: bool = False
+             ) -> dict[str, np.ndarray]:
         """Every candidate from every start: per-start results of shape (C, k).
+
+        ``metrics``: also compute the measures of the constraints not set (for reports).
 
         Returns
         -------
         dict
             ``cost`` (graded), ``J`` (raw), ``status`` (str), ``t_final``, ``x_final``
-            (C, k, n), ``K`` (C, m, n), ``ok`` (C,) Riccati success.
+            (C, k, n), ``K`` (C, m, n), ``ok`` (C,) Riccati success, and the measures of
+            :meth:`~penaltyrun.problems.lqr.constraints.Limits.measure` (NaN where not
+            computed).
         """
         n_c, n_k = Q.shape[0], X0.shape[0]
-        K, ok, failure = lqr_gains(self.plant.A, self.plant.B, Q, R)
+        K, ok, failure = self.gains(Q, R)
         J = np.zeros((n_c, n_k))
         t_end = np.full((n_c, n_k), self.t_max)
         x_final = np.zeros((n_c, n_k, self.plant.n_states))
         codes = np.full((n_c, n_k), "converged", dtype=object)
         good = np.flatnonzero(ok)
-        if good.size and self.closed_form:
+        steps = None
+        history = self.limits.needs_history(metrics)
+        if good.size and self.dt is not None and self.plant.linear and self.u_max is None \
+                and not history:
+            A_cl = self.plant.A - self.plant.B @ K[good]
+            W = self.Wx + np.swapaxes(K[good], 1, 2) @ self.Wu @ K[good]
+            J[good], x_final[good] = discrete.linear_sum(
+                A_cl, W, X0, discrete.n_steps(self.t_max, self.dt))
+        elif good.size and self.dt is not None:
+            cand = np.repeat(good, n_k)
+            steps = discrete.simulate(self.plant.A, self.plant.B, K[cand],
+                                      np.tile(X0, (good.size, 1)), self.Wx, self.Wu,
+                                      self.u_max, discrete.n_steps(self.t_max, self.dt),
+                                      self._bound(X0), history=history)
+            J[good] = steps["cost"].reshape(good.size, n_k)
+            t_end[good] = (steps["k_end"] * self.dt).reshape(good.size, n_k)
+            x_final[good] = steps["x_final"].reshape(good.size, n_k, -1)
+            codes[good] = np.asarray([_STEP_STATUS[int(s)] for s in steps["status"]],
+                                     dtype=object).reshape(good.size, n_k)
+        elif good.size and self.closed_form:
             A_cl = self.plant.A - self.plant.B @ K[good]
             W = self.Wx + np.swapaxes(K[good], 1, 2) @ self.Wu @ K[good]
             J[good], x_final[good] = quadratic_cost(A_cl, W, X0, self.t_max)
@@ -142,7 +202,7 @@ class LQRProblem:
                 thr = np.asarray(thresholds, dtype=float)[good]
                 allowed = thr < HARD_FACTOR * self.penalty  # NaN: False
                 cut = np.where(allowed, n_k * (thr + CUT_MARGIN * np.abs(thr)), np.inf)
-            bound = self.params.x_bound or 1e4 * float(np.max(np.linalg.norm(X0, axis=1)))
+            bound = self._bound(X0)
             run = loop.simulate(self.plant.f, K[cand], np.tile(X0, (good.size, 1)), self.Wx,
                                 self.Wu, self.u_max, self.t_max, self.params.rtol,
                                 self.params.atol, self.params.max_steps, bound,
@@ -156,9 +216,14 @@ class LQRProblem:
         tol = self.params.settle_tol
         if tol is not None:
             codes[(codes == "converged") & ~(ratio <= tol)] = "not_settled"
+        measures = self.limits.measure(K, ok, X0, self.t_max, steps, metrics)
+        excess = measures.pop("violation")
+        codes[(codes == "converged") & (excess > 0)] = "constraint"
         P = self.penalty
         with np.errstate(all="ignore"):
             cost = np.where(codes == "not_settled", J + P * (1.0 + ratio / (1.0 + ratio)), J)
+            graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
+            cost = np.where(codes == "constraint", J + P * (1.0 + graded), cost)
             late = (self.t_max - t_end) / self.t_max
             cost = np.where(np.isin(codes, ("diverged", "step_failure")),
                             J + P * (2.0 + late), cost)
@@ -171,7 +236,7 @@ class LQRProblem:
         cost[~ok] = (HARD_FACTOR * P * (1.0 + size[~ok]))[:, None]
         codes[~ok] = "care_failure"
         return {"cost": cost, "J": J, "status": codes, "t_final": t_end, "x_final": x_final,
-                "K": K, "ok": ok}
+                "K": K, "ok": ok, **measures}
 
     @staticmethod
     def _aggregate(res: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -199,7 +264,11 @@ class LQRProblem:
             if mats.get(spec.name) is None:
                 raise ConfigError(f"matrices.{spec.name}", f"missing matrix ({spec.size}x"
                                   f"{spec.size})")
-            out.append(check_spd(f"matrices.{spec.name}", mats[spec.name], spec.size))
+            if spec.name == "Q":
+                out.append(cons.given_q(mats["Q"], spec.size, self.plant, self.q_output,
+                                        self.q_fixed))
+            else:
+                out.append(check_spd(f"matrices.{spec.name}", mats[spec.name], spec.size))
         return out[0], out[1]
 
     def evaluate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
@@ -211,13 +280,16 @@ class LQRProblem:
         dict
             ``problem``, ``case``, ``cost`` (objective, ``cost_unit``), ``converged``,
             ``status``, ``t_final`` (largest end time), ``t_max``, ``optimum`` (J* of the
-            linear model, infinite horizon), ``cost_unit``, ``method`` (``closed_form`` or
-            ``integrated``), ``gain`` (m × n, u = −gain x), ``closed_loop_poles`` (real,
-            imaginary parts), ``failure_penalty``, and per start: ``start_costs``,
-            ``start_status``, ``final_state_ratio`` (‖x(T)‖ / ‖x0‖).
+            linear model, infinite horizon), ``cost_unit``, ``method`` (``closed_form``,
+            ``integrated`` or ``stepped`` for a discrete plant), ``gain`` (m × n,
+            u = −gain x), ``closed_loop_poles`` (real, imaginary parts),
+            ``failure_penalty``, and per start: ``start_costs``, ``start_status``,
+            ``final_state_ratio`` (‖x(T)‖ / ‖x0‖); then ``dt``, ``state_penalty`` (the
+            Riccati equation's Q) and the constraint measures
+            (:meth:`~penaltyrun.problems.lqr.constraints.Limits.report`).
         """
         Q, R = self._check(mats)
-        res = self.rows(Q[None], R[None], self.x0)
+        res = self.rows(Q[None], R[None], self.x0, metrics=True)
         cost, converged, status = self._aggregate(res)
         K = res["K"][0]
         poles = np.linalg.eigvals(self.plant.A - self.plant.B @ K) if res["ok"][0] else []
@@ -227,13 +299,16 @@ class LQRProblem:
             "converged": bool(converged[0]), "status": str(status[0]),
             "t_final": float(res["t_final"][0].max()), "t_max": self.t_max,
             "optimum": self.optimum, "cost_unit": self.cost_unit,
-            "method": "closed_form" if self.closed_form else "integrated",
+            "method": ("stepped" if self.dt is not None else
+                       "closed_form" if self.closed_form else "integrated"),
             "gain": K.tolist(),
             "closed_loop_poles": [[float(z.real), float(z.imag)] for z in poles],
             "failure_penalty": self.penalty,
             "start_costs": res["cost"][0].tolist(),
             "start_status": [str(s) for s in res["status"][0]],
             "final_state_ratio": ratio.tolist(),
+            "dt": self.dt, "state_penalty": self.state_penalty(Q[None])[0].tolist(),
+            **self.limits.report(res),
         }
 
     def simulate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None,
@@ -250,9 +325,13 @@ class LQRProblem:
         from scipy.integrate import solve_ivp
 
         Q, R = self._check(mats)
-        K, ok, _ = lqr_gains(self.plant.A, self.plant.B, Q[None], R[None])
+        K, ok, _ = self.gains(Q[None], R[None])
         if not ok[0]:
             raise ConfigError("matrices", "no stabilizing Riccati solution for these Q, R")
+        if self.dt is not None:
+            return discrete.histories(self.plant.A, self.plant.B, K[0], self.x0, self.Wx,
+                                      self.Wu, self.u_max, self.t_max, float(self.dt),
+                                      self._bound(self.x0))
         K = K[0]
         n = self.plant.n_states
         t = np.linspace(0.0, self.t_max, n_points)
@@ -290,9 +369,10 @@ class LQRProblem:
 
     def _sphere(self, n_points: int, seed: int) -> np.ndarray:
         rng = np.random.default_rng(int(seed))
-        z = rng.normal(size=(n_points, self.plant.n_states))
+        z = rng.normal(size=(n_points, self.n_plant))
         radius = float(np.mean(np.linalg.norm(self.x0, axis=1)))
-        return radius * z / np.linalg.norm(z, axis=1, keepdims=True)
+        return cons.pad(radius * z / np.linalg.norm(z, axis=1, keepdims=True),
+                        self.plant.n_states)
 
     def sample_training(self, n: int, seed: int) -> list[dict[str, Any]]:
         """``n`` seeded training scenarios, one start each, uniform on the sphere of radius
@@ -312,7 +392,10 @@ class LQRProblem:
         if p.holdout_x0 is not None:
             if len(p.holdout_x0) == 0:
                 return np.zeros((0, n))
-            held = pm.states("holdout_x0", p.holdout_x0, n)
+            if cons.includes_integrators(p.holdout_x0, n):
+                held = pm.states("holdout_x0", p.holdout_x0, n)
+            else:
+                held = cons.pad(pm.states("holdout_x0", p.holdout_x0, self.n_plant), n)
             for x in held:
                 if np.any(np.all(np.isclose(self.x0, x, rtol=0.0, atol=1e-9), axis=1)):
                     raise ConfigError(f"{pm.PREFIX}.holdout_x0", f"start {x.tolist()} is also "

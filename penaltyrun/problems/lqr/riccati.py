@@ -1,5 +1,10 @@
-"""Batched continuous-time LQR gains K = R⁻¹ Bᵀ P, P from the algebraic Riccati equation
-AᵀP + PA − P B R⁻¹ Bᵀ P + Q = 0.
+"""Batched LQR gains: continuous time K = R⁻¹ Bᵀ P, P from the algebraic Riccati equation
+AᵀP + PA − P B R⁻¹ Bᵀ P + Q = 0 (:func:`lqr_gains`), and discrete time
+K = (R + BᵀPB)⁻¹ BᵀPA, P from AᵀPA − P − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q = 0
+(:func:`dlqr_gains`).
+
+Q may be positive semi-definite: the stabilizing solution exists when (A, B) is
+stabilizable and (A, Q^½) detectable, which the problem checks once for the structure of Q.
 
 The batch path takes the stable invariant subspace of the Hamiltonian matrix
 H = [[A, −S], [−Q, −Aᵀ]] (S = B R⁻¹ Bᵀ) by one batched eigendecomposition: with the n
@@ -111,4 +116,91 @@ def lqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray
     return K, ok, np.where(ok, 0.0, res)
 
 
-__all__ = ["RESIDUAL_TOL", "STABILITY_MARGIN", "lqr_gains", "residual"]
+def discrete_residual(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
+                      P: np.ndarray) -> np.ndarray:
+    """Relative residual of the discrete Riccati equation, shape (C,):
+    ‖AᵀPA − P − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q‖ / (‖Q‖ + ‖P‖ (1 + ‖A‖²))."""
+    At = A.T
+    PB = P @ B
+    M = R + B.T @ PB
+    res = At @ P @ A - P - At @ PB @ np.linalg.solve(M, np.swapaxes(PB, -1, -2) @ A) + Q
+    nP = np.linalg.norm(P, axis=(-2, -1))
+    scale = np.linalg.norm(Q, axis=(-2, -1)) + nP * (1.0 + np.linalg.norm(A) ** 2)
+    return np.linalg.norm(res, axis=(-2, -1)) / np.maximum(scale, 1e-300)
+
+
+def _discrete_gain(A: np.ndarray, B: np.ndarray, R: np.ndarray, P: np.ndarray) -> np.ndarray:
+    PB = P @ B
+    return np.linalg.solve(R + B.T @ PB, np.swapaxes(PB, -1, -2) @ A)
+
+
+def _schur_stable(A: np.ndarray, B: np.ndarray, K: np.ndarray) -> np.ndarray:
+    margin = STABILITY_MARGIN * max(1.0, float(np.linalg.norm(A)))
+    return np.max(np.abs(np.linalg.eigvals(A - B @ K)), axis=-1) < 1.0 - margin
+
+
+def dlqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
+               max_iter: int = 80) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Discrete-time LQR gains of one plant for a batch of penalties.
+
+    The batch runs the structure-preserving doubling algorithm (Chu, Fan, Lin & Wang 2004;
+    no inverse of A needed): A₀ = A, G₀ = B R⁻¹ Bᵀ, H₀ = Q and
+    W = I + G H, A ← A W⁻¹ A, G ← G + A W⁻¹ G Aᵀ, H ← H + Aᵀ H W⁻¹ A, with H → P
+    quadratically. Candidates whose relative residual exceeds :data:`RESIDUAL_TOL` or
+    whose loop A − BK is not Schur (spectral radius ≥ 1) are solved again with
+    :func:`scipy.linalg.solve_discrete_are`.
+
+    Parameters and returns as :func:`lqr_gains` (u[k] = −K x[k]).
+    """
+    from scipy.linalg import solve_discrete_are
+
+    Q = np.asarray(Q, dtype=float)
+    R = np.asarray(R, dtype=float)
+    n_c, n = Q.shape[0], A.shape[0]
+    eye = np.eye(n)
+    Ak = np.broadcast_to(A, (n_c, n, n)).copy()
+    G = B @ np.linalg.inv(R) @ B.T
+    H = Q.copy()
+    with np.errstate(all="ignore"):
+        try:
+            for _ in range(max_iter):
+                W = eye + G @ H
+                WA = np.linalg.solve(W, Ak)
+                WG = np.linalg.solve(W, G)
+                H_new = H + np.swapaxes(Ak, 1, 2) @ H @ WA
+                G = G + Ak @ WG @ np.swapaxes(Ak, 1, 2)
+                Ak = Ak @ WA
+                step = np.linalg.norm(H_new - H, axis=(1, 2))
+                H = H_new
+                if np.all(~np.isfinite(step) | (step <= 1e-14 * np.linalg.norm(H, axis=(1, 2)))):
+                    break
+            P = 0.5 * (H + np.swapaxes(H, 1, 2))
+            good = np.all(np.isfinite(P), axis=(1, 2))
+            P = np.where(good[:, None, None], P, 0.0)
+            K = _discrete_gain(A, B, R, P)
+            res = discrete_residual(A, B, Q, R, P)
+            res = np.where(good & np.isfinite(res), res, np.inf)
+            ok = good & (res < RESIDUAL_TOL) & _schur_stable(A, B, K)
+        except np.linalg.LinAlgError:
+            P = np.zeros((n_c, n, n))
+            res = np.full(n_c, np.inf)
+            ok = np.zeros(n_c, dtype=bool)
+        for c in np.flatnonzero(~ok):
+            try:
+                Pc = solve_discrete_are(A, B, Q[c], R[c])
+            except (np.linalg.LinAlgError, ValueError):
+                logger.debug("no discrete Riccati solution for candidate %d", c)
+                continue
+            if not np.all(np.isfinite(Pc)):
+                continue
+            rc = float(discrete_residual(A, B, Q[c], R[c], Pc))
+            res[c] = min(res[c], rc)
+            if rc < 1e3 * RESIDUAL_TOL and _schur_stable(A, B, _discrete_gain(A, B, R[c], Pc)):
+                P[c], ok[c], res[c] = Pc, True, rc
+        K = _discrete_gain(A, B, R, P)
+    K[~ok] = 0.0
+    return K, ok, np.where(ok, 0.0, res)
+
+
+__all__ = ["RESIDUAL_TOL", "STABILITY_MARGIN", "discrete_residual", "dlqr_gains", "lqr_gains",
+           "residual"]

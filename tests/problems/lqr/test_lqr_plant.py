@@ -67,7 +67,7 @@ def test_user_plant_drops_the_known_answer_values():
     ({"plant": "lqr_test_plants:nothing"}, "problem.params.plant", "no attribute"),
     ({"plant": "no_such_module_lqr:sys"}, "problem.params.plant", "cannot import"),
     ({"plant": "lqr_test_plants"}, "problem.params.plant", "module:attribute"),
-    ({"plant": "lqr_test_plants:discrete"}, "problem.params.plant", "discrete"),
+    ({"plant": "lqr_test_plants:discrete", "dt": 0.2}, "problem.params.dt", "has dt = 0.1"),
     ({"A": [[0, 1], [0, 0]], "B": [[0], [1]], "x0": [[1, 2, 3]]}, "problem.params.x0", "n = 2"),
     ({"A": [[0, 1], [0, 0]], "B": [[0], [1]], "u_max": [1, 2]}, "problem.params.u_max", "m = 1"),
     ({"A": [[0, 1], [0, 0]], "B": [[0], [1]], "state_weight": [[1, 2], [2, 1]]},

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -80,3 +81,20 @@ def test_known_answer_commands(folder):
     assert set(read_results(out)["param"]) == {"diagonal", "full"}
     text = (out / "report" / "report.md").read_text()
     assert "Best-known optima" in text
+
+
+def test_options_section_yaml_and_evaluate(folder):
+    from penaltyrun import problems
+
+    params = yaml.safe_load(blocks("yaml")[1])["params"]
+    prob = problems.make("lqr", None, params)
+    assert prob.dt == params["constants"]["Ts"] and prob.plant.n_states == 3
+    assert [s.size for s in prob.matrices] == [2, 1]
+    (folder / "myconf" / "problem" / "pendulum.yaml").write_text(blocks("yaml")[1])
+    line = blocks("sh")[3].strip()
+    assert "problem=pendulum" in line
+    result = json.loads(run(line, folder).stdout.strip().splitlines()[-1])
+    for key in ("state_penalty", "disk_margin", "settling_time", "overshoot_percent", "dt",
+                "limits"):
+        assert key in result
+    assert np.asarray(result["state_penalty"])[1, 1] == 0.0

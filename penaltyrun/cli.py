@@ -99,7 +99,7 @@ problem_params, problem_module, _setup = cells.problem_params, cells.problem_mod
 
 def run_optimize(cfg: DictConfig) -> Path:
     """Plan and run the jobs of one cell, then write results.parquet (and the report)."""
-    from penaltyrun import io, report, runner
+    from penaltyrun import io, problems, report, runner
 
     prob, _, _ = _setup(cfg)  # validated by the preflight already; builds the problem
     runner.check_runner_options(_plain(cfg.runner), connect=False)
@@ -127,6 +127,8 @@ def run_optimize(cfg: DictConfig) -> Path:
                        stall_timeout=float(rc.get("stall_timeout", 600)))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
+        if problem_module(cfg):  # the user's own config names it: its report hooks may run
+            problems.register(cfg.problem.name, problem_module(cfg))
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
         logger.info("report written to %s", out)
@@ -352,12 +354,17 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("--export", metavar="DIR",
                         help="also write each cell's best matrices to DIR as JSON and MATLAB "
                              ".mat files (with index.csv)")
+    parser.add_argument("--problem-module", metavar="NAME=MODULE", action="append",
+                        default=[],
+                        help="run the report hooks of user problem NAME from MODULE (its "
+                             "folder on PYTHONPATH); without it, reading results imports no "
+                             "module named in them (repeatable)")
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     if argv is None:
         ensure_utf8_mode(sys.argv)
     watch_stdout()
     args = parser.parse_args(argv)
-    from penaltyrun import report
+    from penaltyrun import problems, report
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     install_signal_handlers()
@@ -367,6 +374,12 @@ def report_main(argv: list[str] | None = None) -> None:
         if not src.exists():
             raise ConfigError("input", f"{src} does not exist")
         checks.check_output_dir(args.output, "-o")
+        for item in args.problem_module:
+            name, sep, module_path = item.partition("=")
+            if not sep or not name.strip():
+                raise ConfigError("--problem-module", f"{item!r} is not NAME=MODULE (e.g. "
+                                  "--problem-module cartpole=mylab.problems.cartpole)")
+            problems.register(name.strip(), module_path)
         out = Path(args.output) if args.output else \
             (src.parent if src.is_file() else src) / "report"
         report.build_report(src, out, paper=not args.no_paper)

@@ -15,6 +15,9 @@ Sources (keys of ``problem.params``), checked in this order:
   :data:`FD_STEP` relative to 1; truncation error O(h²) ≈ 4e-11 times the third
   derivatives, round-off ≈ 1e-11 times the size of f).
 
+While results are read (:func:`penaltyrun.problems.trust.reading_results`), ``plant`` and
+``dynamics`` are never imported: the stored names come from the data.
+
 Every malformed input is a :class:`~penaltyrun.errors.ConfigError` naming its key.
 """
 
@@ -29,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import trust
 
 PREFIX = "problem.params"
 #: Central-difference step of the Jacobians of ``dynamics`` at the origin.
@@ -108,7 +112,17 @@ def check_stabilizable(A: np.ndarray, B: np.ndarray, key: str) -> None:
 
 
 def resolve(spec: Any, key: str) -> Any:
-    """The object named by ``module:attribute`` (dotted attributes allowed)."""
+    """The object named by ``module:attribute`` (dotted attributes allowed).
+
+    Raises
+    ------
+    ConfigError
+        Malformed ``spec``, a module that cannot be imported, a missing attribute.
+    trust.NotImportedError
+        While results are read: nothing named in the data is imported.
+    """
+    if trust.is_reading():
+        raise trust.refuse(key, f"{spec!r}")
     if not isinstance(spec, str) or spec.count(":") != 1 or not all(spec.split(":")):
         raise ConfigError(key, f"expected 'module:attribute', got {spec!r}")
     mod_name, attr = spec.split(":")

@@ -205,3 +205,69 @@ def test_l5_long_variant_labels_export_every_cell_to_its_own_files(tmp_path):
     cells = {(d["variant"], d["param"]) for d in
              (json.loads(f.read_text()) for f in files if f.suffix == ".json")}
     assert len(cells) == 4
+
+
+def test_s8_a_report_link_in_a_received_folder_is_refused(tmp_path, capsys):
+    folder = tmp_path / "received"
+    write(folder, rows(problem="zz_user"))
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "report.md").write_text("precious\n", encoding="utf-8")
+    (folder / "report").symlink_to(victim)
+    with pytest.raises(SystemExit) as exc:
+        report_main([str(folder)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "symbolic link" in err[0] and "remove the link" in err[0]
+    assert [p.name for p in victim.iterdir()] == ["report.md"]
+    assert (victim / "report.md").read_text(encoding="utf-8") == "precious\n"
+    (folder / "export").symlink_to(victim)
+    with pytest.raises(Exception, match="symbolic link"):
+        export_best(folder, folder / "export")
+    assert [p.name for p in victim.iterdir()] == ["report.md"]
+
+
+def test_s8_links_inside_the_report_folder_are_replaced_not_written_through(tmp_path):
+    folder = tmp_path / "received"
+    write(folder, rows(problem="zz_user"))
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n", encoding="utf-8")
+    out = folder / "report"
+    out.mkdir()
+    for name in ("report.md", "report.html", "summary.csv", "comparison.csv"):
+        (out / name).symlink_to(victim)
+    build_report(folder, out)
+    assert victim.read_text(encoding="utf-8") == "precious\n"
+    assert not any(p.is_symlink() for p in out.iterdir())
+    (folder / "export").mkdir()
+    (folder / "export" / "index.csv").symlink_to(victim)
+    export_best(folder, folder / "export")
+    assert victim.read_text(encoding="utf-8") == "precious\n"
+
+
+def test_f18_an_output_folder_of_another_report_is_cleaned_not_mixed(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    old = {"comparison.csv": "old", "comparison.md": "old", "holdout.csv": "old",
+           "paper.csv": "old", "old_figure.png": "png",
+           "report.md": "# old\n\n![old](old_figure.png)\n"}
+    for name, text in old.items():
+        (out / name).write_text(text, encoding="utf-8")
+    (out / "notes.txt").write_text("the user's own file\n", encoding="utf-8")
+    (out / "unlisted.png").write_text("the user's own figure\n", encoding="utf-8")
+    folder = tmp_path / "received"
+    one_map = [r for r in rows(problem="zz_user") if r["param"] == "full"]
+    write(folder, one_map)  # one map: no comparison, no held-out
+    build_report(folder, out)
+    names = {p.name for p in out.iterdir()}
+    assert not names & {"comparison.csv", "comparison.md", "holdout.csv", "paper.csv",
+                        "old_figure.png"}
+    assert {"notes.txt", "unlisted.png", "report.md", "summary.csv"} <= names
+    assert (out / "report.md").read_text(encoding="utf-8") != old["report.md"]
+    exp = tmp_path / "export"
+    write(folder / "two", rows(problem="zz_other"))
+    export_best(folder / "two", exp)
+    first = {p.name for p in exp.iterdir()}
+    export_best(folder / RESULTS_FILE, exp)
+    second = {p.name for p in exp.iterdir()}
+    assert len(first) == 5 and len(second) == 3 and not first & second - {"index.csv"}

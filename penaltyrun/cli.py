@@ -129,6 +129,9 @@ def run_optimize(cfg: DictConfig) -> Path:
     if rc.report:
         if problem_module(cfg):  # the user's own config names it: its report hooks may run
             problems.register(cfg.problem.name, problem_module(cfg))
+        for key in ("plant", "dynamics"):  # and the modules of its plant
+            if isinstance(problem_params(cfg).get(key), str):
+                problems.trust.allow_module(problem_params(cfg)[key].partition(":")[0])
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
         logger.info("report written to %s", out)
@@ -359,6 +362,9 @@ def report_main(argv: list[str] | None = None) -> None:
                         help="run the report hooks of user problem NAME from MODULE (its "
                              "folder on PYTHONPATH); without it, reading results imports no "
                              "module named in them (repeatable)")
+    parser.add_argument("--plant-module", metavar="MODULE", action="append", default=[],
+                        help="import MODULE for an LQR plant or dynamics the results name "
+                             "(module:function), to draw its figures (repeatable)")
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     if argv is None:
         ensure_utf8_mode(sys.argv)
@@ -380,6 +386,8 @@ def report_main(argv: list[str] | None = None) -> None:
                 raise ConfigError("--problem-module", f"{item!r} is not NAME=MODULE (e.g. "
                                   "--problem-module cartpole=mylab.problems.cartpole)")
             problems.register(name.strip(), module_path)
+        for module_path in args.plant_module:
+            problems.trust.allow_module(module_path)
         out = Path(args.output) if args.output else \
             (src.parent if src.is_file() else src) / "report"
         report.build_report(src, out, paper=not args.no_paper)

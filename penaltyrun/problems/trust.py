@@ -10,7 +10,8 @@ results are read (:func:`reading_results`), none of these names is imported or c
 * any other problem module is imported only when the user named it for this process
   (:func:`name_module`, e.g. ``penaltyrun-report PATH --problem-module NAME=MODULE``);
 * a ``module:attribute`` inside stored problem parameters (the LQR plant's ``plant`` and
-  ``dynamics``) is never imported.
+  ``dynamics``) is imported only when the user allowed its module for this process
+  (:func:`allow_module`, e.g. ``penaltyrun-report PATH --plant-module MODULE``).
 
 A refused name raises :class:`NotImportedError`; the report then works from the stored
 columns alone and says so in one line. Outside :func:`reading_results` (running a study)
@@ -28,6 +29,8 @@ from penaltyrun.errors import ConfigError
 _READING: ContextVar[bool] = ContextVar("penaltyrun_reading_results", default=False)
 #: Problem name → module the user named for this process (never read from results).
 _NAMED: dict[str, str] = {}
+#: Modules the user allowed for plants named in results (never read from results).
+_ALLOWED: set[str] = set()
 
 
 class NotImportedError(ConfigError):
@@ -58,11 +61,32 @@ def name_module(problem: str, module_path: str) -> None:
     ConfigError
         ``module_path`` is not a dotted Python module name.
     """
+    _NAMED[str(problem)] = _checked(module_path, "--problem-module")
+
+
+def allow_module(module_path: str) -> None:
+    """The user allows ``module_path`` to be imported for a plant named in results (an LQR
+    plant's ``plant:`` / ``dynamics:``) while results are read in this process.
+
+    Raises
+    ------
+    ConfigError
+        ``module_path`` is not a dotted Python module name.
+    """
+    _ALLOWED.add(_checked(module_path, "--plant-module"))
+
+
+def allowed(module_path: str) -> bool:
+    """Whether the user allowed ``module_path`` (:func:`allow_module`)."""
+    return str(module_path) in _ALLOWED
+
+
+def _checked(module_path: str, key: str) -> str:
     path = str(module_path).strip()
     if not path or not all(part.isidentifier() for part in path.split(".")):
-        raise ConfigError("--problem-module", f"{module_path!r} is not a dotted module name "
-                          "(give NAME=package.module)")
-    _NAMED[str(problem)] = path
+        raise ConfigError(key, f"{module_path!r} is not a dotted module name (e.g. "
+                          "mylab.plants)")
+    return path
 
 
 def named() -> dict[str, str]:
@@ -71,8 +95,9 @@ def named() -> dict[str, str]:
 
 
 def forget_named() -> None:
-    """Forget every module named with :func:`name_module` (tests, a new report)."""
+    """Forget every module named with :func:`name_module` or :func:`allow_module`."""
     _NAMED.clear()
+    _ALLOWED.clear()
 
 
 def refuse(key: str, what: str) -> NotImportedError:
@@ -82,5 +107,5 @@ def refuse(key: str, what: str) -> NotImportedError:
                             "them)")
 
 
-__all__ = ["NotImportedError", "forget_named", "is_reading", "name_module", "named",
-           "reading_results", "refuse"]
+__all__ = ["NotImportedError", "allow_module", "allowed", "forget_named", "is_reading",
+           "name_module", "named", "reading_results", "refuse"]

@@ -271,3 +271,13 @@ def test_f18_an_output_folder_of_another_report_is_cleaned_not_mixed(tmp_path):
     export_best(folder / RESULTS_FILE, exp)
     second = {p.name for p in exp.iterdir()}
     assert len(first) == 5 and len(second) == 3 and not first & second - {"index.csv"}
+
+
+def test_a_plant_module_allowed_on_the_command_line_is_imported(planted):
+    folder, marker = planted
+    params = {"A": [[0.0, 1.0], [0.0, 0.0]], "B": [[0.0], [1.0]],
+              "dynamics": "planted_plant:f"}
+    write(folder, rows(problem="lqr", case="default", params=params))
+    report_main([str(folder), "--plant-module", "planted_plant"])
+    assert marker.read_text() == "imported"  # allowed: imported (and f checked at 0)
+    assert "planted_mod" not in sys.modules

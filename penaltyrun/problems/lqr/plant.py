@@ -16,7 +16,8 @@ Sources (keys of ``problem.params``), checked in this order:
   derivatives, round-off ≈ 1e-11 times the size of f).
 
 While results are read (:func:`penaltyrun.problems.trust.reading_results`), ``plant`` and
-``dynamics`` are never imported: the stored names come from the data.
+``dynamics`` are imported only from a module the user allowed
+(:func:`penaltyrun.problems.trust.allow_module`): the stored names come from the data.
 
 Every malformed input is a :class:`~penaltyrun.errors.ConfigError` naming its key.
 """
@@ -119,13 +120,16 @@ def resolve(spec: Any, key: str) -> Any:
     ConfigError
         Malformed ``spec``, a module that cannot be imported, a missing attribute.
     trust.NotImportedError
-        While results are read: nothing named in the data is imported.
+        While results are read: a module the user did not allow.
     """
-    if trust.is_reading():
-        raise trust.refuse(key, f"{spec!r}")
     if not isinstance(spec, str) or spec.count(":") != 1 or not all(spec.split(":")):
+        if trust.is_reading():
+            raise trust.refuse(key, f"{spec!r}")
         raise ConfigError(key, f"expected 'module:attribute', got {spec!r}")
     mod_name, attr = spec.split(":")
+    if trust.is_reading() and not trust.allowed(mod_name):
+        raise trust.refuse(key, f"{spec!r} (allow its module with --plant-module "
+                           f"{mod_name})")
     try:
         obj: Any = importlib.import_module(mod_name)
     except ImportError as exc:

@@ -281,3 +281,22 @@ def test_a_plant_module_allowed_on_the_command_line_is_imported(planted):
     report_main([str(folder), "--plant-module", "planted_plant"])
     assert marker.read_text() == "imported"  # allowed: imported (and f checked at 0)
     assert "planted_mod" not in sys.modules
+
+
+def test_s1_python_m_report_cli_in_a_received_folder_imports_nothing_from_it(tmp_path):
+    """``python -m`` puts the current folder on sys.path: modules planted there under the
+    names of penaltyrun's dependencies do not run."""
+    import os
+    import subprocess
+
+    folder = tmp_path / "received"
+    write(folder, rows(problem="zz_user", config="problem:\n  module: planted_mod\n"))
+    for name in ("yaml", "matplotlib", "scipy", "tqdm", "planted_mod"):
+        (folder / f"{name}.py").write_text(
+            f"open({str(tmp_path / ('HIJACKED_' + name))!r}, 'w').write('x')\n", "utf-8")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", "."], cwd=folder,
+                          env=env, capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert not list(tmp_path.glob("HIJACKED_*"))
+    assert (folder / "report" / "report.md").is_file()

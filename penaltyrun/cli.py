@@ -99,7 +99,7 @@ problem_params, problem_module, _setup = cells.problem_params, cells.problem_mod
 
 def run_optimize(cfg: DictConfig) -> Path:
     """Plan and run the jobs of one cell, then write results.parquet (and the report)."""
-    from penaltyrun import io, problems, report, runner
+    from penaltyrun import io, report, runner
 
     prob, _, _ = _setup(cfg)  # validated by the preflight already; builds the problem
     runner.check_runner_options(_plain(cfg.runner), connect=False)
@@ -127,11 +127,7 @@ def run_optimize(cfg: DictConfig) -> Path:
                        stall_timeout=float(rc.get("stall_timeout", 600)))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
-        if problem_module(cfg):  # the user's own config names it: its report hooks may run
-            problems.register(cfg.problem.name, problem_module(cfg))
-        for key in ("plant", "dynamics"):  # and the modules of its plant
-            if isinstance(problem_params(cfg).get(key), str):
-                problems.trust.allow_module(problem_params(cfg)[key].partition(":")[0])
+        _trust_config_modules(cfg)
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
         logger.info("report written to %s", out)
@@ -203,6 +199,19 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     return result
 
 
+def _trust_config_modules(cfg: DictConfig) -> None:
+    """The modules the user's own config names (``problem.module``, an LQR plant's
+    ``plant`` / ``dynamics``) may be imported by the report of this process."""
+    from penaltyrun import problems
+
+    if problem_module(cfg):
+        problems.register(cfg.problem.name, problem_module(cfg))
+    for key in ("plant", "dynamics"):
+        spec = problem_params(cfg).get(key)
+        if isinstance(spec, str):
+            problems.trust.allow_module(spec.partition(":")[0])
+
+
 def run_report(cfg: DictConfig) -> Path:
     """Tables and figures from Parquet results under ``report.input``."""
     from penaltyrun import report
@@ -215,6 +224,7 @@ def run_report(cfg: DictConfig) -> Path:
         raise ConfigError("report.input", f"{src} does not exist")
     out = Path(cfg.report.output) if cfg.report.output else \
         (src.parent if src.is_file() else src) / "report"
+    _trust_config_modules(cfg)
     report.build_report(src, out, paper=bool(cfg.report.paper))
     print(f"report written to {out}")
     return out

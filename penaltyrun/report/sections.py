@@ -259,10 +259,10 @@ def active_bounds(g: pd.DataFrame) -> list[str]:
                 for v in values[hit]:
                     where = f"{row['problem']} / {row['case']}" + (
                         f" [{row['problem_variant']}]" if row.get("problem_variant") else "")
-                    lines.append(f"- {where}: best {fam} {name} "
-                                 f"({row['optimizer']}/{row['param']}): "
-                                 f"{what} {v:.6g} at its {side} bound {b:g} — the box may be "
-                                 "too small.")
+                    lines.append(md_line(f"- {where}: best {fam} {name} "
+                                         f"({row['optimizer']}/{row['param']}): "
+                                         f"{what} {v:.6g} at its {side} bound {b:g} — the "
+                                         "box may be too small."))
     return lines
 
 

@@ -10,7 +10,8 @@ written (:func:`penaltyrun.io.schema.collect` releases it); taking it again in t
 process is a no-op.
 
 The lock file is opened with ``O_NOFOLLOW`` and must be a regular file: a symbolic link (or
-a FIFO, a folder) in its place is refused with one line, never written through.
+a FIFO, a folder) in its place is refused with one line, never written through; so is a
+``jobs`` folder that is a symbolic link (job records would land outside the run directory).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from penaltyrun.errors import ConfigError, EnvironmentProblemError, describe_os_error
+from penaltyrun.runner.records import JOBS_DIR
 
 try:
     import fcntl
@@ -140,6 +142,11 @@ def acquire(run_dir: Path) -> None:
     if fcntl is None or key in _HELD:
         return
     run_dir = Path(run_dir)
+    if (run_dir / JOBS_DIR).is_symlink():
+        raise ConfigError("hydra.run.dir", f"{run_dir / JOBS_DIR} is a symbolic link; job "
+                          "records are written only into a real folder of the run "
+                          "directory: remove the link (or move the folder in its place), "
+                          "then run again")
     path = run_dir / LOCK_FILE
     try:
         run_dir.mkdir(parents=True, exist_ok=True)

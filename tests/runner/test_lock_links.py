@@ -57,3 +57,13 @@ def test_a_regular_lock_file_still_works(tmp_path):
         assert lock.holder(tmp_path)["pid"] == os.getpid()
     finally:
         lock.release(tmp_path)
+
+
+def test_a_jobs_folder_that_is_a_link_is_refused(tmp_path):
+    run, elsewhere = tmp_path / "run", tmp_path / "elsewhere"
+    run.mkdir()
+    elsewhere.mkdir()
+    (run / "jobs").symlink_to(elsewhere)
+    with pytest.raises(ConfigError, match="jobs is a symbolic link.*remove the link"):
+        lock.acquire(run)
+    assert list(elsewhere.iterdir()) == [] and not (run / lock.LOCK_FILE).exists()

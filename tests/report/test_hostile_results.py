@@ -283,6 +283,7 @@ def test_a_plant_module_allowed_on_the_command_line_is_imported(planted):
     assert "planted_mod" not in sys.modules
 
 
+@pytest.mark.slow  # about 7 s: a child Python imports penaltyrun
 def test_s1_python_m_report_cli_in_a_received_folder_imports_nothing_from_it(tmp_path):
     """``python -m`` puts the current folder on sys.path: modules planted there under the
     names of penaltyrun's dependencies do not run."""
@@ -300,3 +301,17 @@ def test_s1_python_m_report_cli_in_a_received_folder_imports_nothing_from_it(tmp
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert not list(tmp_path.glob("HIJACKED_*"))
     assert (folder / "report" / "report.md").is_file()
+
+
+def test_report_cli_takes_the_current_folder_off_sys_path(tmp_path, monkeypatch):
+    from penaltyrun import report_cli
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("PYTHONPATH", raising=False)
+    monkeypatch.setattr(sys, "path", [str(tmp_path), "/lib"])
+    report_cli._drop_current_folder()
+    assert sys.path == ["/lib"]
+    monkeypatch.setattr(sys, "path", [str(tmp_path), "/lib"])
+    monkeypatch.setenv("PYTHONPATH", ".")  # the user put it there: kept
+    report_cli._drop_current_folder()
+    assert sys.path == [str(tmp_path), "/lib"]

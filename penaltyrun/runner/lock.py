@@ -115,16 +115,30 @@ def is_locked(run_dir: Path) -> bool:
     return False
 
 
+#: Files a run (and Hydra) writes into its directory, which may not be symbolic links.
+OWN_FILES = (LOCK_FILE, JOBS_DIR, ".hydra", ".hydra/config.yaml", ".hydra/hydra.yaml",
+             ".hydra/overrides.yaml")
+
+
 def check_not_locked(run_dir: Path, key: str = "hydra.run.dir") -> None:
-    """Refuse a run directory that another run holds (preflight; takes nothing).
+    """Refuse a run directory that another run holds, or in which a file the run writes
+    (:data:`OWN_FILES`, Hydra's log ``*.log``) is a symbolic link that writing would
+    follow out of the directory (preflight, before Hydra writes; takes nothing).
 
     Raises
     ------
     ConfigError
-        Naming the other process (pid, start time).
+        Naming the other process (pid, start time), or the link and the fix.
     """
+    run_dir = Path(run_dir)
+    links = [run_dir / name for name in OWN_FILES if (run_dir / name).is_symlink()]
+    links += sorted(p for p in run_dir.glob("*.log") if p.is_symlink())
+    if links:
+        raise ConfigError(key, f"{links[0]} is a symbolic link; a run writes its own files "
+                          "only inside its directory, never through a link: remove it, "
+                          "then run again")
     if is_locked(run_dir):
-        raise _busy_error(Path(run_dir), key)
+        raise _busy_error(run_dir, key)
 
 
 def acquire(run_dir: Path) -> None:

@@ -67,3 +67,16 @@ def test_a_jobs_folder_that_is_a_link_is_refused(tmp_path):
     with pytest.raises(ConfigError, match="jobs is a symbolic link.*remove the link"):
         lock.acquire(run)
     assert list(elsewhere.iterdir()) == [] and not (run / lock.LOCK_FILE).exists()
+
+
+@pytest.mark.parametrize("name", [lock.LOCK_FILE, "jobs", ".hydra", ".hydra/config.yaml",
+                                  ".hydra/overrides.yaml", "cli.log"])
+def test_the_preflight_refuses_links_in_place_of_the_runs_own_files(tmp_path, victim, name):
+    run = tmp_path / "run"
+    (run / ".hydra").mkdir(parents=True)
+    if name == ".hydra":
+        (run / ".hydra").rmdir()
+    (run / name).symlink_to(victim)
+    with pytest.raises(ConfigError, match="is a symbolic link.*remove it"):
+        lock.check_not_locked(run)
+    assert victim.read_text(encoding="utf-8") == "precious data\n"

@@ -115,15 +115,17 @@ def is_locked(run_dir: Path) -> bool:
     return False
 
 
-#: Files a run (and Hydra) writes into its directory, which may not be symbolic links.
-OWN_FILES = (LOCK_FILE, JOBS_DIR, ".hydra", ".hydra/config.yaml", ".hydra/hydra.yaml",
-             ".hydra/overrides.yaml")
+#: Folders and files a run (and Hydra) writes into its directory: never symbolic links,
+#: and the files regular files (a FIFO would block the write).
+OWN_DIRS = (JOBS_DIR, ".hydra")
+OWN_FILES = (LOCK_FILE, ".hydra/config.yaml", ".hydra/hydra.yaml", ".hydra/overrides.yaml")
 
 
 def check_not_locked(run_dir: Path, key: str = "hydra.run.dir") -> None:
     """Refuse a run directory that another run holds, or in which a file the run writes
-    (:data:`OWN_FILES`, Hydra's log ``*.log``) is a symbolic link that writing would
-    follow out of the directory (preflight, before Hydra writes; takes nothing).
+    (:data:`OWN_DIRS`, :data:`OWN_FILES`, Hydra's log ``*.log``) is a symbolic link that
+    writing would follow out of the directory, or a file is a FIFO, device or folder that
+    writing would block on (preflight, before Hydra writes; takes nothing).
 
     Raises
     ------
@@ -131,12 +133,14 @@ def check_not_locked(run_dir: Path, key: str = "hydra.run.dir") -> None:
         Naming the other process (pid, start time), or the link and the fix.
     """
     run_dir = Path(run_dir)
-    links = [run_dir / name for name in OWN_FILES if (run_dir / name).is_symlink()]
-    links += sorted(p for p in run_dir.glob("*.log") if p.is_symlink())
-    if links:
-        raise ConfigError(key, f"{links[0]} is a symbolic link; a run writes its own files "
-                          "only inside its directory, never through a link: remove it, "
-                          "then run again")
+    files = [run_dir / name for name in OWN_FILES] + sorted(run_dir.glob("*.log"))
+    bad = [p for p in [run_dir / name for name in OWN_DIRS] + files if p.is_symlink()]
+    bad += [p for p in files if p.exists() and not p.is_symlink() and not p.is_file()]
+    if bad:
+        what = "a symbolic link" if bad[0].is_symlink() else "not a regular file"
+        raise ConfigError(key, f"{bad[0]} is {what}; a run writes its own files only inside "
+                          "its directory and only as regular files: remove it, then run "
+                          "again")
     if is_locked(run_dir):
         raise _busy_error(run_dir, key)
 

@@ -80,3 +80,12 @@ def test_the_preflight_refuses_links_in_place_of_the_runs_own_files(tmp_path, vi
     with pytest.raises(ConfigError, match="is a symbolic link.*remove it"):
         lock.check_not_locked(run)
     assert victim.read_text(encoding="utf-8") == "precious data\n"
+
+
+@pytest.mark.parametrize("name", [lock.LOCK_FILE, ".hydra/config.yaml", "cli.log"])
+def test_the_preflight_refuses_a_fifo_in_place_of_the_runs_own_files(tmp_path, name):
+    run = tmp_path / "run"
+    (run / ".hydra").mkdir(parents=True)
+    os.mkfifo(run / name)
+    with pytest.raises(ConfigError, match="not a regular file.*remove it"):
+        lock.check_not_locked(run)

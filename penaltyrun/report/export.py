@@ -91,7 +91,7 @@ def export_best(src: Path, out: Path) -> list[Path]:
         best = best_per_cell(add_variant(read_results(src)))
     names: list[str] = []
     outdir.write_into(out, "--export", lambda tmp: names.extend(_write(best, tmp)),
-                      outdir.export_files)
+                      outdir.export_files, prefix=".export-")
     logger.info("exported the best matrices of %d cells to %s", len(names) // 2, out)
     return [out / name for name in names]
 

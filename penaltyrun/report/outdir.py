@@ -93,9 +93,9 @@ def export_files(out: Path) -> set[str]:
 
 
 def write_into(out: Path, key: str, write: Callable[[Path], None],
-               owned: Callable[[Path], set[str]]) -> list[Path]:
-    """Run ``write(tmp)`` in a fresh folder inside ``out``, then move its files into ``out``
-    and remove the files ``owned(out)`` names that the new set does not.
+               owned: Callable[[Path], set[str]], prefix: str = ".report-") -> list[Path]:
+    """Run ``write(tmp)`` in a fresh folder ``<prefix>XXXX`` inside ``out``, then move its
+    files into ``out`` and remove the files ``owned(out)`` names that the new set does not.
 
     Returns
     -------
@@ -103,7 +103,7 @@ def write_into(out: Path, key: str, write: Callable[[Path], None],
         The files now in ``out``, in name order.
     """
     out = prepare(out, key)
-    tmp = Path(tempfile.mkdtemp(prefix=".penaltyrun-", dir=out))
+    tmp = Path(tempfile.mkdtemp(prefix=prefix, dir=out))
     try:
         write(tmp)
         previous = owned(out)

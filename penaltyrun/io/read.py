@@ -6,10 +6,11 @@ of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLU
 
 * a file that is not Parquet (truncated, garbage), is not penaltyrun output (the identity
   columns are missing), declares an Arrow extension type (penaltyrun never writes one; a
-  pickled ``arrow.py_extension_type`` runs code in pyarrow before 14.0.1, so such a file is
-  refused from its footer, before its schema is read), is of a schema version newer than
-  this code knows, or holds a column whose values do not fit the schema's type (e.g.
-  fractional ``n_evals``) is skipped with one warning naming it and the reason;
+  pickled ``arrow.py_extension_type`` runs code in pyarrow before 14.0.1, penaltyrun's
+  floor; such a file is refused from the footer's metadata before the table is read), is
+  of a schema version newer than this code knows, or holds a column whose values do not
+  fit the schema's type (e.g. fractional ``n_evals``) is skipped with one warning naming it
+  and the reason;
 * the same job (same ``job_id`` and ``config_hash``) found in several files, e.g. a run
   folder beside a copy of it, is kept once, with one warning naming the duplicate files;
 * a status other than ok / diverged / failed is kept but marked: ``status_known`` is False
@@ -102,8 +103,9 @@ EXTENSION_KEY = b"ARROW:extension:name"
 
 
 def check_footer(path: Path) -> str | None:
-    """Why the Parquet file ``path`` is refused before its Arrow schema is read (None: it
-    is not): an Arrow extension type in the footer's ``ARROW:schema`` (raw bytes only)."""
+    """Why the Parquet file ``path`` is refused before its table is read (None: it is
+    not): an Arrow extension type in the footer's serialized ``ARROW:schema`` (searched as
+    bytes, not deserialized)."""
     import base64
 
     meta = pq.read_metadata(path).metadata or {}

@@ -129,6 +129,7 @@ def run_optimize(cfg: DictConfig) -> Path:
                        stall_timeout=float(rc.get("stall_timeout", 600)))
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.report:
+        _trust_config_modules(cfg)
         out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
         report.build_report(path, out, paper=bool(cfg.report.paper))
         logger.info("report written to %s", out)
@@ -201,6 +202,19 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     return result
 
 
+def _trust_config_modules(cfg: DictConfig) -> None:
+    """The modules the user's own config names (``problem.module``, an LQR plant's
+    ``plant`` / ``dynamics``) may be imported by the report of this process."""
+    from penaltyrun import problems
+
+    if problem_module(cfg):
+        problems.register(cfg.problem.name, problem_module(cfg))
+    for key in ("plant", "dynamics"):
+        spec = problem_params(cfg).get(key)
+        if isinstance(spec, str):
+            problems.trust.allow_module(spec.partition(":")[0])
+
+
 def run_report(cfg: DictConfig) -> Path:
     """Tables and figures from Parquet results under ``report.input``."""
     from penaltyrun import report
@@ -213,6 +227,7 @@ def run_report(cfg: DictConfig) -> Path:
         raise ConfigError("report.input", f"{src} does not exist")
     out = Path(cfg.report.output) if cfg.report.output else \
         (src.parent if src.is_file() else src) / "report"
+    _trust_config_modules(cfg)
     report.build_report(src, out, paper=bool(cfg.report.paper))
     print(f"report written to {out}")
     return out
@@ -358,6 +373,14 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("--export", metavar="DIR",
                         help="also write each cell's best matrices to DIR as JSON and MATLAB "
                              ".mat files (with index.csv)")
+    parser.add_argument("--problem-module", metavar="NAME=MODULE", action="append",
+                        default=[],
+                        help="run the report hooks of user problem NAME from MODULE (its "
+                             "folder on PYTHONPATH); without it, reading results imports no "
+                             "module named in them (repeatable)")
+    parser.add_argument("--plant-module", metavar="MODULE", action="append", default=[],
+                        help="import MODULE for an LQR plant or dynamics the results name "
+                             "(module:function), to draw its figures (repeatable)")
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     if argv is None:
         ensure_utf8_mode(sys.argv)
@@ -367,7 +390,7 @@ def report_main(argv: list[str] | None = None) -> None:
     except SystemExit:  # --help, --version or a usage error: printed already
         end_if_pipe_closed()
         raise
-    from penaltyrun import report
+    from penaltyrun import problems, report
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     install_signal_handlers()
@@ -377,6 +400,14 @@ def report_main(argv: list[str] | None = None) -> None:
         if not src.exists():
             raise ConfigError("input", f"{src} does not exist")
         checks.check_output_dir(args.output, "-o")
+        for item in args.problem_module:
+            name, sep, module_path = item.partition("=")
+            if not sep or not name.strip():
+                raise ConfigError("--problem-module", f"{item!r} is not NAME=MODULE (e.g. "
+                                  "--problem-module cartpole=mylab.problems.cartpole)")
+            problems.register(name.strip(), module_path)
+        for module_path in args.plant_module:
+            problems.trust.allow_module(module_path)
         out = Path(args.output) if args.output else \
             (src.parent if src.is_file() else src) / "report"
         report.build_report(src, out, paper=not args.no_paper)

@@ -5,9 +5,12 @@ of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLU
 ``status_known``. On the way:
 
 * a file that is not Parquet (truncated, garbage), is not penaltyrun output (the identity
-  columns are missing), is of a schema version newer than this code knows, or holds a
-  column whose values do not fit the schema's type (e.g. fractional ``n_evals``) is skipped
-  with one warning naming it and the reason;
+  columns are missing), declares an Arrow extension type (penaltyrun never writes one; a
+  pickled ``arrow.py_extension_type`` runs code in pyarrow before 14.0.1, penaltyrun's
+  floor; such a file is refused from the footer's metadata before the table is read), is
+  of a schema version newer than this code knows, or holds a column whose values do not
+  fit the schema's type (e.g. fractional ``n_evals``) is skipped with one warning naming it
+  and the reason;
 * the same job (same ``job_id`` and ``config_hash``) found in several files, e.g. a run
   folder beside a copy of it, is kept once, with one warning naming the duplicate files;
 * a status other than ok / diverged / failed is kept but marked: ``status_known`` is False
@@ -100,6 +103,28 @@ def conform(table: pa.Table) -> pa.Table:
     return table
 
 
+#: Marker of an Arrow extension type in a Parquet footer's serialized Arrow schema.
+EXTENSION_KEY = b"ARROW:extension:name"
+
+
+def check_footer(path: Path) -> str | None:
+    """Why the Parquet file ``path`` is refused before its table is read (None: it is
+    not): an Arrow extension type in the footer's serialized ``ARROW:schema`` (searched as
+    bytes, not deserialized)."""
+    import base64
+
+    meta = pq.read_metadata(path).metadata or {}
+    raw = meta.get(b"ARROW:schema", b"")
+    try:
+        raw = base64.b64decode(raw, validate=False)
+    except ValueError:
+        pass
+    if EXTENSION_KEY in raw or any(EXTENSION_KEY in v for v in meta.values()):
+        return ("declares an Arrow extension type (penaltyrun never writes one; a pickled "
+                "one can run code): not read")
+    return None
+
+
 def _read_one(path: Path) -> pd.DataFrame:
     """One results file as a frame of exactly :data:`COLUMNS` (older versions upgraded).
 
@@ -110,6 +135,9 @@ def _read_one(path: Path) -> pd.DataFrame:
     OSError, pyarrow.ArrowException
         It cannot be read as Parquet.
     """
+    refused = check_footer(path)
+    if refused:
+        raise ValueError(refused)
     return _frame(pq.read_table(path), path)
 
 

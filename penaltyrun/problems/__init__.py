@@ -14,6 +14,10 @@ Three routes, first match wins:
 
 Each module follows :mod:`penaltyrun.problems.base`; one that does not is rejected with one
 line saying what it lacks (:func:`check_module`, :func:`check_problem`).
+
+While results are read (:func:`penaltyrun.problems.trust.reading_results`), route 1 is closed
+to names from the data: only penaltyrun's own problems, entry points and modules the user
+named (:func:`register`) are imported.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from types import ModuleType
 from typing import Any
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import multiscenario
+from penaltyrun.problems import multiscenario, trust
 from penaltyrun.problems.base import Problem
 
 REGISTRY: dict[str, str] = {
@@ -45,24 +49,21 @@ MODULE_MEMBERS = ("CASES", "DEFAULT_CASE", "make_problem")
 PROBLEM_MEMBERS = ("name", "case", "matrices", "scalars", "evaluate_batch", "evaluate",
                    "simulate")
 
-#: Problems named with their module at run time (:func:`register`).
-_USER: dict[str, str] = {}
-
-
 def _entry_points() -> dict[str, importlib.metadata.EntryPoint]:
     return {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
 
 
 def register(name: str, module_path: str) -> None:
-    """Use ``module_path`` for problem ``name`` in this process (e.g. a report of results
-    from a problem config with ``module:``)."""
-    _USER[str(name)] = str(module_path)
+    """Use ``module_path`` for problem ``name`` in this process, also while results are read
+    (the user names it, e.g. ``penaltyrun-report PATH --problem-module NAME=MODULE``; never
+    call this with a name read from results)."""
+    trust.name_module(name, module_path)
 
 
 def available() -> tuple[str, ...]:
     """Names of the problems this installation knows (own, registered, entry points)."""
     own = [name for name, mod in REGISTRY.items() if importlib.util.find_spec(mod)]
-    extra = sorted((set(_USER) | set(_entry_points())) - set(own))
+    extra = sorted((set(trust.named()) | set(_entry_points())) - set(own))
     return tuple(own + extra)
 
 
@@ -126,11 +127,15 @@ def module(name: str, module_path: str | None = None) -> ModuleType:
     ConfigError
         If ``name`` is not a known problem, or its module cannot be imported or does not
         follow the protocol.
+    trust.NotImportedError
+        While results are read: ``module_path``, or a problem that is neither penaltyrun's
+        own, an entry point, nor named by the user (see :mod:`.trust`).
     """
-    if module_path:
+    user = trust.named()
+    if name in user:
+        return check_module(_import(user[name], "problem.module"), user[name])
+    if module_path and not trust.is_reading():
         return check_module(_import(str(module_path), "problem.module"), str(module_path))
-    if name in _USER:
-        return check_module(_import(_USER[name], "problem.module"), _USER[name])
     if name in REGISTRY and importlib.util.find_spec(REGISTRY[name]):
         return importlib.import_module(REGISTRY[name])
     eps = _entry_points()
@@ -141,6 +146,9 @@ def module(name: str, module_path: str | None = None) -> ModuleType:
             raise ConfigError("problem", f"entry point {name} = {eps[name].value!r} "
                               f"cannot be imported: {exc}") from None
         return check_module(mod, f"{eps[name].value} (entry point {name!r})")
+    if trust.is_reading():
+        raise trust.refuse("problem", f"the module of problem {name!r}"
+                           + (f" ({module_path!r})" if module_path else ""))
     raise ConfigError("problem", f"unknown problem {name!r}", allowed=available())
 
 

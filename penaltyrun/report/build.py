@@ -10,21 +10,27 @@ optima, shortfall, fixed targets), and methods and conventions at the end.
 from __future__ import annotations
 
 import logging
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from penaltyrun.io import read_results
-from penaltyrun.report import figures, holdout, html, protocol, sections, tuning
+from penaltyrun.problems import trust
+from penaltyrun.report import figures, holdout, html, outdir, protocol, sections, tuning
 from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
 from penaltyrun.report.stats import MIN_N_TEST, add_variant, cell_summary
-from penaltyrun.report.tables import fmt, markdown, markdown_split, write_table
+from penaltyrun.report.tables import (
+    StemBook,
+    fmt,
+    markdown,
+    markdown_split,
+    md_line,
+    md_text,
+    write_table,
+)
 from penaltyrun.report.verdict import COLUMNS as VERDICT_COLUMNS
 from penaltyrun.report.verdict import verdict_rows
 
@@ -101,7 +107,7 @@ def methods() -> str:
 def checks(df: pd.DataFrame) -> list[str]:
     """Warning lines: unimportable modules, unknown statuses, non-finite evaluations,
     active bounds."""
-    lines = [f"- {w}" for w in protocol.WARNINGS]
+    lines = [f"- {md_line(w)}" for w in protocol.WARNINGS]
     unknown = df[~df["status"].isin(KNOWN_STATUSES)]
     for status, g in unknown.groupby("status"):
         lines.append(f"- {len(g)} job(s) with status {status!r}, unknown to this report: "
@@ -111,8 +117,8 @@ def checks(df: pd.DataFrame) -> list[str]:
         for (problem, case, variant, opt, param), g in df[nf > 0].groupby(
                 ["problem", "case", "variant", "optimizer", "param"], sort=True):
             total = pd.to_numeric(g["n_evals"], errors="coerce").sum()
-            lines.append(f"- {problem} / {case}{' [' + variant + ']' if variant else ''} / "
-                         f"{opt} / {param}: {int(nf[g.index].sum())} of {int(total)} "
+            lines.append(f"- {_title(problem, case, variant)} / {md_text(opt)} / "
+                         f"{md_text(param)}: {int(nf[g.index].sum())} of {int(total)} "
                          "evaluations were non-finite (replaced by a penalty) in "
                          f"{len(g)} start(s).")
     for _, g in df.groupby(["problem", "case", "problem_variant"], sort=True):
@@ -171,9 +177,9 @@ def _comparisons(comp: pd.DataFrame, g: pd.DataFrame) -> pd.DataFrame:
 def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]:
     first = g.iloc[0]
     variant = first["variant"]
-    slug = "".join(ch if ch.isalnum() else "_" for ch in variant)[:60]
-    stem = f"{first['problem']}_{first['case']}" + (f"_{slug}" if variant else "")
-    title = f"{first['problem']} / {first['case']}" + (f" [{variant}]" if variant else "")
+    stem = ctx["stems"].stem(first["problem"], first["case"], variant)
+    title = _title(first["problem"], first["case"], variant)
+    plain = f"{first['problem']} / {first['case']}" + (f" [{variant}]" if variant else "")
     info = protocol.info_of(g)
     lines = [f"## {title}", "", f"Cost: {info.cost_label}. Budget: `max_evals`, or the "
              "optimizer's own limit (population × iterations); then the mean evaluations "
@@ -184,7 +190,7 @@ def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]
         lines += ["### Map vs map, same optimizer and variant", "",
                   "Tested only where the budgets are equal; Holm p over the family declared in "
                   "Statistics.", "", markdown(comp, COMPARISON_COLUMNS), ""]
-    steps = [("figures", lambda: _figures(g, ctx["bk"], out, stem, title, info, paper)),
+    steps = [("figures", lambda: _figures(g, ctx["bk"], out, stem, plain, info, paper)),
              ("problem plots", lambda: sections.plots_section(g, out, stem)),
              ("paper values", lambda: sections.paper_section(g, ctx["paper"])
               if paper else []),
@@ -194,9 +200,15 @@ def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]
         try:
             lines += step()
         except Exception as exc:  # a figure that cannot be drawn must not lose the tables
-            logger.warning("%s of %s failed: %s", name, title, exc)
-            lines += [f"({name} failed: {exc!r})", ""]
+            logger.warning("%s of %s failed: %s", name, plain, exc)
+            lines += [md_line(f"({name} failed: {exc!r})"), ""]
     return lines
+
+
+def _title(problem: str, case: str, variant: str) -> str:
+    """``problem / case [variant]`` as inert Markdown (names from the data escaped)."""
+    return f"{md_text(problem)} / {md_text(case)}" + (f" [{md_text(variant)}]"
+                                                      if variant else "")
 
 
 def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str,
@@ -222,8 +234,11 @@ def build_report(src: Path, out: Path, paper: bool = True,
     """Write tables (CSV + Markdown), figures (PNG), ``report.md`` and ``report.html``.
 
     Every file is first written into a temporary folder inside ``out`` and renamed into
-    place when the report is complete, so no reader sees a half-written file. Unreadable
-    Parquet files under ``src`` are skipped with a warning naming them.
+    place when the report is complete, so no reader sees a half-written file; files of a
+    previous report in ``out`` that this one does not write are removed, and ``out`` may
+    not be a symbolic link (:mod:`penaltyrun.report.outdir`). Unreadable Parquet files
+    under ``src`` are skipped with a warning naming them. Nothing named in the results is
+    imported or called (:mod:`penaltyrun.problems.trust`).
 
     Parameters
     ----------
@@ -241,18 +256,17 @@ def build_report(src: Path, out: Path, paper: bool = True,
     ------
     FileNotFoundError, ResultsUnreadableError
         No results file, or none readable, under ``src``.
+    ConfigError
+        ``out`` is a symbolic link or a file.
     """
     out = Path(out)
     protocol.reset()
-    df = add_variant(read_results(src))
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
-    try:
-        _write_report(source_label or str(src), df, tmp, paper)
-        for item in sorted(tmp.iterdir()):
-            os.replace(item, out / item.name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    with trust.reading_results():
+        df = add_variant(read_results(src))
+        outdir.write_into(out, "report.output",
+                          lambda tmp: _write_report(source_label or str(src), df, tmp, paper),
+                          lambda folder: outdir.report_files(
+                              folder, [*TABLES, "summary", "comparison"]))
     logger.info("report: %s", out / "report.md")
     return out
 
@@ -274,6 +288,7 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
         held.to_csv(out / "holdout.csv", index=False, encoding="utf-8")
     verdict = verdict_rows(df, bk, comp, held)
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
+           "stems": StemBook(),
            "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
     _write_csv(ctx["paper"], out, "paper")
     if paper:
@@ -285,7 +300,7 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
         verdict.to_csv(out / "verdict.csv", index=False, encoding="utf-8")
         lines += ["## Verdict: does a full matrix beat the diagonal one?", "",
                   markdown(verdict, VERDICT_COLUMNS), ""]
-        lines += [f"- {s}" for s in verdict["sentence"]] + [""]
+        lines += [f"- {md_line(s)}" for s in verdict["sentence"]] + [""]
         lines += ["Gain = (diagonal − full)/diagonal of the best-known costs; equal budget: "
                   "A12 = P(a full start beats a diagonal start), Holm-corrected; held-out: "
                   "the best-known starts paired on the problem's held-out scenarios "
@@ -306,7 +321,8 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
     failed = df[df["status"] == "failed"]
     if not failed.empty:
         lines += ["## Failed jobs", ""]
-        lines += [f"- `{r.job_id}`: {str(r.error).splitlines()[0] if r.error else ''}"
+        lines += [f"- {md_text(r.job_id)}: "
+                  f"{md_text(str(r.error).splitlines()[0]) if r.error else ''}"
                   for r in failed.itertuples()]
         lines.append("")
     commits = ", ".join(sorted(df["git_commit"].dropna().unique())) or "unknown"

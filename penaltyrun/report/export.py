@@ -7,6 +7,12 @@ the matrices as nested lists with the cell, job id, cost and detailed metrics;
 ``K``, ...), the extra scalars, and the cell as strings (``problem``, ``case_name`` —
 ``case`` is a MATLAB keyword —, ``variant``, ``optimizer``, ``param``, ``job_id``) and
 ``best_cost``. ``index.csv`` lists the cells and their files.
+
+File names come from the cell's identity (:class:`~penaltyrun.report.tables.StemBook`): every
+name from the data is made a safe stem, and two cells never share a file. The export is
+written like the report (:mod:`penaltyrun.report.outdir`): never through a symbolic link,
+and the files of a previous export in the same folder are replaced, not mixed with the new
+ones. Nothing named in the data is imported (:mod:`penaltyrun.problems.trust`).
 """
 
 from __future__ import annotations
@@ -21,7 +27,10 @@ import pandas as pd
 from scipy.io import savemat
 
 from penaltyrun.io import decode_json, read_results
+from penaltyrun.problems import trust
+from penaltyrun.report import outdir
 from penaltyrun.report.stats import CELL, add_variant
+from penaltyrun.report.tables import StemBook
 
 logger = logging.getLogger(__name__)
 
@@ -33,10 +42,12 @@ def _slug(text: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in str(text)).strip("_")
 
 
-def cell_stem(row: pd.Series) -> str:
-    """File stem of a cell: ``<problem>_<case>[_<variant>]_<optimizer>_<param>``."""
-    parts = [row["problem"], row["case"], row["variant"], row["optimizer"], row["param"]]
-    return "_".join(_slug(p) for p in parts if p)[:150]
+def cell_stem(row: pd.Series, book: StemBook | None = None) -> str:
+    """File stem of a cell: ``<problem>_<case>[_<variant>]_<optimizer>_<param>``, each part
+    a safe stem (:func:`~penaltyrun.report.tables.file_stem`), distinct per cell within
+    ``book``."""
+    return (book or StemBook()).stem(row["problem"], row["case"], row["variant"],
+                                     row["optimizer"], row["param"])
 
 
 def best_per_cell(df: pd.DataFrame) -> pd.DataFrame:
@@ -69,14 +80,30 @@ def export_best(src: Path, out: Path) -> list[Path]:
     -------
     list of Path
         Files written (JSON and .mat of each cell, then ``index.csv``).
+
+    Raises
+    ------
+    ConfigError
+        ``out`` is a symbolic link or a file.
     """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    best = best_per_cell(add_variant(read_results(src)))
-    written: list[Path] = []
+    with trust.reading_results():
+        best = best_per_cell(add_variant(read_results(src)))
+    names: list[str] = []
+    outdir.write_into(out, "--export", lambda tmp: names.extend(_write(best, tmp)),
+                      outdir.export_files, prefix=".export-")
+    logger.info("exported the best matrices of %d cells to %s", len(names) // 2, out)
+    return [out / name for name in names]
+
+
+def _write(best: pd.DataFrame, out: Path) -> list[str]:
+    """Write the files of :func:`export_best` into ``out``; their names (JSON and .mat of
+    each cell, then ``index.csv``)."""
+    book = StemBook()
+    written: list[str] = []
     index = []
     for _, row in best.iterrows():
-        stem = cell_stem(row)
+        stem = cell_stem(row, book)
         mats = {k: np.asarray(v, dtype=float) for k, v in decode_json(row["matrices"]).items()}
         scalars = decode_json(row["scalars"]) or {}
         cell: dict[str, Any] = {k: str(row[k]) for k in CELL}
@@ -94,12 +121,11 @@ def export_best(src: Path, out: Path) -> list[Path]:
         mdict.update({"job_id": str(row["job_id"]), "best_cost": float(row["best_cost"])})
         mat_path = out / f"{stem}.mat"
         savemat(mat_path, mdict)
-        written += [json_path, mat_path]
+        written += [json_path.name, mat_path.name]
         index.append({**cell, "job_id": row["job_id"], "best_cost": row["best_cost"],
                       "json": json_path.name, "mat": mat_path.name})
     index_path = out / "index.csv"
     pd.DataFrame(index, columns=[*CELL, "job_id", "best_cost", "json", "mat"]).to_csv(
         index_path, index=False, encoding="utf-8")
-    written.append(index_path)
-    logger.info("exported the best matrices of %d cells to %s", len(index), out)
+    written.append(index_path.name)
     return written

@@ -37,7 +37,13 @@ from penaltyrun.io import decode_json  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
 from penaltyrun.report.stats import holm  # noqa: E402
-from penaltyrun.report.tables import file_stem, markdown, save_figure  # noqa: E402
+from penaltyrun.report.tables import (  # noqa: E402
+    alt_text,
+    file_stem,
+    markdown,
+    md_text,
+    save_figure,
+)
 
 #: Fewer pairs than this: the Wilcoxon test is reported as underpowered.
 MIN_PAIRS = 10
@@ -295,7 +301,7 @@ def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.nd
         for s, p in zip(sel["full_better_share"], sel["pairs"])])
     for variant, g in shown.groupby("variant", sort=True):
         if variant:
-            lines += [f"Variant `{variant}`:", ""]
+            lines += [f"Variant {md_text(variant)}:", ""]
         lines += [markdown(g, COLUMNS, HEADERS), ""]
     mine = {k: imps[k] for k in sel["label"] if k in imps}
     if mine:
@@ -303,7 +309,8 @@ def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.nd
         slug = file_stem(label.rstrip("_"))
         name = f"holdout_{slug}.png"
         figure(mine, out / name, f"{first['problem']} / {first['case']}: held-out scenarios")
-        lines += [f"![held-out {first['problem']} / {first['case']}]({name})", ""]
+        alt = alt_text(f"held-out {first['problem']} / {first['case']}")
+        lines += [f"![{alt}]({name})", ""]
     disc = discretization_rows(df)
     if not disc.empty:
         lines += ["### Discretization check", "",

@@ -2,8 +2,9 @@
 network access), from the Markdown the report writes.
 
 Only the Markdown the report itself produces is converted: headings, paragraphs, ``- ``
-lists, pipe tables, images, ``**bold**`` and ```code```. Tables sort by a click on a column
-header (a few lines of inline JavaScript).
+lists, pipe tables, images, ``**bold**`` and ```code```. Every text is HTML-escaped; an
+image is embedded only when it is a ``.png`` file of the report folder itself. Tables sort
+by a click on a column header (a few lines of inline JavaScript).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import base64
 import html
 import re
 from pathlib import Path
+
+from penaltyrun.report.outdir import plain_name
 
 STYLE = """
 body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;margin:2em auto;max-width:1300px;
@@ -41,12 +44,21 @@ document.querySelectorAll('table').forEach(function(t){
 _IMAGE = re.compile(r"^!\[([^\]]*)\]\(([^)]+)\)$")
 
 
+_ESCAPED = re.compile(r"\\([!-/:-@\[-`{-~])")
+#: Private-use offset holding a backslash-escaped character while the markup is rendered.
+_HELD = 0xE000
+
+
 def inline(text: str) -> str:
-    """Escape ``text`` and render ``**bold**``, ``*italic*`` and ```code```."""
-    out = html.escape(text, quote=False)
+    """Escape ``text`` and render ``**bold**``, ``*italic*`` and ```code```; a
+    backslash-escaped punctuation character (``\\[``) stands for itself."""
+    held = _ESCAPED.sub(lambda m: chr(_HELD + ord(m.group(1))), text)
+    out = html.escape(held, quote=False)
     out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
     out = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", out)
-    return re.sub(r"(?<![*\w])\*([^*\s][^*]*?[^*\s])\*(?![*\w])", r"<i>\1</i>", out)
+    out = re.sub(r"(?<![*\w])\*([^*\s][^*]*?[^*\s])\*(?![*\w])", r"<i>\1</i>", out)
+    return re.sub("[\ue000-\ue07f]", lambda m: html.escape(chr(ord(m.group()) - _HELD)),
+                  out)
 
 
 def _cells(line: str) -> list[str]:
@@ -55,8 +67,10 @@ def _cells(line: str) -> list[str]:
 
 
 def _image(alt: str, name: str, folder: Path) -> str:
+    """A figure of the report folder, embedded; only a plain ``.png`` name of a regular file
+    in ``folder`` (never a path, a link or another file) is read."""
     path = folder / name
-    if not path.is_file():
+    if not plain_name(name, (".png",)) or path.is_symlink() or not path.is_file():
         return f"<p>(missing figure {html.escape(name)})</p>"
     data = base64.b64encode(path.read_bytes()).decode("ascii")
     return (f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'

@@ -4,6 +4,11 @@ The report never names a problem: it asks each problem's module (built-in or a u
 :mod:`penaltyrun.problems.report_hooks`) for its cost name and unit, its held-out set, its
 paper values, its plots and its extra sections. A module that cannot be imported costs one
 warning line; the report then uses only what the Parquet files hold.
+
+Nothing named in the data is imported or called (:mod:`penaltyrun.problems.trust`): a user
+problem's hooks run only when the user named its module for this process
+(``--problem-module NAME=MODULE``) or installed it as an entry point; otherwise one warning
+line says its hooks were not run.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ import pandas as pd
 
 from penaltyrun import problems
 from penaltyrun.io import decode_json
-from penaltyrun.problems import report_hooks
+from penaltyrun.problems import report_hooks, trust
 from penaltyrun.problems.base import ReportInfo
 
 logger = logging.getLogger(__name__)
@@ -45,7 +50,14 @@ def warn(text: str) -> None:
 @cache
 def _module(problem: str) -> ModuleType | None:
     try:
-        return problems.module(problem)
+        with trust.reading_results():
+            return problems.module(problem)
+    except trust.NotImportedError:
+        warn(f"problem {problem!r}: a user problem whose module was not named, so its report "
+             "hooks were not run (reading results never imports a module named in them); "
+             "this report uses only the stored columns. To run its hooks, name the module: "
+             f"--problem-module {problem if problem.isidentifier() else repr(problem)}=MODULE")
+        return None
     except Exception as exc:  # a user module missing from PYTHONPATH, or broken
         warn(f"problem {problem!r}: its module cannot be imported ({exc}); this report uses "
              "only what the results hold (no declared unit, problem figures or sections)")
@@ -129,9 +141,23 @@ def simulate(row: pd.Series) -> dict[str, np.ndarray] | None:
     """``simulate`` of a job's best matrices (None when the problem cannot be rebuilt)."""
     if module(row["problem"]) is None:
         return None
-    prob = problems.make(row["problem"], row["case"], params_of(row.get("problem_params")))
+    prob = make(row["problem"], row["case"], row.get("problem_params"))
     mats = {k: np.asarray(v, float) for k, v in (decode_json(row["matrices"]) or {}).items()}
     return prob.simulate(mats, decode_json(row.get("scalars")) or None)
+
+
+def make(problem: str, case: str, params: Any = None) -> Any:
+    """The problem instance of stored results (``params``: JSON text or dict), built without
+    importing anything the data names (see :mod:`penaltyrun.problems.trust`).
+
+    Raises
+    ------
+    ConfigError
+        The problem cannot be rebuilt from these results (a user module not named, a plant
+        named by module, old parameters).
+    """
+    with trust.reading_results():
+        return problems.make(str(problem), str(case), params_of(params))
 
 
 def bounds_of(row: pd.Series) -> dict[str, tuple[float, float]] | None:
@@ -139,11 +165,11 @@ def bounds_of(row: pd.Series) -> dict[str, tuple[float, float]] | None:
     if module(row["problem"]) is None:
         return None
     try:
-        prob = problems.make(row["problem"], row["case"], params_of(row.get("problem_params")))
-    except Exception:  # old parameters: no bound check
+        prob = make(row["problem"], row["case"], row.get("problem_params"))
+    except Exception:  # old parameters, or a plant named by module: no bound check
         return None
     return {m.name: tuple(float(b) for b in m.eig_bounds) for m in prob.matrices}
 
 
-__all__ = ["WARNINGS", "bounds_of", "info", "info_of", "jobs_of", "module", "params_of",
-           "reset", "simulate", "warn"]
+__all__ = ["WARNINGS", "bounds_of", "info", "info_of", "jobs_of", "make", "module",
+           "params_of", "reset", "simulate", "warn"]

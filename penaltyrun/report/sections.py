@@ -15,7 +15,6 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from penaltyrun import problems  # noqa: E402
 from penaltyrun.io import decode_json  # noqa: E402
 from penaltyrun.problems import report_hooks  # noqa: E402
 from penaltyrun.problems.base import ReportSection  # noqa: E402
@@ -23,10 +22,12 @@ from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, family  # noqa: E402
 from penaltyrun.report.stats import converged, holm, paper_value  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
+    alt_text,
     file_stem,
     fmt,
     markdown,
     markdown_split,
+    md_line,
     save_figure,
     with_unit,
 )
@@ -69,8 +70,7 @@ def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
              f"{with_unit(float(row['best_cost']), info.cost_unit, 4)})"] = \
             protocol.simulate(row)
     if info.paper is not None and sims:
-        prob = problems.make(first["problem"], first["case"],
-                             protocol.params_of(first.get("problem_params")))
+        prob = protocol.make(first["problem"], first["case"], first.get("problem_params"))
         for name, mats in info.paper.matrices.items():
             sims[f"paper {name}"] = prob.simulate(dict(mats))
     figures = report_hooks.plots(mod, sims, first["case"],
@@ -79,7 +79,7 @@ def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
     for caption, fig in figures.items():
         name = f"{stem}_{_slug(caption)}.png"
         save_figure(fig, out / name)
-        lines += [f"![{caption}]({name})", ""]
+        lines += [f"![{alt_text(caption)}]({name})", ""]
     return lines
 
 
@@ -104,8 +104,7 @@ def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
     if info.paper is None or not info.paper.matrices:
         return pd.DataFrame()
     first = g.iloc[0]
-    prob = problems.make(first["problem"], first["case"],
-                         protocol.params_of(first.get("problem_params")))
+    prob = protocol.make(first["problem"], first["case"], first.get("problem_params"))
     ok = g[converged(g) & (g["optimizer"] != "baseline")]
     rows = []
     for name, ref in info.paper.matrices.items():
@@ -260,10 +259,10 @@ def active_bounds(g: pd.DataFrame) -> list[str]:
                 for v in values[hit]:
                     where = f"{row['problem']} / {row['case']}" + (
                         f" [{row['problem_variant']}]" if row.get("problem_variant") else "")
-                    lines.append(f"- {where}: best {fam} {name} "
-                                 f"({row['optimizer']}/{row['param']}): "
-                                 f"{what} {v:.6g} at its {side} bound {b:g} — the box may be "
-                                 "too small.")
+                    lines.append(md_line(f"- {where}: best {fam} {name} "
+                                         f"({row['optimizer']}/{row['param']}): "
+                                         f"{what} {v:.6g} at its {side} bound {b:g} — the "
+                                         "box may be too small."))
     return lines
 
 
@@ -280,7 +279,7 @@ def render(section: ReportSection, out: Path, stem: str, level: str = "##") -> l
     for k, (caption, fig) in enumerate(section.figures):
         name = f"{stem}_{k}_{_slug(caption)}.png"
         save_figure(fig, out / name)
-        lines += [f"![{caption}]({name})", ""]
+        lines += [f"![{alt_text(caption)}]({name})", ""]
     return lines
 
 
@@ -296,14 +295,15 @@ def contributed(df: pd.DataFrame, out: Path) -> list[str]:
             found = report_hooks.sections(mod, protocol.jobs_of(g))
         except Exception as exc:  # one problem's hook must not lose the report
             logger.warning("report_sections of %s failed: %s", problem, exc)
-            lines += [f"({problem}: its report sections failed: {exc!r})", ""]
+            lines += [md_line(f"({problem}: its report sections failed: {exc!r})"), ""]
             continue
         for k, section in enumerate(found):
             try:
                 lines += render(section, out, f"{_slug(str(problem))}_section{k}")
             except Exception as exc:  # a malformed section costs one line
                 logger.warning("section %r of %s failed: %s", section.title, problem, exc)
-                lines += [f"({problem}: section {section.title!r} failed: {exc!r})", ""]
+                lines += [md_line(f"({problem}: section {section.title!r} failed: "
+                                  f"{exc!r})"), ""]
     return lines
 
 

@@ -28,25 +28,6 @@ DEGENERATE_RTOL = 1e-9
 A12_THRESHOLDS = ((0.21, "large"), (0.14, "medium"), (0.06, "small"))
 
 
-def register_user_problems(df: pd.DataFrame) -> None:
-    """Register the module of every problem run from outside penaltyrun (the
-    ``problem.module`` of the stored config), so the report can rebuild its instances."""
-    import yaml
-
-    from penaltyrun import problems
-
-    if "config" not in df:
-        return
-    for name, text in df[["problem", "config"]].drop_duplicates("problem").itertuples(
-            index=False):
-        try:
-            module_path = ((yaml.safe_load(text or "") or {}).get("problem") or {}).get("module")
-        except (yaml.YAMLError, AttributeError):
-            continue
-        if module_path:
-            problems.register(name, module_path)
-
-
 def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     """Add ``variant`` (and ``problem_variant``) columns so that cells run with other settings
     are never pooled.
@@ -55,13 +36,14 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     (e.g. ``objective=min_fuel``): jobs with equal ``problem_variant`` solve the same
     problem, so best-known optima are taken over them. ``variant`` adds a warm start
     (``warm_start=0.3``) and, within one optimizer, other optimizer settings (budgets).
+
+    Nothing named in the data is imported (:mod:`penaltyrun.problems.trust`): a problem
+    whose module is not imported gets its label from the stored parameters alone.
     """
     from dataclasses import asdict
 
-    from penaltyrun import problems
     from penaltyrun.report import protocol
 
-    register_user_problems(df)
     labels: dict[tuple[str, str, str], str] = {}
     keys = df[["problem", "case", "problem_params"]].drop_duplicates()
     for key in keys.itertuples(index=False):
@@ -71,8 +53,8 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
             if mod is None:
                 raise LookupError(problem)
             ignore = getattr(mod, "VARIANT_IGNORE", ())
-            default = asdict(problems.make(problem, case, {}).params)
-            used = asdict(problems.make(problem, case, decode_json(params) or {}).params)
+            default = asdict(protocol.make(problem, case, {}).params)
+            used = asdict(protocol.make(problem, case, params).params)
             diff = [f"{k}={used[k]}" for k in sorted(used)
                     if used[k] != default[k] and k not in ignore]
             labels[key] = ",".join(diff)

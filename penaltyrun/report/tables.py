@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -38,7 +39,30 @@ def fmt(value: object, digits: int = 5) -> str:
         return f"{value:.{digits - 1}e}"
     if value is None:
         return "—"
-    return str(value).replace("|", "\\|")
+    return md_text(value)
+
+
+_MD_ACTIVE = re.compile(r"([\\`*\[\]<>|])")
+_MD_LINK = re.compile(r"([\[\]<>])")
+
+
+def md_text(value: object) -> str:
+    """A text from the data as inert Markdown on one line: every run of white space
+    (newlines included) becomes one space and ``\\ ` * [ ] < > |`` are backslash-escaped, so
+    no name can start a line, a table row, an image, a link or raw HTML."""
+    return _MD_ACTIVE.sub(r"\\\1", " ".join(str(value).split()))
+
+
+def alt_text(caption: object) -> str:
+    """A figure caption as the alternative text of a Markdown image: one line, brackets
+    turned into parentheses (the image line stays one image)."""
+    return " ".join(str(caption).split()).replace("[", "(").replace("]", ")")
+
+
+def md_line(text: str) -> str:
+    """A line the report composed around names from the data (it may use ``**`` and
+    backticks itself): on one line, with ``[ ] < >`` escaped (no image, link or raw HTML)."""
+    return _MD_LINK.sub(r"\\\1", " ".join(str(text).split()))
 
 
 def with_unit(value: float, unit: str, digits: int = 5) -> str:
@@ -47,15 +71,51 @@ def with_unit(value: float, unit: str, digits: int = 5) -> str:
     return text if unit in ("", "1") or text == "—" else f"{text} {unit}"
 
 
-def file_stem(text: str, limit: int = 80) -> str:
-    """``text`` as a file-name stem: every character not a letter or digit becomes ``_``;
-    a stem longer than ``limit`` keeps its first characters and ends with a hash of the
-    whole text, so stems stay distinct and within file-system limits (255 bytes)."""
-    stem = "".join(ch if ch.isalnum() else "_" for ch in str(text))
-    if len(stem) <= limit:
+#: Characters a file-name stem keeps as they are (ASCII letters, digits, ``_`` and ``-``; no
+#: dot, so no ``..`` and no hidden file).
+STEM_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
+_HASH_END = re.compile(r"_[0-9a-f]{10}$")
+
+
+def file_stem(text: object, limit: int = 80) -> str:
+    """``text`` (a name from the data) as a safe file-name stem, distinct for distinct texts.
+
+    A text of ASCII letters, digits, ``_`` and ``-`` of at most ``limit`` characters is its
+    own stem. Any other text (a path such as ``../x`` or ``/abs``, a newline, a space, a long
+    label) becomes its letters and digits, every other character
+    ``_``, cut to ``limit − 11`` characters, then ``_`` and 10 hex digits of its SHA-1: no
+    separator and no dot survive, and the hash keeps two texts that look alike apart.
+    """
+    text = str(text)
+    if (text and len(text) <= limit and set(text) <= STEM_CHARS
+            and not text.startswith("-") and not _HASH_END.search(text)):
+        return text
+    safe = "".join(ch if ch.isascii() and ch.isalnum() else "_" for ch in text)
+    digest = hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:10]
+    return f"{safe[:max(limit - 11, 1)]}_{digest}"
+
+
+class StemBook:
+    """File-name stems of the cells of one output folder, one stem per cell identity.
+
+    :meth:`stem` joins the :func:`file_stem` of each part with ``_``; when two different
+    identities would share a stem (``a_b`` + ``c`` against ``a`` + ``b_c``, or names equal
+    but for capitals), the later one gets ``_`` and 10 hex digits of its identity's hash.
+    """
+
+    def __init__(self) -> None:
+        self._owner: dict[str, tuple[str, ...]] = {}
+
+    def stem(self, *parts: object, limit: int = 60) -> str:
+        """The stem of the cell named by ``parts`` (empty parts left out)."""
+        identity = tuple(str(p) for p in parts)
+        stem = "_".join(file_stem(p, limit) for p in identity if p)
+        key = stem.lower()
+        if self._owner.setdefault(key, identity) != identity:
+            digest = hashlib.sha1("\0".join(identity).encode("utf-8", "surrogatepass"))
+            stem = f"{stem}_{digest.hexdigest()[:10]}"
+            self._owner.setdefault(stem.lower(), identity)
         return stem
-    digest = hashlib.sha1(stem.encode()).hexdigest()[:10]
-    return f"{stem[:limit - 11]}_{digest}"
 
 
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:

@@ -8,6 +8,10 @@ refused with one line naming the process that holds it (pid, host, start time).
 A process holds the lock of a run directory from the first job until its results are
 written (:func:`penaltyrun.io.schema.collect` releases it); taking it again in the same
 process is a no-op.
+
+The lock file is opened with ``O_NOFOLLOW`` and must be a regular file: a symbolic link (or
+a FIFO, a folder) in its place is refused with one line, never written through; so is a
+``jobs`` folder that is a symbolic link (job records would land outside the run directory).
 """
 
 from __future__ import annotations
@@ -16,11 +20,13 @@ import json
 import logging
 import os
 import socket
+import stat
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 from penaltyrun.errors import ConfigError, EnvironmentProblemError, describe_os_error
+from penaltyrun.runner.records import JOBS_DIR
 
 try:
     import fcntl
@@ -38,11 +44,47 @@ def _key(run_dir: Path) -> str:
     return str(Path(run_dir).resolve())
 
 
+#: Flags of every open of the lock file: never through a link, never blocking on a FIFO.
+_OPEN_FLAGS = (getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+               | getattr(os, "O_CLOEXEC", 0))
+
+
+def _not_a_file(path: Path) -> ConfigError:
+    return ConfigError("hydra.run.dir", f"{path} is not a regular file (a symbolic link, "
+                       "FIFO or folder in place of the run lock is never written through): "
+                       "remove it, then run again")
+
+
+def _open(path: Path, flags: int) -> Any:
+    """``path`` opened as a regular file (binary), never following a link.
+
+    Raises
+    ------
+    ConfigError
+        ``path`` is a symbolic link, a FIFO, a folder or any other non-regular file.
+    OSError
+        It cannot be opened for another reason (missing, permissions, ...).
+    """
+    try:
+        fd = os.open(path, flags | _OPEN_FLAGS, 0o644)
+    except OSError as exc:
+        if path.is_symlink() or (path.exists() and not path.is_file()):
+            raise _not_a_file(path) from None
+        raise exc
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise _not_a_file(path)
+    if hasattr(os, "set_blocking"):
+        os.set_blocking(fd, True)
+    return os.fdopen(fd, "r+b" if flags & os.O_RDWR else "rb")
+
+
 def holder(run_dir: Path) -> dict[str, Any]:
     """What the lock file says about the process that wrote it (may be empty)."""
     try:
-        return json.loads((Path(run_dir) / LOCK_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        with _open(Path(run_dir) / LOCK_FILE, os.O_RDONLY) as fh:
+            return json.loads(fh.read(65536).decode("utf-8"))
+    except (OSError, ValueError, ConfigError):
         return {}
 
 
@@ -59,10 +101,10 @@ def _busy_error(run_dir: Path, key: str = "hydra.run.dir") -> ConfigError:
 def is_locked(run_dir: Path) -> bool:
     """Whether another process holds the lock of ``run_dir`` now (does not take it)."""
     path = Path(run_dir) / LOCK_FILE
-    if fcntl is None or _key(run_dir) in _HELD or not path.is_file():
+    if fcntl is None or _key(run_dir) in _HELD or not path.is_file() or path.is_symlink():
         return False
     try:
-        with open(path, "rb") as fh:
+        with _open(path, os.O_RDONLY) as fh:
             try:
                 fcntl.flock(fh, fcntl.LOCK_SH | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -73,16 +115,34 @@ def is_locked(run_dir: Path) -> bool:
     return False
 
 
+#: Folders and files a run (and Hydra) writes into its directory: never symbolic links,
+#: and the files regular files (a FIFO would block the write).
+OWN_DIRS = (JOBS_DIR, ".hydra")
+OWN_FILES = (LOCK_FILE, ".hydra/config.yaml", ".hydra/hydra.yaml", ".hydra/overrides.yaml")
+
+
 def check_not_locked(run_dir: Path, key: str = "hydra.run.dir") -> None:
-    """Refuse a run directory that another run holds (preflight; takes nothing).
+    """Refuse a run directory that another run holds, or in which a file the run writes
+    (:data:`OWN_DIRS`, :data:`OWN_FILES`, Hydra's log ``*.log``) is a symbolic link that
+    writing would follow out of the directory, or a file is a FIFO, device or folder that
+    writing would block on (preflight, before Hydra writes; takes nothing).
 
     Raises
     ------
     ConfigError
-        Naming the other process (pid, start time).
+        Naming the other process (pid, start time), or the link and the fix.
     """
+    run_dir = Path(run_dir)
+    files = [run_dir / name for name in OWN_FILES] + sorted(run_dir.glob("*.log"))
+    bad = [p for p in [run_dir / name for name in OWN_DIRS] + files if p.is_symlink()]
+    bad += [p for p in files if p.exists() and not p.is_symlink() and not p.is_file()]
+    if bad:
+        what = "a symbolic link" if bad[0].is_symlink() else "not a regular file"
+        raise ConfigError(key, f"{bad[0]} is {what}; a run writes its own files only inside "
+                          "its directory and only as regular files: remove it, then run "
+                          "again")
     if is_locked(run_dir):
-        raise _busy_error(Path(run_dir), key)
+        raise _busy_error(run_dir, key)
 
 
 def acquire(run_dir: Path) -> None:
@@ -91,7 +151,8 @@ def acquire(run_dir: Path) -> None:
     Raises
     ------
     ConfigError
-        Another process holds it (one line naming its pid and start time; exit 2).
+        Another process holds it (one line naming its pid and start time; exit 2), or the
+        lock file is a symbolic link, a FIFO or a folder.
     EnvironmentProblemError
         The lock file cannot be created (e.g. a read-only or full file system).
     """
@@ -99,10 +160,15 @@ def acquire(run_dir: Path) -> None:
     if fcntl is None or key in _HELD:
         return
     run_dir = Path(run_dir)
+    if (run_dir / JOBS_DIR).is_symlink():
+        raise ConfigError("hydra.run.dir", f"{run_dir / JOBS_DIR} is a symbolic link; job "
+                          "records are written only into a real folder of the run "
+                          "directory: remove the link (or move the folder in its place), "
+                          "then run again")
     path = run_dir / LOCK_FILE
     try:
         run_dir.mkdir(parents=True, exist_ok=True)
-        fh = open(path, "a+", encoding="utf-8")
+        fh = _open(path, os.O_RDWR | os.O_CREAT)
     except OSError as exc:
         raise EnvironmentProblemError(describe_os_error(exc, path, "create")) from None
     try:
@@ -115,7 +181,7 @@ def acquire(run_dir: Path) -> None:
         fh.truncate()
         fh.write(json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
                              "started_at": datetime.now(timezone.utc)
-                             .isoformat(timespec="seconds")}))
+                             .isoformat(timespec="seconds")}).encode("utf-8"))
         fh.flush()
     except OSError as exc:
         fh.close()

@@ -6,7 +6,9 @@ temporary file behind and ends the run with one line naming the path and the fre
 On resume a record that cannot be taken as its job's result (truncated, garbage, another
 job's record, a wrong type, a NaN cost, an unknown schema version: see
 :func:`penaltyrun.runner.validate.record_problem`) is named in a warning with the reason,
-moved to ``jobs/corrupt/`` and its job is run again.
+moved to ``jobs/corrupt/`` and its job is run again. A record is opened only as a regular
+file: a FIFO, a symbolic link or a folder of a record's name is never read (nothing blocks,
+nothing is followed out of the folder); it is moved aside like a damaged record.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import stat
 import sys
 import time
 from collections.abc import Iterable
@@ -78,11 +81,35 @@ def write_record(run_dir: Path, job: Job, record: dict[str, Any]) -> Path:
     return write_text_atomic(path, json.dumps(record, default=str))
 
 
+def read_regular(path: Path) -> str:
+    """The UTF-8 text of ``path``, opened only as a regular file (never through a symbolic
+    link, never blocking on a FIFO).
+
+    Raises
+    ------
+    OSError
+        ``path`` cannot be opened, or is not a regular file (``strerror`` says so).
+    ValueError
+        The bytes are not UTF-8.
+    """
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        if Path(path).is_symlink():
+            raise OSError(exc.errno, "a symbolic link, not a regular file") from None
+        raise
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(0, "not a regular file (a FIFO, device or folder)")
+        return fh.read().decode("utf-8")
+
+
 def load_record(path: Path) -> tuple[dict[str, Any] | None, str]:
     """The record in ``path`` and ``""``, or ``None`` and why it cannot be used."""
     path = Path(path)
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
+        record = json.loads(read_regular(path))
     except OSError as exc:
         return None, exc.strerror or type(exc).__name__
     except ValueError as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors

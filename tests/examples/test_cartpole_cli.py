@@ -76,6 +76,7 @@ def test_readme_optimize_and_report_commands(copied):
     text = (out / "report" / "report.md").read_text()
     assert "| lqr | default | setup=dynamics=cartpole:dynamics#" in text
     assert "unresolved" not in text
+    assert "![closed-loop state and input norms" in text  # --plant-module cartpole
     for _, row in df.iterrows():
         (mat_file,) = (out / "export").glob(f"lqr_default_*_pso_{row['param']}.mat")
         mat = loadmat(mat_file)

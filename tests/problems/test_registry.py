@@ -49,7 +49,7 @@ def site(tmp_path, monkeypatch):
     yield tmp_path
     for name in ("quadprob", "halfprob"):
         sys.modules.pop(name, None)
-    problems._USER.clear()
+    problems.trust.forget_named()
 
 
 def test_own_problems_are_available():

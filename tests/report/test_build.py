@@ -50,7 +50,7 @@ def test_attitude_tables_figures_and_studies(attitude_report):
     assert published["Holm p"].dropna().between(0, 1).all()
     for name in ("attitude_lqr_detumble_histories.png",):
         assert (attitude_report / name).stat().st_size > 0
-    assert list(attitude_report.glob("attitude_lyapunov_section*_horizon_study.png"))
+    assert list(attitude_report.glob("attitude_lyapunov_section*_horizon_study_*.png"))
 
 
 def test_lowthrust_tables_and_case_e(tmp_path):
@@ -138,8 +138,8 @@ def test_zermelo_report_statistics_best_known_and_anytime(zermelo_run, tmp_path)
     targets = pd.read_csv(out / "targets.csv", keep_default_na=False)
     assert set(targets["epsilon"]) == {0.01, 0.001}
     for name in ("anytime_zermelo_default.png", "ecdf_zermelo_default.png",
-                 "costs_zermelo_default.png", "anytime_zermelo_default_warm_start_0_3.png"):
-        assert (out / name).stat().st_size > 0
+                 "costs_zermelo_default.png", "anytime_zermelo_default_warm_start_0_3_*.png"):
+        assert [p.stat().st_size > 0 for p in out.glob(name)] == [True]
 
 
 def test_results_without_traces_still_report(zermelo_run, tmp_path):

@@ -90,4 +90,5 @@ def test_file_stem_keeps_long_labels_within_file_system_limits():
     other = label.replace("67.0", "68.5")
     stem = file_stem(label)
     assert len(stem) == 80 and stem.replace("_", "").isalnum()
-    assert file_stem(other) != stem and file_stem("a-b") == "a_b"
+    assert file_stem(other) != stem and file_stem("a-b") == "a-b"
+    assert file_stem("a b") != file_stem("a_b") and file_stem("a b").startswith("a_b_")

@@ -19,6 +19,9 @@ Sources (keys of ``problem.params``), checked in this order:
 
 A discrete-time plant (key ``dt``, or a discrete ``StateSpace``) is x[k+1] = A x[k] + B u[k];
 its stability region is the unit disk instead of the left half-plane.
+While results are read (:func:`penaltyrun.problems.trust.reading_results`), ``plant`` and
+``dynamics`` are imported only from a module the user allowed
+(:func:`penaltyrun.problems.trust.allow_module`): the stored names come from the data.
 
 Every malformed input is a :class:`~penaltyrun.errors.ConfigError` naming its key.
 """
@@ -34,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import trust
 
 PREFIX = "problem.params"
 #: Central-difference step of the Jacobians of ``dynamics`` at the origin.
@@ -156,10 +160,23 @@ def check_detectable(A: np.ndarray, C: np.ndarray, key: str, dt: float | None = 
 
 
 def resolve(spec: Any, key: str) -> Any:
-    """The object named by ``module:attribute`` (dotted attributes allowed)."""
+    """The object named by ``module:attribute`` (dotted attributes allowed).
+
+    Raises
+    ------
+    ConfigError
+        Malformed ``spec``, a module that cannot be imported, a missing attribute.
+    trust.NotImportedError
+        While results are read: a module the user did not allow.
+    """
     if not isinstance(spec, str) or spec.count(":") != 1 or not all(spec.split(":")):
+        if trust.is_reading():
+            raise trust.refuse(key, f"{spec!r}")
         raise ConfigError(key, f"expected 'module:attribute', got {spec!r}")
     mod_name, attr = spec.split(":")
+    if trust.is_reading() and not trust.allowed(mod_name):
+        raise trust.refuse(key, f"{spec!r} (allow its module with --plant-module "
+                           f"{mod_name})")
     try:
         obj: Any = importlib.import_module(mod_name)
     except ImportError as exc:

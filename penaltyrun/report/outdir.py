@@ -1,0 +1,128 @@
+"""The folder a report or an export writes into: nothing outside it, nothing mixed.
+
+* The folder itself must not be a symbolic link (a received results folder may hold a
+  ``report`` link pointing anywhere): :func:`prepare` refuses it with one line.
+* Every file is written into a fresh temporary folder inside it and renamed into place
+  (:func:`publish`); a rename replaces a link of the same name instead of writing through it.
+* Files a previous report (or export) in the same folder wrote and the new one does not are
+  removed, so tables of two reports never stand side by side. Only files the previous one
+  owned go: its known table names, the figures its ``report.md`` shows (or the files its
+  ``index.csv`` lists), each a plain name inside the folder.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import os
+import re
+import shutil
+import stat
+import tempfile
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from penaltyrun.errors import ConfigError
+
+logger = logging.getLogger(__name__)
+
+_FIGURE = re.compile(r"^!\[[^\]]*\]\(([^)]+)\)\s*$")
+
+
+def plain_name(name: str, suffixes: Iterable[str]) -> bool:
+    """Whether ``name`` is a file name inside a folder (no separator, not hidden) with one
+    of ``suffixes``."""
+    return (bool(name) and "/" not in name and "\\" not in name and "\0" not in name
+            and not name.startswith(".") and name.lower().endswith(tuple(suffixes)))
+
+
+def prepare(out: Path, key: str) -> Path:
+    """Create the output folder ``out``; refuse a symbolic link or a file.
+
+    Raises
+    ------
+    ConfigError
+        ``out`` is a symbolic link or not a folder (one line with the fix).
+    """
+    out = Path(out)
+    if out.is_symlink():
+        raise ConfigError(key, f"{out} is a symbolic link; reports and exports are written "
+                          "only into a real folder: remove the link or choose another folder")
+    if out.exists() and not out.is_dir():
+        raise ConfigError(key, f"{out} is a file; pass a folder path")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _read_own(path: Path) -> str:
+    """Text of a regular file inside the folder ('' for a link, a FIFO, a missing file)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
+                     | getattr(os, "O_NONBLOCK", 0))
+    except OSError:
+        return ""
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return ""
+        return fh.read().decode("utf-8", errors="replace")
+
+
+def report_files(out: Path, tables: Iterable[str]) -> set[str]:
+    """Files of the report already in ``out``: ``report.md``, ``report.html``, the tables
+    (``<stem>.csv`` / ``.md``) and the figures ``report.md`` shows."""
+    text = _read_own(out / "report.md")
+    if not text:
+        return set()
+    names = {"report.md", "report.html"}
+    names |= {f"{stem}{ext}" for stem in tables for ext in (".csv", ".md")}
+    names |= {m.group(1) for m in map(_FIGURE.match, text.splitlines())
+              if m and plain_name(m.group(1), (".png",))}
+    return names
+
+
+def export_files(out: Path) -> set[str]:
+    """Files of an export already in ``out``: ``index.csv`` and the files it lists."""
+    text = _read_own(out / "index.csv")
+    if not text:
+        return set()
+    names = {"index.csv"}
+    for row in csv.DictReader(text.splitlines()):
+        names |= {row[k] for k in ("json", "mat")
+                  if row.get(k) and plain_name(row[k], (".json", ".mat"))}
+    return names
+
+
+def write_into(out: Path, key: str, write: Callable[[Path], None],
+               owned: Callable[[Path], set[str]], prefix: str = ".report-") -> list[Path]:
+    """Run ``write(tmp)`` in a fresh folder ``<prefix>XXXX`` inside ``out``, then move its
+    files into ``out`` and remove the files ``owned(out)`` names that the new set does not.
+
+    Returns
+    -------
+    list of Path
+        The files now in ``out``, in name order.
+    """
+    out = prepare(out, key)
+    tmp = Path(tempfile.mkdtemp(prefix=prefix, dir=out))
+    try:
+        write(tmp)
+        previous = owned(out)
+        new = sorted(item.name for item in tmp.iterdir())
+        for name in new:
+            dest = out / name
+            if (tmp / name).is_dir() and dest.is_dir() and not dest.is_symlink():
+                shutil.rmtree(dest)
+            os.replace(tmp / name, dest)
+        stale = sorted(previous - set(new))
+        for name in stale:
+            path = out / name
+            if path.is_symlink() or path.is_file():
+                path.unlink()
+        if stale:
+            logger.info("removed %d file(s) of the previous output in %s", len(stale), out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return [out / name for name in new]
+
+
+__all__ = ["export_files", "plain_name", "prepare", "report_files", "write_into"]

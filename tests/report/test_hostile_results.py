@@ -1,0 +1,317 @@
+"""A results folder received from someone else: reading it runs no code named in it, and
+the report writes nothing outside its folder.
+
+Each test plants one hostile input in synthetic results (no optimizer runs: fast) and
+asserts the documented outcome."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+import sys
+import textwrap
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from penaltyrun import problems
+from penaltyrun.cli import report_main
+from penaltyrun.io.schema import RESULTS_FILE, to_table
+from penaltyrun.report import build_report
+from penaltyrun.report.export import export_best
+
+#: A module that leaves a marker file when imported and when its function is called.
+PLANTED = '''
+from pathlib import Path
+
+Path({marker!r}).write_text("imported")
+
+
+def f(X, U):
+    Path({marker!r} + ".called").write_text("called")
+    return X * 0.0
+
+
+SYS = ([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]])
+'''
+
+
+def rows(problem="planted_problem", case="only", params=None, config="", n=3,
+         params_list=None, **extra):
+    """Job records of one diagonal and one full cell (pso), ``n`` converged starts each."""
+    out = []
+    for param in ("diagonal", "full"):
+        for k in range(n):
+            p = params_list[k % len(params_list)] if params_list else (params or {})
+            out.append({"job_id": f"{param}-{k}-{abs(hash(json.dumps(p)))}", "problem": problem,
+                        "case": case, "param": param, "optimizer": "pso", "start": k,
+                        "seed": k, "status": "ok", "best_cost": 1.0 + k + (param == "full"),
+                        "best_converged": True, "n_evals": 10, "config_hash": "h",
+                        "matrices": {"K": [[1.0 + k, 0.0], [0.0, 1.0]]}, "scalars": {},
+                        "metrics": {}, "problem_params": p, "optimizer_settings": {},
+                        "config": config, "git_commit": "test", **extra})
+    return out
+
+
+def write(folder: Path, records) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    pq.write_table(to_table(records, "run"), folder / RESULTS_FILE)
+    return folder / RESULTS_FILE
+
+
+@pytest.fixture
+def planted(tmp_path, monkeypatch):
+    """A received folder with a module beside the results, the folder on sys.path (as
+    ``PYTHONPATH=.`` would put it) and the current directory."""
+    folder = tmp_path / "received"
+    folder.mkdir()
+    marker = str(tmp_path / "MARKER")
+    for name in ("planted_mod", "planted_plant"):
+        (folder / f"{name}.py").write_text(PLANTED.format(marker=marker), encoding="utf-8")
+        sys.modules.pop(name, None)
+    monkeypatch.syspath_prepend(str(folder))
+    monkeypatch.chdir(folder)
+    yield folder, Path(marker)
+    for name in ("planted_mod", "planted_plant"):
+        sys.modules.pop(name, None)
+    problems.trust.forget_named()
+
+
+def test_s1_problem_module_of_the_stored_config_is_not_imported(planted):
+    folder, marker = planted
+    config = "problem:\n  name: planted_problem\n  module: planted_mod\n"
+    write(folder, rows(config=config))
+    out = build_report(folder, folder / "report")
+    assert not marker.exists() and "planted_mod" not in sys.modules
+    text = (out / "report.md").read_text(encoding="utf-8")
+    notes = [line for line in text.splitlines() if "were not run" in line]
+    assert len(notes) == 1 and "--problem-module planted_problem=MODULE" in notes[0]
+    assert "## planted_problem / only" in text  # cells from the stored columns alone
+
+
+def test_s1_a_builtin_name_with_a_stored_module_uses_the_builtin(planted):
+    folder, marker = planted
+    config = "problem:\n  name: zermelo\n  module: planted_mod\n"
+    export_best(write(folder, rows(problem="zermelo", case="default", config=config)),
+                folder / "export")
+    assert not marker.exists() and "planted_mod" not in sys.modules
+
+
+@pytest.mark.parametrize("name", ["this", "planted_mod", "os.path", "planted_mod:f"])
+def test_s2_a_module_name_as_the_problem_is_not_imported(planted, name):
+    folder, marker = planted
+    sys.modules.pop("this", None)
+    write(folder, rows(problem=name, config=f"problem:\n  module: {name}\n"))
+    build_report(folder / RESULTS_FILE, folder / "out")
+    assert "this" not in sys.modules and "planted_mod" not in sys.modules
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("key", ["dynamics", "plant"])
+def test_s3_an_lqr_plant_named_by_module_is_not_imported(planted, key):
+    folder, marker = planted
+    params = {"A": [[0.0, 1.0], [0.0, 0.0]], "B": [[0.0], [1.0]], key: "planted_plant:f"}
+    if key == "plant":
+        params = {"plant": "planted_plant:SYS"}
+    write(folder, rows(problem="lqr", case="default", params=params))
+    out = build_report(folder, folder / "report")
+    assert not marker.exists() and not Path(str(marker) + ".called").exists()
+    assert "planted_plant" not in sys.modules
+    assert (out / "report.md").is_file()
+    with problems.trust.reading_results(), pytest.raises(problems.trust.NotImportedError):
+        problems.make("lqr", "default", params)
+
+
+def test_a_module_named_on_the_command_line_runs_its_hooks(planted, capsys):
+    folder, marker = planted
+    module = textwrap.dedent('''
+        from pathlib import Path
+        from penaltyrun.problems.base import ReportInfo
+        Path({marker!r}).write_text("imported")
+        CASES = ("only",)
+        DEFAULT_CASE = "only"
+        def make_problem(case, params):
+            raise RuntimeError("not needed by this report")
+        def report_info(case, params):
+            return ReportInfo(cost_name="named cost", cost_unit="J")
+    ''').format(marker=str(marker))
+    (folder / "named_mod.py").write_text(module, encoding="utf-8")
+    write(folder, rows(config="problem:\n  module: planted_mod\n"))
+    report_main([str(folder), "--problem-module", "planted_problem=named_mod"])
+    text = (folder / "report" / "report.md").read_text(encoding="utf-8")
+    assert marker.read_text() == "imported" and "planted_mod" not in sys.modules
+    assert "named cost (J)" in text and "were not run" not in text
+    sys.modules.pop("named_mod", None)
+
+
+def test_a_malformed_problem_module_option_is_one_line(planted, capsys):
+    folder, _ = planted
+    write(folder, rows())
+    with pytest.raises(SystemExit) as exc:
+        report_main([str(folder), "--problem-module", "no_equals_sign"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "NAME=MODULE" in err[0]
+
+
+def _files(root: Path) -> set[Path]:
+    return {p for p in root.rglob("*")}
+
+
+@pytest.mark.parametrize("name", ["../../escaped", "/ABS/escaped", "..", "a/../../b",
+                                  "..\\..\\win"])
+def test_s4_a_problem_name_that_is_a_path_writes_inside_the_folder(tmp_path, name):
+    name = name.replace("/ABS", str(tmp_path / "abs"))
+    (tmp_path / "abs").mkdir()
+    folder = tmp_path / "deep" / "received"
+    write(folder, rows(problem=name, case=name, params_list=[{"v": name}, {"v": 2}]))
+    before = _files(tmp_path)
+    build_report(folder, folder / "report")
+    export_best(folder, folder / "export")
+    new = _files(tmp_path) - before
+    assert new and all((folder / "report") in p.parents or (folder / "export") in p.parents
+                       or p in (folder / "report", folder / "export") for p in new), new
+
+
+def test_s5_a_name_with_markdown_embeds_no_local_file(tmp_path):
+    secret = tmp_path / "secret.png"
+    secret.write_bytes(b"\x89PNG\r\n\x1a\nSECRET-BYTES-OF-A-LOCAL-FILE")
+    evil = f"p\n![k]({secret})\n<img src=\"{secret}\">\n| a | b |\n# heading"
+    folder = tmp_path / "received"
+    records = rows(problem=evil, case=evil, params_list=[{"v": evil}, {"v": 1}])
+    write(folder, records + [{**records[0], "job_id": evil, "status": "failed",
+                              "error": evil}])
+    out = build_report(folder, tmp_path / "report")
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert base64.b64encode(secret.read_bytes()).decode()[:24] not in page
+    assert not re.search(r"<img [^>]*src=\"(?!data:)", page)  # figures only, embedded
+    assert "<h1>heading" not in page and "<h1># heading" not in page
+    text = (out / "report.md").read_text(encoding="utf-8")
+    assert not [line for line in text.splitlines()
+                if line.startswith(("![k]", "<img", "# heading", "| a | b |"))]
+
+
+def test_l5_long_variant_labels_export_every_cell_to_its_own_files(tmp_path):
+    long = "x" * 200
+    folder = tmp_path / "received"
+    write(folder, rows(problem="zz_user", params_list=[{"label": long + "a"},
+                                                      {"label": long + "b"}], n=4))
+    files = export_best(folder, tmp_path / "export")
+    names = [f.name for f in files]
+    assert len(names) == 9 and len(set(names)) == 9  # 4 cells × (json, mat) + index
+    assert all(len(n) < 200 for n in names)
+    cells = {(d["variant"], d["param"]) for d in
+             (json.loads(f.read_text()) for f in files if f.suffix == ".json")}
+    assert len(cells) == 4
+
+
+def test_s8_a_report_link_in_a_received_folder_is_refused(tmp_path, capsys):
+    folder = tmp_path / "received"
+    write(folder, rows(problem="zz_user"))
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "report.md").write_text("precious\n", encoding="utf-8")
+    (folder / "report").symlink_to(victim)
+    with pytest.raises(SystemExit) as exc:
+        report_main([str(folder)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "symbolic link" in err[0] and "remove the link" in err[0]
+    assert [p.name for p in victim.iterdir()] == ["report.md"]
+    assert (victim / "report.md").read_text(encoding="utf-8") == "precious\n"
+    (folder / "export").symlink_to(victim)
+    with pytest.raises(Exception, match="symbolic link"):
+        export_best(folder, folder / "export")
+    assert [p.name for p in victim.iterdir()] == ["report.md"]
+
+
+def test_s8_links_inside_the_report_folder_are_replaced_not_written_through(tmp_path):
+    folder = tmp_path / "received"
+    write(folder, rows(problem="zz_user"))
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n", encoding="utf-8")
+    out = folder / "report"
+    out.mkdir()
+    for name in ("report.md", "report.html", "summary.csv", "comparison.csv"):
+        (out / name).symlink_to(victim)
+    build_report(folder, out)
+    assert victim.read_text(encoding="utf-8") == "precious\n"
+    assert not any(p.is_symlink() for p in out.iterdir())
+    (folder / "export").mkdir()
+    (folder / "export" / "index.csv").symlink_to(victim)
+    export_best(folder, folder / "export")
+    assert victim.read_text(encoding="utf-8") == "precious\n"
+
+
+def test_f18_an_output_folder_of_another_report_is_cleaned_not_mixed(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    old = {"comparison.csv": "old", "comparison.md": "old", "holdout.csv": "old",
+           "paper.csv": "old", "old_figure.png": "png",
+           "report.md": "# old\n\n![old](old_figure.png)\n"}
+    for name, text in old.items():
+        (out / name).write_text(text, encoding="utf-8")
+    (out / "notes.txt").write_text("the user's own file\n", encoding="utf-8")
+    (out / "unlisted.png").write_text("the user's own figure\n", encoding="utf-8")
+    folder = tmp_path / "received"
+    one_map = [r for r in rows(problem="zz_user") if r["param"] == "full"]
+    write(folder, one_map)  # one map: no comparison, no held-out
+    build_report(folder, out)
+    names = {p.name for p in out.iterdir()}
+    assert not names & {"comparison.csv", "comparison.md", "holdout.csv", "paper.csv",
+                        "old_figure.png"}
+    assert {"notes.txt", "unlisted.png", "report.md", "summary.csv"} <= names
+    assert (out / "report.md").read_text(encoding="utf-8") != old["report.md"]
+    exp = tmp_path / "export"
+    write(folder / "two", rows(problem="zz_other"))
+    export_best(folder / "two", exp)
+    first = {p.name for p in exp.iterdir()}
+    export_best(folder / RESULTS_FILE, exp)
+    second = {p.name for p in exp.iterdir()}
+    assert len(first) == 5 and len(second) == 3 and not first & second - {"index.csv"}
+
+
+def test_a_plant_module_allowed_on_the_command_line_is_imported(planted):
+    folder, marker = planted
+    params = {"A": [[0.0, 1.0], [0.0, 0.0]], "B": [[0.0], [1.0]],
+              "dynamics": "planted_plant:f"}
+    write(folder, rows(problem="lqr", case="default", params=params))
+    report_main([str(folder), "--plant-module", "planted_plant"])
+    assert marker.read_text() == "imported"  # allowed: imported (and f checked at 0)
+    assert "planted_mod" not in sys.modules
+
+
+@pytest.mark.slow  # about 7 s: a child Python imports penaltyrun
+def test_s1_python_m_report_cli_in_a_received_folder_imports_nothing_from_it(tmp_path):
+    """``python -m`` puts the current folder on sys.path: modules planted there under the
+    names of penaltyrun's dependencies do not run."""
+    import os
+    import subprocess
+
+    folder = tmp_path / "received"
+    write(folder, rows(problem="zz_user", config="problem:\n  module: planted_mod\n"))
+    for name in ("yaml", "matplotlib", "scipy", "tqdm", "planted_mod"):
+        (folder / f"{name}.py").write_text(
+            f"open({str(tmp_path / ('HIJACKED_' + name))!r}, 'w').write('x')\n", "utf-8")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", "."], cwd=folder,
+                          env=env, capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert not list(tmp_path.glob("HIJACKED_*"))
+    assert (folder / "report" / "report.md").is_file()
+
+
+def test_report_cli_takes_the_current_folder_off_sys_path(tmp_path, monkeypatch):
+    from penaltyrun import report_cli
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("PYTHONPATH", raising=False)
+    monkeypatch.setattr(sys, "path", [str(tmp_path), "/lib"])
+    report_cli._drop_current_folder()
+    assert sys.path == ["/lib"]
+    monkeypatch.setattr(sys, "path", [str(tmp_path), "/lib"])
+    monkeypatch.setenv("PYTHONPATH", ".")  # the user put it there: kept
+    report_cli._drop_current_folder()
+    assert sys.path == [str(tmp_path), "/lib"]

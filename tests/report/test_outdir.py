@@ -1,0 +1,61 @@
+"""What a report folder owns: only plain names inside it, whatever an old report lists."""
+
+import os
+
+import pytest
+
+from penaltyrun.errors import ConfigError
+from penaltyrun.report import outdir
+
+
+def test_an_old_report_owns_only_plain_png_names_inside_the_folder(tmp_path):
+    (tmp_path / "report.md").write_text(
+        "# r\n\n![a](fig.png)\n![b](../outside.png)\n![c](/abs/x.png)\n![d](.hidden.png)\n"
+        "![e](notes.txt)\n![f](sub/x.png)\n", encoding="utf-8")
+    owned = outdir.report_files(tmp_path, ["summary"])
+    assert owned == {"report.md", "report.html", "summary.csv", "summary.md", "fig.png"}
+
+
+def test_an_old_export_owns_only_the_json_and_mat_files_its_index_lists(tmp_path):
+    (tmp_path / "index.csv").write_text(
+        "problem,json,mat\na,a.json,a.mat\nb,../b.json,/abs/b.mat\nc,c.csv,c.py\n",
+        encoding="utf-8")
+    assert outdir.export_files(tmp_path) == {"index.csv", "a.json", "a.mat"}
+
+
+def test_a_linked_or_fifo_report_md_owns_nothing(tmp_path):
+    elsewhere = tmp_path / "elsewhere.md"
+    elsewhere.write_text("![a](fig.png)\n", encoding="utf-8")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "report.md").symlink_to(elsewhere)
+    assert outdir.report_files(out, []) == set()
+    (out / "report.md").unlink()
+    os.mkfifo(out / "report.md")
+    assert outdir.report_files(out, []) == set()  # and it did not block
+
+
+def test_the_output_folder_may_not_be_a_link_or_a_file(tmp_path):
+    (tmp_path / "real").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "real")
+    (tmp_path / "file").write_text("x", encoding="utf-8")
+    with pytest.raises(ConfigError, match="symbolic link"):
+        outdir.prepare(tmp_path / "link", "-o")
+    with pytest.raises(ConfigError, match="is a file"):
+        outdir.prepare(tmp_path / "file", "-o")
+    assert outdir.prepare(tmp_path / "new" / "folder", "-o").is_dir()
+
+
+def test_report_html_embeds_only_regular_png_files_of_its_folder(tmp_path):
+    from penaltyrun.report.html import to_html
+
+    secret = tmp_path / "secret.png"
+    secret.write_bytes(b"\x89PNG SECRET")
+    folder = tmp_path / "report"
+    folder.mkdir()
+    (folder / "own.png").write_bytes(b"\x89PNG OWN")
+    (folder / "link.png").symlink_to(secret)
+    (folder / "secret.txt").write_bytes(b"SECRET TEXT")
+    page = to_html(f"![a]({secret})\n\n![b](../secret.png)\n\n![c](link.png)\n\n"
+                   "![d](secret.txt)\n\n![e](own.png)\n", folder)
+    assert page.count("data:image/png;base64,") == 1 and page.count("missing figure") == 4

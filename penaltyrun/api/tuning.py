@@ -134,7 +134,9 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
     run_dir = Path(run_dir)
     with held(obj):
         path = run_cell(spec, run_dir)
-    return TuneResult(run_dir, path, problem=obj)
+    result = TuneResult(run_dir, path, problem=obj)
+    result.records  # noqa: B018  (read now: the result is this run's, whatever runs next)
+    return result
 
 
 __all__ = ["default_seed", "from_cost", "resolve_problem", "tune"]

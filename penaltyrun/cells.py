@@ -107,9 +107,8 @@ def cell_spec(cfg: DictConfig) -> Any:
     the composed config: its nodes as plain data, ``config_hash``'s input and the YAML."""
     from penaltyrun.api.core import CellSpec
 
-    resolved = OmegaConf.to_container(cfg, resolve=True)
-    hashed = {k: resolved[k] for k in ("problem", "case", "param", "optimizer")}
-    hashed["seed"] = resolved["runner"]["seed"]
+    hashed = {"problem": plain(cfg.problem), "case": cfg.case, "param": plain(cfg.param),
+              "optimizer": plain(cfg.optimizer), "seed": cfg.runner.seed}
     return CellSpec(
         problem=cfg.problem.name, case=cfg.case, param=cfg.param.name,
         optimizer=cfg.optimizer.name, problem_params=problem_params(cfg),

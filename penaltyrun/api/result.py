@@ -148,9 +148,18 @@ class TuneResult:
         return out
 
 
-def load(path: str | Path) -> TuneResult:
+def load(path: str | Path, *, problem: Any = None) -> TuneResult:
     """The results of a run folder, a study folder (``studies/<name>``), any folder with
-    ``results.parquet`` files below it, or one ``results.parquet`` file.
+    ``results.parquet`` files below it (e.g. the parent of several runs), or one
+    ``results.parquet`` file.
+
+    Parameters
+    ----------
+    path : str or Path
+    problem : problem object, optional
+        The in-memory problem (:func:`~penaltyrun.from_cost`) the results come from, so
+        that :meth:`TuneResult.report` can rebuild it (a problem known by name or module
+        needs nothing).
 
     Raises
     ------
@@ -163,9 +172,9 @@ def load(path: str | Path) -> TuneResult:
     if not path.exists():
         raise ConfigError("path", f"{path} does not exist")
     if path.is_file():
-        return TuneResult(path.parent, path)
+        return TuneResult(path.parent, path, problem=problem)
     own = path / io.RESULTS_FILE
-    return TuneResult(path, own if own.is_file() else path)
+    return TuneResult(path, own if own.is_file() else path, problem=problem)
 
 
 def _records(result: Any) -> tuple[pd.DataFrame, Any]:

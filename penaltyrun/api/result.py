@@ -207,11 +207,13 @@ def compare(result_a: Any, result_b: Any) -> pd.DataFrame:
         One row per pair of maps (``map_a``, ``map_b``, ``median_a``, ``median_b``,
         ``a12_b_beats_a``, ``p_mwu``, ``p_holm``, ...).
     """
+    from penaltyrun.report import protocol
     from penaltyrun.report.compare import pairwise
     from penaltyrun.report.stats import add_variant
 
     (df_a, prob_a), (df_b, prob_b) = _records(result_a), _records(result_b)
     both = pd.concat([df_a, df_b], ignore_index=True).drop_duplicates("job_id")
+    protocol.reset()  # problem modules as they are now, not as an earlier call saw them
     with _holding([prob_a, prob_b]):
         return pairwise(add_variant(both))
 

@@ -85,6 +85,8 @@ def hold(problem: Any) -> Iterator[str]:
         with _OBJECTS_LOCK:
             if held is None:
                 _OBJECTS.pop(path, None)
+                for name in [n for n, p in _USER.items() if p == path]:
+                    del _USER[name]  # registered by a report of the held problem
 
 
 def install(path: str, problem: Any) -> None:

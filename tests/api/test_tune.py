@@ -134,3 +134,19 @@ def test_unknown_problem_names_the_known_ones():
         penaltyrun.tune("no_such_pkg.mod")
     with pytest.raises(ConfigError, match="expected a problem name"):
         penaltyrun.tune(42)
+
+
+def test_two_problems_of_one_name_in_one_process_do_not_mix(tmp_path):
+    from penaltyrun import problems
+
+    results = []
+    for offset in (0.0, 5.0):
+        prob = penaltyrun.from_cost(lambda K, c=offset: float(np.trace(K)) + c,
+                                    {"K": (2, (0.1, 10.0))})
+        res = penaltyrun.tune(prob, n_starts=1, optimizer_options={"max_evals": 100},
+                              workers=1, run_dir=tmp_path / str(offset))
+        res.report(tmp_path / f"report{offset}")
+        penaltyrun.compare(res, res)
+        results.append(res.best.cost)
+    assert results[1] - results[0] == pytest.approx(5.0, abs=1e-3)
+    assert "user" not in problems._USER and not problems._OBJECTS

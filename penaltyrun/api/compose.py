@@ -22,8 +22,8 @@ from penaltyrun.errors import ConfigError
 CONF = Path(__file__).resolve().parent.parent / "conf"
 #: ``runner.*`` values the API uses where the command line's defaults differ: no report
 #: at the end of a run (:meth:`~penaltyrun.api.result.TuneResult.report` writes it), no
-#: progress bar.
-API_RUNNER = {"report": False, "progress": False}
+#: progress bar, no forecast (it would spend extra evaluations of the cost to time them).
+API_RUNNER = {"report": False, "progress": False, "forecast_samples": 0}
 
 _FLOAT = re.compile(r"""^(?:
      [-+]?[0-9]+(?:_[0-9]+)*\.[0-9_]*(?:[eE][-+]?[0-9]+)?
@@ -78,6 +78,19 @@ def group_node(group: str, name: str) -> dict[str, Any]:
     return node if own_merged else _merge(node, data)
 
 
+def plain(value: Any) -> Any:
+    """``value`` as the plain data a config holds: numpy arrays and scalars as lists and
+    Python numbers, tuples as lists, mappings as dicts (e.g. a plant matrix ``A`` given as
+    an array is stored, hashed and recorded as the nested list the command line takes)."""
+    if isinstance(value, Mapping):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if hasattr(value, "tolist") and callable(value.tolist):  # numpy arrays and scalars
+        return plain(value.tolist())
+    return value
+
+
 def _merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
     out = dict(base)
     for key, value in over.items():
@@ -116,13 +129,13 @@ def compose(problem: str, module: str | None, *, case: str | None, param: str,
     base.pop("hydra", None)
     prob = problem_node(problem, module)
     if params:
-        prob["params"] = _merge(prob.get("params") or {}, dict(params))
+        prob["params"] = _merge(prob.get("params") or {}, plain(params))
     opt = group_node("optimizer", optimizer)
     unknown = sorted(set(optimizer_options or {}) - set(opt) - {"name"})
     if unknown:
         raise ConfigError(f"optimizer.{unknown[0]}", f"not an option of optimizer "
                           f"{optimizer!r}", allowed=sorted(set(opt) - {"name"}))
-    opt.update(dict(optimizer_options or {}))
+    opt.update(plain(optimizer_options or {}))
     config = {"problem": prob, "param": group_node("param", param), "optimizer": opt}
     config.update(base)
     config["case"] = case
@@ -150,5 +163,5 @@ def cell_spec(config: Mapping[str, Any]) -> CellSpec:
                                                                                  True)))
 
 
-__all__ = ["API_RUNNER", "CONF", "cell_spec", "choices", "compose", "group_node",
+__all__ = ["API_RUNNER", "CONF", "cell_spec", "choices", "compose", "group_node", "plain",
            "problem_node", "read_yaml"]

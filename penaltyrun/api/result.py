@@ -16,7 +16,7 @@ from penaltyrun import io, problems
 from penaltyrun.errors import ConfigError
 
 #: Columns of one cell in :meth:`TuneResult.summary`.
-CELL = ["problem", "case", "param", "optimizer"]
+CELL = ["problem", "case", "variant", "param", "optimizer"]
 
 
 @dataclass(frozen=True)
@@ -113,10 +113,17 @@ class TuneResult:
                     optimizer=str(row["optimizer"]))
 
     def summary(self) -> pd.DataFrame:
-        """One row per cell (problem, case, map, optimizer): ``n_starts``, ``converged``
-        (share of converged starts), ``best_cost`` and ``median_cost`` (over the converged
-        starts, NaN when none converged), ``median_evals``."""
-        df = self.records.assign(_ok=_converged(self.records))
+        """One row per cell (problem, case, variant, map, optimizer; a variant labels runs
+        with other problem or optimizer settings, as in the report): ``n_starts``,
+        ``converged`` (share of converged starts), ``best_cost`` and ``median_cost`` (over
+        the converged starts, NaN when none converged), ``median_evals``."""
+        from penaltyrun.report import protocol
+        from penaltyrun.report.stats import add_variant
+
+        protocol.reset()
+        with _holding([self.problem]):
+            df = add_variant(self.records)
+        df = df.assign(_ok=_converged(df))
         rows = []
         for key, g in df.groupby(CELL, sort=True):
             costs = pd.to_numeric(g.loc[g["_ok"], "best_cost"], errors="coerce").dropna()

@@ -167,6 +167,7 @@ def run_cell(spec: CellSpec, run_dir: Path, progress: ProgressFactory | None = N
         As :func:`penaltyrun.runner.execute`; finished jobs stay on disk for a resume.
     """
     from penaltyrun import io, report, runner
+    from penaltyrun.runner import lock
 
     prob, _, _ = spec.build()
     runner.check_runner_options(spec.runner, connect=False)
@@ -178,22 +179,35 @@ def run_cell(spec: CellSpec, run_dir: Path, progress: ProgressFactory | None = N
     expected = runner.log_forecast(jobs, int(rc.get("forecast_samples", 8)), int(rc["seed"]),
                                    local_workers(rc))
     bar = progress(jobs) if progress is not None else contextlib.nullcontext(None)
-    with bar as on_record:
-        runner.execute(jobs, run_dir, workers=rc.get("workers", "auto"),
-                       backend=rc.get("backend", "local"), scheduler=rc.get("scheduler"),
-                       resume=bool(rc.get("resume", False)),
-                       retry_failed=bool(rc.get("retry_failed", False)), on_record=on_record,
-                       max_retries=rc.get("max_retries", 1),
-                       worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected,
-                       evaluate_on=rc.get("evaluate_on", "local"),
-                       chunks=rc.get("chunks", "auto"),
-                       stall_timeout=float(rc.get("stall_timeout", 600)))
+    try:
+        with bar as on_record:
+            _execute(jobs, run_dir, rc, on_record, expected)
+    except BaseException:  # the run is over: a later run in this process may take the folder
+        lock.release(run_dir)
+        raise
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.get("report", False):
         out = Path(spec.report_output) if spec.report_output else run_dir / "report"
         report.build_report(path, out, paper=bool(spec.report_paper))
         logger.info("report written to %s", out)
     return path
+
+
+def _execute(jobs: list[Any], run_dir: Path, rc: Mapping[str, Any],
+             on_record: Callable[[dict[str, Any]], None] | None,
+             expected: Mapping[str, float]) -> None:
+    """:func:`penaltyrun.runner.execute` with the ``runner.*`` options ``rc``."""
+    from penaltyrun import runner
+
+    runner.execute(jobs, run_dir, workers=rc.get("workers", "auto"),
+                   backend=rc.get("backend", "local"), scheduler=rc.get("scheduler"),
+                   resume=bool(rc.get("resume", False)),
+                   retry_failed=bool(rc.get("retry_failed", False)), on_record=on_record,
+                   max_retries=rc.get("max_retries", 1),
+                   worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected,
+                   evaluate_on=rc.get("evaluate_on", "local"),
+                   chunks=rc.get("chunks", "auto"),
+                   stall_timeout=float(rc.get("stall_timeout", 600)))
 
 
 __all__ = ["CellSpec", "local_workers", "plan_cell", "run_cell", "run_meta",

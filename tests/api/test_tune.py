@@ -150,3 +150,26 @@ def test_two_problems_of_one_name_in_one_process_do_not_mix(tmp_path):
         results.append(res.best.cost)
     assert results[1] - results[0] == pytest.approx(5.0, abs=1e-3)
     assert "user" not in problems._USER and not problems._OBJECTS
+
+
+def test_an_interrupted_tune_keeps_its_jobs_and_resumes(tmp_path):
+    from penaltyrun.errors import RunInterruptedError
+    from penaltyrun.runner import lock
+
+    calls = []
+
+    def cost(K):
+        calls.append(1)
+        if len(calls) == 150:  # Ctrl-C in the middle of the second job
+            raise KeyboardInterrupt
+        return float(np.sum((K - K_STAR) ** 2))
+
+    prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="interrupted")
+    kwargs = {"n_starts": 2, "optimizer_options": {"max_evals": 100}, "workers": 1,
+              "run_dir": tmp_path}
+    with pytest.raises(RunInterruptedError):
+        penaltyrun.tune(prob, **kwargs)
+    assert len(list((tmp_path / "jobs").glob("*.json"))) == 1
+    assert not lock._HELD  # the folder is free for the next run of this process
+    res = penaltyrun.tune(prob, resume=True, **kwargs)
+    assert len(res.records) == 2 and set(res.records["status"]) == {"ok"}

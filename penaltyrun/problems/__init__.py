@@ -100,6 +100,16 @@ def install(path: str, problem: Any) -> None:
         _OBJECTS[path] = (problem, as_module(problem))
 
 
+def _held(path: str) -> tuple[Any, ModuleType]:
+    with _OBJECTS_LOCK:
+        entry = _OBJECTS.get(path)
+    if entry is None:
+        raise ConfigError("problem.module", f"{path}: an in-memory problem exists only in "
+                          "the Python process that created it (pass the object itself, or "
+                          "write it as a problem module)")
+    return entry
+
+
 def held_object(path: str) -> Any:
     """The problem object held under module path ``object:<name>`` (:func:`hold`).
 
@@ -108,13 +118,7 @@ def held_object(path: str) -> Any:
     ConfigError
         Nothing is held under ``path`` in this process.
     """
-    with _OBJECTS_LOCK:
-        entry = _OBJECTS.get(path)
-    if entry is None:
-        raise ConfigError("problem.module", f"{path}: an in-memory problem exists only in "
-                          "the Python process that created it (pass the object itself, or "
-                          "write it as a problem module)")
-    return entry[0]
+    return _held(path)[0]
 
 
 def _entry_points() -> dict[str, importlib.metadata.EntryPoint]:
@@ -171,8 +175,7 @@ def check_problem(prob: Any, label: str) -> Problem:
 
 def _import(path: str, key: str) -> ModuleType:
     if path.startswith(OBJECT_PREFIX):
-        held_object(path)
-        return _OBJECTS[path][1]
+        return _held(path)[1]
     try:
         return importlib.import_module(path)
     except ModuleNotFoundError as exc:

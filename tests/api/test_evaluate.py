@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import K_STAR
+from known_optimum import K_STAR
 
 import penaltyrun
 from penaltyrun.errors import ConfigError

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import BUDGET, DIAGONAL_FLOOR, K_STAR
+from known_optimum import BUDGET, DIAGONAL_FLOOR, K_STAR
 
 import penaltyrun
 from penaltyrun.errors import ConfigError

@@ -9,6 +9,7 @@ import sys
 import textwrap
 
 import pandas as pd
+import pytest
 
 import penaltyrun
 from penaltyrun import userconf
@@ -56,6 +57,7 @@ def test_module_paths_become_problem_configs_on_the_search_path():
     assert userconf.module_problems(["problem=zermelo"]) == ["problem=zermelo"]
 
 
+@pytest.mark.slow
 def test_cli_module_path_runs_the_cell_the_api_runs(tmp_path, monkeypatch):
     pkg = tmp_path / "lab"
     pkg.mkdir()

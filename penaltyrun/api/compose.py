@@ -139,7 +139,7 @@ def compose(problem: str, module: str | None, *, case: str | None, param: str,
     config = {"problem": prob, "param": group_node("param", param), "optimizer": opt}
     config.update(base)
     config["case"] = case
-    config["runner"] = _merge(base["runner"], runner)
+    config["runner"] = _merge(base["runner"], plain(runner))
     return config
 
 

@@ -1,3 +1,37 @@
-"""penaltyrun: tune penalty matrices of feedback controllers, diagonal vs full K = Q Λ Qᵀ."""
+"""penaltyrun: tune penalty matrices of feedback controllers, diagonal vs full K = Q Λ Qᵀ.
+
+The public API (:mod:`penaltyrun.api`), imported on first use so that the command line
+starts fast:
+
+* :func:`from_cost` — a problem from your own cost function of the matrices;
+* :func:`tune` — seeded multi-start tuning of one cell, as ``penaltyrun mode=optimize``;
+* :class:`TuneResult` — records, best start, summary and report of a run;
+* :func:`load` — the result of a run or study folder;
+* :func:`evaluate` — one candidate's matrices in detail, as ``mode=evaluate``;
+* :func:`compare` — the report's map-vs-map statistics of two results.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 __version__ = "0.1.0"
+
+_NAMES = {name: "api" for name in ("Best", "TuneResult", "compare", "evaluate",
+                                   "from_cost", "load", "tune")}
+
+__all__ = ["__version__", *sorted(_NAMES)]
+
+
+def __getattr__(name: str) -> Any:
+    module = _NAMES.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_NAMES))

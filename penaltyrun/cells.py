@@ -1,7 +1,9 @@
 """From one composed config (one cell of a sweep) to its problem and its jobs.
 
 Shared by ``mode=optimize`` (:func:`penaltyrun.cli.run_optimize`) and ``mode=plan``
-(:mod:`penaltyrun.planmode`), so that a plan forecasts exactly the jobs a run would run.
+(:mod:`penaltyrun.planmode`), so that a plan forecasts exactly the jobs a run would run;
+both plan through the run core (:mod:`penaltyrun.api.core`) that :func:`penaltyrun.tune`
+uses too.
 """
 
 from __future__ import annotations
@@ -100,54 +102,45 @@ def setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
                         problem_module(cfg))
 
 
-def warm_start_share(cfg: DictConfig) -> float:
-    """Share of the budget spent on the diagonal stage (0: no warm start).
+def cell_spec(cfg: DictConfig) -> Any:
+    """The cell's :class:`~penaltyrun.api.core.CellSpec` (what the run core needs) from
+    the composed config: its nodes as plain data, ``config_hash``'s input and the YAML."""
+    from penaltyrun.api.core import CellSpec
 
-    Raises
-    ------
-    ConfigError
-        A warm start without ``optimizer.max_evals``, or a share outside (0, 1).
-    """
-    rc = cfg.runner
-    if not rc.get("warm_start", False):
-        return 0.0
-    if not isinstance(rc.warm_start, bool):
-        raise ConfigError("runner.warm_start", f"must be true or false, got {rc.warm_start!r}")
-    share = rc.get("warm_start_share", 0.3)
-    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0 < share < 1:
-        raise ConfigError("runner.warm_start_share", f"must be in (0, 1), got {share!r}")
-    if cfg.optimizer.get("max_evals") is None:
-        raise ConfigError("runner.warm_start", "needs an evaluation budget: set "
-                          "optimizer.max_evals (the diagonal stage spends "
-                          "warm_start_share of it)")
-    if cfg.optimizer.name == "grid" or cfg.optimizer.name == "baseline":
-        raise ConfigError("runner.warm_start", f"not for optimizer {cfg.optimizer.name!r}",
-                          allowed=("pso", "de", "cmaes"))
-    return float(share)
+    hashed = {"problem": plain(cfg.problem), "case": cfg.case, "param": plain(cfg.param),
+              "optimizer": plain(cfg.optimizer), "seed": cfg.runner.seed}
+    return CellSpec(
+        problem=cfg.problem.name, case=cfg.case, param=cfg.param.name,
+        optimizer=cfg.optimizer.name, problem_params=problem_params(cfg),
+        param_options=plain(cfg.param), optimizer_options=optimizer_options(cfg),
+        problem_module=problem_module(cfg), runner=plain(cfg.runner), hashed=hashed,
+        config_text=OmegaConf.to_yaml(cfg),
+        report_output=cfg.report.output or None, report_paper=bool(cfg.report.paper))
+
+
+def warm_start_share(cfg: DictConfig) -> float:
+    """Share of the budget spent on the diagonal stage (0: no warm start); see
+    :func:`penaltyrun.api.core.warm_start_share`."""
+    from penaltyrun.api import core
+
+    return core.warm_start_share(plain(cfg.runner), cfg.optimizer.name,
+                                 optimizer_options(cfg))
 
 
 def cell_jobs(cfg: DictConfig, case: str, meta: dict[str, Any] | None = None) -> list[Any]:
     """The jobs of the cell (one per start), as :func:`penaltyrun.runner.plan_jobs` plans
     them; ``case`` is the problem's resolved case."""
-    from penaltyrun import runner
+    from penaltyrun.api import core
 
-    rc = cfg.runner
-    return runner.plan_jobs(
-        cfg.problem.name, case, cfg.param.name, cfg.optimizer.name, rc.n_starts,
-        int(rc.seed), problem_params(cfg), plain(cfg.param), optimizer_options(cfg),
-        meta or {}, holdout=bool(rc.holdout), warm_start_share=warm_start_share(cfg),
-        problem_module=problem_module(cfg), cutoff=bool(rc.get("cutoff", True)))
+    return core.plan_cell(cell_spec(cfg), case, meta)
 
 
 def local_workers(cfg: DictConfig) -> int | None:
     """Worker processes of the cell on this machine (``runner.workers``, ``auto``
     resolved); ``None`` for a remote dask scheduler (cluster size unknown here)."""
-    from penaltyrun.runner.options import resolve_workers
+    from penaltyrun.api import core
 
-    rc = cfg.runner
-    if rc.get("backend", "local") == "dask" and rc.get("scheduler"):
-        return None
-    return resolve_workers(rc.workers)
+    return core.local_workers(plain(cfg.runner))
 
 
 def forecast_samples(cfg: DictConfig) -> int:

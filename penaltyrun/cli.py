@@ -17,9 +17,9 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import shutil
 import signal
-import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -28,7 +28,7 @@ from typing import Any
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.errors import HydraException
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from penaltyrun import __version__, cells, checks, cliargs, clihelp, userconf
 from penaltyrun.errors import (
@@ -82,57 +82,18 @@ EXIT_CODES = {
 FAILED_RUNS: list[str] = []
 
 
-def git_commit() -> str:
-    """Commit of the package source (with ``-dirty`` if modified), or ``unknown``."""
-    src = Path(__file__).resolve().parent
-    try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=src, capture_output=True,
-                             text=True, timeout=5, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               cwd=src, capture_output=True, text=True, timeout=5).stdout
-        return sha + ("-dirty" if dirty.strip() else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
 _plain = cells.plain
 problem_params, problem_module, _setup = cells.problem_params, cells.problem_module, cells.setup
 
 
 def run_optimize(cfg: DictConfig) -> Path:
-    """Plan and run the jobs of one cell, then write results.parquet (and the report)."""
-    from penaltyrun import io, report, runner
+    """Plan and run the jobs of one cell (:func:`penaltyrun.api.core.run_cell`), then print
+    the run's summary line."""
+    from penaltyrun.api import core
 
-    prob, _, _ = _setup(cfg)  # validated by the preflight already; builds the problem
-    runner.check_runner_options(_plain(cfg.runner), connect=False)
+    spec = cells.cell_spec(cfg)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
-    resolved = OmegaConf.to_container(cfg, resolve=True)
-    hashed = {k: resolved[k] for k in ("problem", "case", "param", "optimizer")}
-    hashed["seed"] = resolved["runner"]["seed"]
-    meta = {"config_hash": runner.config_hash(hashed), "config": OmegaConf.to_yaml(cfg),
-            "package_version": __version__, "git_commit": git_commit(),
-            "run_id": run_dir.name}
-    rc = cfg.runner
-    jobs = cells.cell_jobs(cfg, prob.case, meta)
-    logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
-                cfg.param.name, cfg.optimizer.name, run_dir)
-    expected = runner.log_forecast(jobs, cells.forecast_samples(cfg), int(rc.seed),
-                                   cells.local_workers(cfg))
-    with _progress(cfg, jobs, run_dir) as on_record:
-        runner.execute(jobs, run_dir, workers=rc.workers, backend=rc.backend,
-                       scheduler=rc.scheduler, resume=bool(rc.resume),
-                       retry_failed=bool(rc.retry_failed), on_record=on_record,
-                       max_retries=rc.get("max_retries", 1),
-                       worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected,
-                       evaluate_on=rc.get("evaluate_on", "local"),
-                       chunks=rc.get("chunks", "auto"),
-                       stall_timeout=float(rc.get("stall_timeout", 600)))
-    path = io.collect(run_dir, [job.job_id for job in jobs])
-    if rc.report:
-        _trust_config_modules(cfg)
-        out = Path(cfg.report.output) if cfg.report.output else run_dir / "report"
-        report.build_report(path, out, paper=bool(cfg.report.paper))
-        logger.info("report written to %s", out)
+    path = core.run_cell(spec, run_dir, progress=lambda jobs: _progress(cfg, jobs, run_dir))
     summarize(path, run_dir)
     return path
 
@@ -171,27 +132,10 @@ def summarize(path: Path, run_dir: Path) -> dict[str, int]:
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     """Evaluate the matrices given in ``matrices.*`` and print one JSON line."""
     from penaltyrun import problems
+    from penaltyrun.api.evaluation import evaluate_matrices
 
     prob = problems.make(cfg.problem.name, cfg.case, problem_params(cfg), problem_module(cfg))
-    given = {k: v for k, v in (_plain(cfg.matrices) or {}).items() if v is not None}
-    wanted = [spec.name for spec in prob.matrices]
-    extra = sorted(set(given) - set(wanted))
-    if extra:
-        raise ConfigError(f"matrices.{extra[0]}", f"not a matrix of problem {prob.name!r}",
-                          allowed=wanted)
-    for spec in prob.matrices:
-        if spec.name not in given:
-            raise ConfigError(f"matrices.{spec.name}", f"missing; pass "
-                              f"'matrices.{spec.name}=[[...], ...]' ({spec.size}x{spec.size})")
-        problems.base.check_spd(f"matrices.{spec.name}", given[spec.name], spec.size)
-    scalars_cfg = {k: v for k, v in (_plain(cfg.scalars) or {}).items() if v is not None}
-    scalars = {}
-    for spec in prob.scalars:
-        if spec.name not in scalars_cfg:
-            raise ConfigError(f"scalars.{spec.name}", "missing; pass "
-                              f"'scalars.{spec.name}=<value>' in {list(spec.bounds)}")
-        scalars[spec.name] = float(scalars_cfg[spec.name])
-    result = prob.evaluate(given, scalars or None)
+    result = evaluate_matrices(prob, _plain(cfg.matrices) or {}, _plain(cfg.scalars) or {})
     print(json.dumps(result, default=str), flush=True)
     hydra_cfg = HydraConfig.get()
     if hydra_cfg.output_subdir is None:  # cliargs.evaluate_overrides: nothing was written
@@ -205,14 +149,9 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
 def _trust_config_modules(cfg: DictConfig) -> None:
     """The modules the user's own config names (``problem.module``, an LQR plant's
     ``plant`` / ``dynamics``) may be imported by the report of this process."""
-    from penaltyrun import problems
+    from penaltyrun.api import core
 
-    if problem_module(cfg):
-        problems.register(cfg.problem.name, problem_module(cfg))
-    for key in ("plant", "dynamics"):
-        spec = problem_params(cfg).get(key)
-        if isinstance(spec, str):
-            problems.trust.allow_module(spec.partition(":")[0])
+    core.trust_own_modules(str(cfg.problem.name), problem_module(cfg), problem_params(cfg))
 
 
 def run_report(cfg: DictConfig) -> Path:
@@ -315,6 +254,13 @@ def _print_cell_plan(cfg: DictConfig) -> None:
     planmode.print_cell_plan(cfg)
 
 
+def use_file_backend() -> None:
+    """Figures of the command line go to files only: matplotlib's non-interactive ``Agg``
+    backend (unless ``MPLBACKEND`` names another), chosen before matplotlib is imported, so
+    no display is needed and none is opened."""
+    os.environ.setdefault("MPLBACKEND", "Agg")
+
+
 def print_version(argv: list[str]) -> bool:
     """``--version``: print penaltyrun's version (Hydra would print its own); True if so."""
     if "--version" not in argv:
@@ -330,6 +276,7 @@ def main() -> None:
     Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
     """
     ensure_utf8_mode(sys.argv)
+    use_file_backend()
     logging.raiseExceptions = False  # a broken stdout is one line at the end, not tracebacks
     watch_stdout()
     argv = sys.argv[1:]
@@ -384,6 +331,7 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     if argv is None:
         ensure_utf8_mode(sys.argv)
+    use_file_backend()
     watch_stdout()
     try:
         args = parser.parse_args(argv)

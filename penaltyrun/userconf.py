@@ -11,8 +11,12 @@ rewrites it to an absolute path before Hydra parses the command line.
 
 from __future__ import annotations
 
+import atexit
 import importlib.util
 import os
+import re
+import shutil
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -21,6 +25,8 @@ from pathlib import Path
 from penaltyrun.errors import ConfigError
 
 CONF_DIR = Path(__file__).resolve().parent / "conf"
+#: A dotted module path (``my_pkg.my_module``) given as ``problem=``.
+_MODULE_PATH = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)+$")
 #: Hydra's options that take a value: long form, short form.
 SOURCE_OPTIONS = {"--config-path": "-cp", "--config-name": "-cn", "--config-dir": "-cd"}
 
@@ -78,9 +84,12 @@ def normalize_argv(argv: list[str]) -> list[str]:
     ``problem.params.X=v`` becomes ``++problem.params.X=v`` (set or add): a problem's
     parameters are the fields of its ``Params`` dataclass, listed in its YAML file or not;
     the preflight refuses names that are not fields (:func:`penaltyrun.cells.with_params_schema`).
+
+    ``problem=my_pkg.my_module`` names a problem module by its path
+    (:func:`module_problems`).
     """
     out = [f"++{arg.lstrip('+')}" if arg.lstrip("+").startswith(PARAMS_PREFIX) and "=" in arg
-           else arg for arg in argv]
+           else arg for arg in module_problems(argv)]
     short = {v: k for k, v in SOURCE_OPTIONS.items()}
     for i, arg in enumerate(out):
         name, eq, value = arg.partition("=")
@@ -91,6 +100,42 @@ def normalize_argv(argv: list[str]) -> list[str]:
         elif not eq and i + 1 < len(out) and not out[i + 1].startswith("pkg://"):
             out[i + 1] = os.path.abspath(out[i + 1])
     return out
+
+
+def module_problems(argv: list[str]) -> list[str]:
+    """``problem=my_pkg.my_module`` (alone or in a sweep list): a problem module named by
+    its dotted path, without a config file of its own.
+
+    For each such path a problem config ``{name: my_module, module: my_pkg.my_module,
+    params: {}}`` is written into a temporary folder (removed when the process ends), which
+    joins Hydra's search path (``hydra.searchpath``, after the user's own entries). The
+    problem's name is the path's last part, as for ``penaltyrun.tune("my_pkg.my_module")``,
+    so both give the same config hash and jobs.
+    """
+    paths = []
+    for arg in argv:
+        key, eq, value = arg.partition("=")
+        if key == "problem" and eq:
+            paths += [v.strip() for v in value.split(",") if _MODULE_PATH.match(v.strip())]
+    if not paths:
+        return list(argv)
+    folder = Path(tempfile.mkdtemp(prefix="penaltyrun-problems-"))
+    atexit.register(shutil.rmtree, folder, True)
+    (folder / "problem").mkdir()
+    for path in dict.fromkeys(paths):
+        (folder / "problem" / f"{path}.yaml").write_text(
+            f"name: {path.rsplit('.', 1)[1]}\nmodule: {path}\nparams: {{}}\n",
+            encoding="utf-8")
+    entry = f"file://{folder}"
+    out = []
+    for arg in argv:
+        key, eq, value = arg.partition("=")
+        if key == "hydra.searchpath" and value.startswith("[") and value.endswith("]"):
+            inner = value[1:-1].strip()
+            arg = f"{key}=[{inner + ',' if inner else ''}{entry}]"
+            entry = ""
+        out.append(arg)
+    return out + ([f"hydra.searchpath=[{entry}]"] if entry else [])
 
 
 def parse_source(argv: list[str]) -> tuple[ConfigSource, list[str]]:

@@ -54,3 +54,36 @@ def test_lazy_names_resolve_to_their_definitions():
         for public, module in getattr(package, "_NAMES", {}).items():
             source = importlib.import_module(f"{name}.{module}")
             assert getattr(package, public) is getattr(source, public), f"{name}.{public}"
+
+
+def test_top_level_api_has_the_documented_signatures():
+    import inspect
+
+    expected = {
+        "from_cost": "(cost, matrices, *, scalars=None, batched=False, name='user')",
+        "tune": "(problem, *, param='full', optimizer='cmaes', n_starts=10, seed=None, "
+                "optimizer_options=None, case=None, params=None, run_dir=None, workers=None, "
+                "resume=False)",
+        "load": "(path, *, problem=None)",
+        "compare": "(result_a, result_b)",
+    }
+    for name, text in expected.items():
+        sig = inspect.signature(getattr(penaltyrun, name))
+        plain = sig.replace(parameters=[p.replace(annotation=inspect.Parameter.empty)
+                                        for p in sig.parameters.values()],
+                            return_annotation=inspect.Signature.empty)
+        assert str(plain) == text, name
+    params = inspect.signature(penaltyrun.evaluate).parameters
+    assert list(params)[:2] == ["problem", "matrices"]
+    assert isinstance(penaltyrun.TuneResult, type) and penaltyrun.__version__
+
+
+def test_importing_the_package_imports_no_api_module():
+    import subprocess
+    import sys
+
+    code = ("import sys, penaltyrun; "
+            "print(sorted(m for m in ('numpy', 'pandas', 'penaltyrun.api') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "[]"

@@ -22,6 +22,7 @@ from penaltyrun.optim.base import (
     CommonSettings,
     CountingObjective,
     OptimResult,
+    global_rng_kept,
     main_budget,
     planned_evals,
 )
@@ -100,7 +101,17 @@ def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarra
     ``x0`` is the point the ``baseline`` optimizer evaluates (required for it) and the warm
     start of the search optimizers (evaluated once before the search, so the result is never
     worse than ``x0``).
+
+    The caller's global ``np.random`` state is the same after the call
+    (:func:`~penaltyrun.optim.base.global_rng_kept`): pyswarms and ``cma`` seed and draw from
+    it inside the call only.
     """
+    with global_rng_kept():
+        return _minimize(name, objective, lb, ub, settings, seed, x0)
+
+
+def _minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
+              settings: Settings, seed: int, x0: np.ndarray | None) -> OptimResult:
     if name == "baseline":
         if x0 is None:
             raise ValueError("the baseline optimizer needs x0")

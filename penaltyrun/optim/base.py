@@ -26,8 +26,9 @@ evaluated.
 
 from __future__ import annotations
 
+import contextlib
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +41,21 @@ BatchObjective = Callable[[np.ndarray], np.ndarray]
 
 #: Local-search methods of ``scipy.optimize.minimize`` that accept box bounds.
 POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP")
+
+
+@contextlib.contextmanager
+def global_rng_kept() -> Iterator[None]:
+    """Restore ``np.random``'s global state when the block ends.
+
+    pyswarms and ``cma`` draw from (and ``cma`` seeds) the global numpy generator; an
+    optimizer run inside this block seeds and uses it freely, and the caller's state is as
+    it was afterwards (a library call must not move its caller's random numbers).
+    """
+    state = np.random.get_state()  # noqa: NPY002  (saved for the caller, never drawn from)
+    try:
+        yield
+    finally:
+        np.random.set_state(state)  # noqa: NPY002
 
 
 def require_int(key: str, value: object, least: int, allow_none: bool = False) -> None:

@@ -3,7 +3,9 @@
 Traps handled here (docs: explanation/pso-matlab.md):
 
 * pyswarms draws from the global ``np.random`` state: it is seeded right before the
-  optimizer is built (one job per process, so this is safe);
+  optimizer is built, and the caller's state is put back when the run ends
+  (:func:`~penaltyrun.optim.base.global_rng_kept`), so a library caller's random numbers
+  do not move;
 * out-of-bound particles are clamped (``bh_strategy='nearest'``, ≈ MATLAB), not wrapped;
 * the whole swarm is evaluated as one batch; ``n_processes`` is never used (the runner
   already runs one job per worker);
@@ -32,6 +34,7 @@ from penaltyrun.optim.base import (
     CommonSettings,
     OptimResult,
     as_counting,
+    global_rng_kept,
     main_budget,
     require_int,
 )
@@ -148,6 +151,12 @@ def run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings:
         Stops on the stall rule (``ftol``), the iteration limit (``iters``) or the
         evaluation budget (``max_evals``, the last swarm possibly evaluated in part).
     """
+    with global_rng_kept():
+        return _run_pso(objective, lb, ub, settings, seed, x0)
+
+
+def _run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings: PSOSettings,
+             seed: int, x0: np.ndarray | None) -> OptimResult:
     counted = as_counting(objective, main_budget(settings))
     lb, ub = np.asarray(lb, float), np.asarray(ub, float)
     np.random.seed(seed % 2**32)  # noqa: NPY002  (pyswarms draws from the global state)

@@ -1,8 +1,10 @@
 """Problem registry: name → module (imported lazily so that numba compiles only what is
 used).
 
-Three routes, first match wins:
+Four routes, first match wins:
 
+0. an in-memory problem object held for a run (:func:`hold`), named by the module path
+   ``object:<name>`` (e.g. a :func:`~penaltyrun.problems.user_cost.from_cost` problem);
 1. a module path given with the name (a problem config's ``module:`` key), for problems
    that live outside penaltyrun (e.g. ``mylab.problems.cartpole`` on ``PYTHONPATH``);
 2. penaltyrun's own problems (:data:`REGISTRY`);
@@ -22,10 +24,12 @@ named (:func:`register`) are imported.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import importlib.metadata
 import importlib.util
-from collections.abc import Mapping
+import threading
+from collections.abc import Iterator, Mapping
 from types import ModuleType
 from typing import Any
 
@@ -48,6 +52,77 @@ MODULE_MEMBERS = ("CASES", "DEFAULT_CASE", "make_problem")
 #: What the object returned by ``make_problem`` must have (:class:`~.base.Problem`).
 PROBLEM_MEMBERS = ("name", "case", "matrices", "scalars", "evaluate_batch", "evaluate",
                    "simulate")
+
+#: Module path prefix of an in-memory problem object (:func:`hold`).
+OBJECT_PREFIX = "object:"
+#: In-memory problems held by a run of this process: module path → (problem, module).
+_OBJECTS: dict[str, tuple[Any, ModuleType]] = {}
+_OBJECTS_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def hold(problem: Any) -> Iterator[str]:
+    """Make the in-memory ``problem`` importable as module path ``object:<name>`` while
+    the block runs (worker processes forked meanwhile inherit it); yields that path.
+
+    Raises
+    ------
+    ConfigError
+        Another problem object of the same name is held already (two runs at once in one
+        process): give one of them another name.
+    """
+    from penaltyrun.problems.user_cost import as_module
+
+    check_problem(problem, "the problem object")
+    path = f"{OBJECT_PREFIX}{problem.name}"
+    with _OBJECTS_LOCK:
+        held = _OBJECTS.get(path)
+        if held is not None and held[0] is not problem:
+            raise ConfigError("problem", f"another in-memory problem named {problem.name!r} "
+                              "is running in this process; give this one another name")
+        _OBJECTS[path] = (problem, as_module(problem))
+        if held is None:
+            trust.name_held(problem.name, path)  # its report may run the object's hooks
+    try:
+        yield path
+    finally:
+        with _OBJECTS_LOCK:
+            if held is None:
+                _OBJECTS.pop(path, None)
+                trust.unname(problem.name, path)
+
+
+def install(path: str, problem: Any) -> None:
+    """Hold ``problem`` under module path ``path`` for the life of this process (a dask
+    worker receiving a pickled in-memory problem; see :mod:`penaltyrun.runner.objects`)."""
+    from penaltyrun.problems.user_cost import as_module
+
+    if not path.startswith(OBJECT_PREFIX):
+        raise ValueError(f"not an in-memory problem path: {path!r}")
+    with _OBJECTS_LOCK:
+        _OBJECTS[path] = (problem, as_module(problem))
+
+
+def _held(path: str) -> tuple[Any, ModuleType]:
+    with _OBJECTS_LOCK:
+        entry = _OBJECTS.get(path)
+    if entry is None:
+        raise ConfigError("problem.module", f"{path}: an in-memory problem exists only in "
+                          "the Python process that created it (pass the object itself, or "
+                          "write it as a problem module)")
+    return entry
+
+
+def held_object(path: str) -> Any:
+    """The problem object held under module path ``object:<name>`` (:func:`hold`).
+
+    Raises
+    ------
+    ConfigError
+        Nothing is held under ``path`` in this process.
+    """
+    return _held(path)[0]
+
 
 def _entry_points() -> dict[str, importlib.metadata.EntryPoint]:
     return {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
@@ -103,6 +178,8 @@ def check_problem(prob: Any, label: str) -> Problem:
 
 
 def _import(path: str, key: str) -> ModuleType:
+    if path.startswith(OBJECT_PREFIX):
+        return _held(path)[1]
     try:
         return importlib.import_module(path)
     except ModuleNotFoundError as exc:

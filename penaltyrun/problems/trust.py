@@ -64,6 +64,18 @@ def name_module(problem: str, module_path: str) -> None:
     _NAMED[str(problem)] = _checked(module_path, "--problem-module")
 
 
+def name_held(problem: str, path: str) -> None:
+    """An in-memory problem held for a run in this process (:func:`penaltyrun.problems.hold`,
+    module path ``object:<name>``) is the module of ``problem`` while it is held."""
+    _NAMED[str(problem)] = str(path)
+
+
+def unname(problem: str, path: str) -> None:
+    """Undo :func:`name_held` (nothing if ``problem`` has been named otherwise since)."""
+    if _NAMED.get(str(problem)) == str(path):
+        del _NAMED[str(problem)]
+
+
 def allow_module(module_path: str) -> None:
     """The user allows ``module_path`` to be imported for a plant named in results (an LQR
     plant's ``plant:`` / ``dynamics:``) while results are read in this process.
@@ -108,4 +120,4 @@ def refuse(key: str, what: str) -> NotImportedError:
 
 
 __all__ = ["NotImportedError", "allow_module", "allowed", "forget_named", "is_reading",
-           "name_module", "named", "reading_results", "refuse"]
+           "name_held", "name_module", "named", "reading_results", "refuse", "unname"]

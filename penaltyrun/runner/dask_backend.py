@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from penaltyrun.errors import ConfigError, RunAbortedError
@@ -196,7 +196,8 @@ def open_client(workers: int, scheduler: str | None, max_retries: int = 1,
 
 
 def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: int = 1,
-             worker_timeout: float = 60.0, stall_timeout: float | None = None
+             worker_timeout: float = 60.0, stall_timeout: float | None = None,
+             func: Callable[[Job], dict[str, Any]] = run_job
              ) -> Iterator[tuple[Job, dict[str, Any]]]:
     """Run ``jobs`` as dask tasks; yield ``(job, record)`` as each finishes.
 
@@ -214,6 +215,9 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
         Seconds without any worker after which the run stops (s).
     stall_timeout : float, optional
         LocalCluster: seconds without a heartbeat before a worker is removed (s).
+    func : callable
+        Job function run on the workers (default :func:`~penaltyrun.runner.job.run_job`;
+        it must pickle and must not raise).
 
     Raises
     ------
@@ -225,7 +229,7 @@ def run_dask(jobs: list[Job], workers: int, scheduler: str | None, max_retries: 
     client, cluster = open_client(workers, scheduler, max_retries, stall_timeout)
     futures: dict[Any, Job] = {}
     try:
-        futures = {client.submit(run_job, job, pure=False, key=f"penaltyrun-{job.job_id}",
+        futures = {client.submit(func, job, pure=False, key=f"penaltyrun-{job.job_id}",
                                  priority=len(jobs) - i): job  # in the given order
                    for i, job in enumerate(jobs)}
         pending = set(futures)

@@ -15,6 +15,7 @@ import logging
 import signal
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,7 @@ from penaltyrun.runner import lock
 from penaltyrun.runner.dask_backend import import_distributed, run_dask
 from penaltyrun.runner.eta import DispatchEta
 from penaltyrun.runner.job import run_job
+from penaltyrun.runner.objects import object_paths, pickled, run_job_shipped
 from penaltyrun.runner.options import BACKENDS, RUNNER_OPTIONS, check_value, resolve_workers
 from penaltyrun.runner.plan import Job, order_longest_first
 from penaltyrun.runner.pool import STALL_TIMEOUT_S, run_pool
@@ -138,12 +140,18 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
     if remove_leftovers(jobs_dir):
         logger.info("removed temporary files of an interrupted write in %s", jobs_dir)
     todo = order_longest_first(pending_jobs(jobs, run_dir, resume, retry_failed), expected_s)
+    shipped = backend == "dask" and bool(object_paths(todo))
+    if shipped and evaluate_on == "dask":
+        raise ConfigError("runner.evaluate_on", "dask evaluates the candidates of problems "
+                          "named by module only; an in-memory problem runs with "
+                          "evaluate_on=local (each job on one dask worker)")
     if evaluate_on == "dask":
         stream = _swarm_stream(todo, workers, scheduler, max_retries, worker_timeout, chunks,
                                stall_timeout)
     elif backend == "dask":
+        func = partial(run_job_shipped, blobs=pickled(todo)) if shipped else run_job
         stream = run_dask(todo, workers, scheduler, max_retries, worker_timeout,
-                          stall_timeout)
+                          stall_timeout, func)
     elif workers == 1 or len(todo) <= 1:
         stream = _serial(todo)
     else:

@@ -10,8 +10,10 @@ from __future__ import annotations
 import functools
 import json
 import platform
+import subprocess
 import sys
 from importlib import metadata
+from pathlib import Path
 
 from penaltyrun import __version__
 
@@ -27,6 +29,20 @@ def _version(dist: str) -> str | None:
         return metadata.version(dist)
     except metadata.PackageNotFoundError:
         return None
+
+
+def git_commit() -> str:
+    """Commit of penaltyrun's source (with ``-dirty`` if modified), or ``unknown`` outside
+    a git checkout (or without git)."""
+    src = Path(__file__).resolve().parent
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=src, capture_output=True,
+                             text=True, timeout=5, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=src, capture_output=True, text=True, timeout=5).stdout
+        return sha + ("-dirty" if dirty.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
 
 
 def packages(git_commit: str | None = None) -> dict[str, str | None]:

@@ -1,0 +1,167 @@
+"""The config of one cell, composed from penaltyrun's YAML files without Hydra.
+
+The command line composes ``conf/config.yaml`` with one file of each group (``problem``,
+``param``, ``optimizer``) through Hydra; :func:`compose` reads the same files with the same
+YAML rules (OmegaConf's: ``1e-8`` is a float), so a cell tuned from Python has the same
+nodes, the same ``config_hash`` and the same job ids as the same cell run from the command
+line.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from penaltyrun.api.core import CellSpec
+from penaltyrun.errors import ConfigError
+
+CONF = Path(__file__).resolve().parent.parent / "conf"
+#: ``runner.*`` values the API uses where the command line's defaults differ: no report
+#: at the end of a run (:meth:`~penaltyrun.api.result.TuneResult.report` writes it), no
+#: progress bar, no forecast (it would spend extra evaluations of the cost to time them).
+API_RUNNER = {"report": False, "progress": False, "forecast_samples": 0}
+
+_FLOAT = re.compile(r"""^(?:
+     [-+]?[0-9]+(?:_[0-9]+)*\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?[0-9]+(?:_[0-9]+)*(?:[eE][-+]?[0-9]+)
+    |\.[0-9]+(?:_[0-9]+)*(?:[eE][-+][0-9]+)?
+    |[-+]?\.(?:inf|Inf|INF)
+    |\.(?:nan|NaN|NAN))$""", re.X)
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML as OmegaConf reads it: ``1e-8`` is a float, dates stay strings."""
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT, list("-+0123456789."))
+_Loader.yaml_implicit_resolvers = {
+    key: [(tag, rx) for tag, rx in resolvers if tag != "tag:yaml.org,2002:timestamp"]
+    for key, resolvers in _Loader.yaml_implicit_resolvers.items()}
+
+
+def read_yaml(path: Path) -> dict[str, Any]:
+    """One config file as a dict (empty file: ``{}``)."""
+    with open(path, encoding="utf-8") as fh:
+        return yaml.load(fh, Loader=_Loader) or {}  # noqa: S506  (a SafeLoader subclass)
+
+
+def choices(group: str) -> tuple[str, ...]:
+    """Names of the files of config group ``group`` (``problem``, ``param``, ...)."""
+    return tuple(sorted(p.stem for p in (CONF / group).glob("*.yaml")))
+
+
+def group_node(group: str, name: str) -> dict[str, Any]:
+    """The node of ``group=name``, with the group-internal ``defaults`` list applied.
+
+    Raises
+    ------
+    ConfigError
+        No such file in the group (the allowed names listed).
+    """
+    path = CONF / group / f"{name}.yaml"
+    if not path.is_file():
+        raise ConfigError(group, f"unknown {group} {name!r}", allowed=choices(group))
+    data = read_yaml(path)
+    defaults = data.pop("defaults", None) or []
+    node: dict[str, Any] = {}
+    own_merged = False
+    for entry in defaults:
+        if entry == "_self_":
+            node = _merge(node, data)
+            own_merged = True
+        else:
+            node = _merge(node, group_node(group, str(entry)))
+    return node if own_merged else _merge(node, data)
+
+
+def plain(value: Any) -> Any:
+    """``value`` as the plain data a config holds: numpy arrays and scalars as lists and
+    Python numbers, tuples as lists, mappings as dicts (e.g. a plant matrix ``A`` given as
+    an array is stored, hashed and recorded as the nested list the command line takes)."""
+    if isinstance(value, Mapping):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if hasattr(value, "tolist") and callable(value.tolist):  # numpy arrays and scalars
+        return plain(value.tolist())
+    return value
+
+
+def _merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def problem_node(name: str, module: str | None) -> dict[str, Any]:
+    """The ``problem`` node: the group file of a built-in problem, else ``{name, module,
+    params}`` for a problem module outside penaltyrun (``module`` None: an entry point)."""
+    if module is None and (CONF / "problem" / f"{name}.yaml").is_file():
+        return group_node("problem", name)
+    node: dict[str, Any] = {"name": name}
+    if module is not None:
+        node["module"] = module
+    node["params"] = {}
+    return node
+
+
+def compose(problem: str, module: str | None, *, case: str | None, param: str,
+            optimizer: str, optimizer_options: Mapping[str, Any] | None,
+            params: Mapping[str, Any] | None, runner: Mapping[str, Any]) -> dict[str, Any]:
+    """The composed config of one cell (the dict the command line's Hydra config resolves
+    to for the same choices and overrides).
+
+    Raises
+    ------
+    ConfigError
+        An unknown map or optimizer, or an optimizer option the optimizer does not have.
+    """
+    base = read_yaml(CONF / "config.yaml")
+    base.pop("defaults", None)
+    base.pop("hydra", None)
+    prob = problem_node(problem, module)
+    if params:
+        prob["params"] = _merge(prob.get("params") or {}, plain(params))
+    opt = group_node("optimizer", optimizer)
+    unknown = sorted(set(optimizer_options or {}) - set(opt) - {"name"})
+    if unknown:
+        raise ConfigError(f"optimizer.{unknown[0]}", f"not an option of optimizer "
+                          f"{optimizer!r}", allowed=sorted(set(opt) - {"name"}))
+    opt.update(plain(optimizer_options or {}))
+    config = {"problem": prob, "param": group_node("param", param), "optimizer": opt}
+    config.update(base)
+    config["case"] = case
+    config["runner"] = _merge(base["runner"], plain(runner))
+    return config
+
+
+def cell_spec(config: Mapping[str, Any]) -> CellSpec:
+    """The :class:`CellSpec` of a composed config (as the command line builds it from its
+    Hydra config, :func:`penaltyrun.cells.cell_spec`)."""
+    hashed = {k: config[k] for k in ("problem", "case", "param", "optimizer")}
+    hashed["seed"] = config["runner"]["seed"]
+    prob = config["problem"]
+    params = {k: v for k, v in (prob.get("params") or {}).items() if v is not None}
+    report = config.get("report") or {}
+    return CellSpec(
+        problem=prob["name"], case=config["case"], param=config["param"]["name"],
+        optimizer=config["optimizer"]["name"], problem_params=params,
+        param_options=dict(config["param"]),
+        optimizer_options={k: v for k, v in config["optimizer"].items() if k != "name"},
+        problem_module=str(prob["module"]) if prob.get("module") else None,
+        runner=dict(config["runner"]), hashed=hashed,
+        config_text=yaml.safe_dump(dict(config), sort_keys=False, allow_unicode=True),
+        report_output=report.get("output") or None, report_paper=bool(report.get("paper",
+                                                                                 True)))
+
+
+__all__ = ["API_RUNNER", "CONF", "cell_spec", "choices", "compose", "group_node", "plain",
+           "problem_node", "read_yaml"]

@@ -1,0 +1,56 @@
+"""The API composes each cell's config as Hydra does for the command line: same nodes,
+same config hash, same job ids (studies deduplicate runs by the hash)."""
+
+from __future__ import annotations
+
+import pytest
+from hydra import compose as hydra_compose
+from hydra import initialize_config_module
+
+from penaltyrun import cells
+from penaltyrun.api.compose import cell_spec, choices, compose
+from penaltyrun.errors import ConfigError
+from penaltyrun.runner import config_hash
+
+#: Every problem file, every map file and every optimizer file (some with a defaults list of
+#: their own), each once.
+CELLS = sorted({*((p, "full", "cmaes") for p in choices("problem")),
+                *(("zermelo", m, "pso") for m in choices("param")),
+                *(("zermelo", "diagonal", o) for o in choices("optimizer"))})
+
+
+@pytest.fixture(scope="module")
+def hydra_cfg():
+    with initialize_config_module("penaltyrun.conf", version_base="1.3"):
+        yield lambda overrides: hydra_compose("config", overrides=overrides)
+
+
+def test_every_config_file_composes_as_hydra_does(hydra_cfg):
+    for problem, param, optimizer in CELLS:
+        cfg = hydra_cfg([f"problem={problem}", f"param={param}", f"optimizer={optimizer}",
+                         "runner.seed=3"])
+        want = cells.cell_spec(cfg)
+        got = cell_spec(compose(problem, None, case=None, param=param, optimizer=optimizer,
+                                optimizer_options=None, params=None, runner={"seed": 3}))
+        cell = (problem, param, optimizer)
+        assert config_hash(got.hashed) == config_hash(want.hashed), cell
+        for field in ("problem", "case", "param", "optimizer", "problem_params",
+                      "param_options", "optimizer_options", "problem_module"):
+            assert getattr(got, field) == getattr(want, field), (*cell, field)
+        assert got.runner == {**want.runner, "seed": 3}
+
+
+def test_overrides_compose_as_hydra_does(hydra_cfg):
+    cfg = hydra_cfg(["problem=lqr", "case=default", "param=givens", "optimizer=pso",
+                     "optimizer.iters=7", "++problem.params.t_max=5.0", "runner.seed=1"])
+    got = cell_spec(compose("lqr", None, case="default", param="givens", optimizer="pso",
+                            optimizer_options={"iters": 7}, params={"t_max": 5.0},
+                            runner={"seed": 1}))
+    want = cells.cell_spec(cfg)
+    assert got.hashed == want.hashed and got.problem_params == want.problem_params
+
+
+def test_unknown_choices_list_the_files():
+    with pytest.raises(ConfigError, match="unknown param 'spiral'.*givens"):
+        compose("zermelo", None, case=None, param="spiral", optimizer="pso",
+                optimizer_options=None, params=None, runner={})

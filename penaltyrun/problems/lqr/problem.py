@@ -42,7 +42,13 @@ import numpy as np
 from penaltyrun.dynamics import linear_feedback as loop
 from penaltyrun.dynamics.linear import quadratic_cost
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec, check_spd
+from penaltyrun.problems.base import (
+    BatchEvaluation,
+    ClosedLoop,
+    MatrixSpec,
+    ScalarSpec,
+    check_spd,
+)
 from penaltyrun.problems.lqr import params as pm
 from penaltyrun.problems.lqr.plant import Plant
 from penaltyrun.problems.lqr.riccati import lqr_gains
@@ -245,7 +251,8 @@ class LQRProblem:
         -------
         dict
             ``t`` (n_points,), ``x`` (k, n_points, n), ``u`` (k, n_points, m), ``J``
-            (k, n_points) running cost.
+            (k, n_points) running cost; ``channels`` (names of the columns of ``x`` and
+            ``u``) and ``limits`` (``u``: ±``u_max`` when the inputs saturate).
         """
         from scipy.integrate import solve_ivp
 
@@ -273,7 +280,29 @@ class LQRProblem:
             xs.append(x)
             us.append(loop.feedback_input(np.repeat(K[None], n_points, 0), x, self.u_max))
             js.append(J)
-        return {"t": t, "x": np.asarray(xs), "u": np.asarray(us), "J": np.asarray(js)}
+        names = self.channel_names()
+        limits = {} if self.u_max is None else {"u": (-self.u_max, self.u_max)}
+        return {"t": t, "x": np.asarray(xs), "u": np.asarray(us), "J": np.asarray(js),
+                "channels": {"x": list(names[0]), "u": list(names[1])}, "limits": limits}
+
+    def channel_names(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """Names of the states (``x1`` … ``xn``) and inputs (``u1`` … ``um``)."""
+        return (tuple(f"x{i + 1}" for i in range(self.plant.n_states)),
+                tuple(f"u{i + 1}" for i in range(self.plant.n_inputs)))
+
+    def closed_loop(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                    ) -> ClosedLoop | None:
+        """The closed loop ẋ = (A − B K) x of one (Q, R) on the linear model (the plant's
+        Jacobians at the origin for a nonlinear ``dynamics``), K the LQR gain; None when
+        the Riccati equation has no stabilizing solution. Input limits are inactive at the
+        origin, so they do not enter."""
+        Q, R = self._check(mats)
+        K, ok, _ = lqr_gains(self.plant.A, self.plant.B, Q[None], R[None])
+        if not ok[0]:
+            return None
+        states, inputs = self.channel_names()
+        return ClosedLoop(self.plant.A - self.plant.B @ K[0], "continuous", gain=K[0],
+                          state_names=states, input_names=inputs)
 
     # -- scenarios --------------------------------------------------------------------------
     def training_scenario(self) -> dict[str, Any]:

@@ -1,0 +1,256 @@
+"""The best tuned controller of each cell: its matrices, its gain, its closed-loop poles,
+its channels over time, and plain warnings.
+
+Per problem × case × variant, for each map (parameterization) the converged start with the
+lowest cost over every optimizer (the baseline left out) is shown with
+
+* its matrices and its gain (u = −K x, where the problem's ``closed_loop`` hook gives one),
+  rounded to four significant digits;
+* a table of its closed-loop diagnostics (:mod:`penaltyrun.problems.diagnostics`): slowest
+  real part, smallest damping ratio, ‖K‖₂ and cond(K) — from the stored columns, or, for
+  results of an older schema, computed here from the stored matrices;
+* a pole map (every map overlaid) and the per-channel histories of ``simulate`` with the
+  limits the problem declares;
+* a warning when a decision variable (eigenvalue, angle or scalar) of a best start sits
+  within :data:`BOUND_SHARE` of the box width of a bound of its map's box, and when a full
+  map's slowest closed-loop mode is :data:`SLOW_FACTOR` or more times slower than the
+  diagonal's (or a loop is not asymptotically stable at the target).
+
+The report never names a problem here: everything comes through the problem protocol.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from penaltyrun import problems
+from penaltyrun.io import decode_json
+from penaltyrun.problems import diagnostics as dg
+from penaltyrun.problems.base import ClosedLoop
+from penaltyrun.report import protocol
+from penaltyrun.report.controller_plots import channel_figure, pole_map
+from penaltyrun.report.stats import converged
+from penaltyrun.report.tables import fmt, markdown, with_unit
+
+logger = logging.getLogger(__name__)
+
+#: Share of a box's width within which a decision variable is "at" its bound.
+BOUND_SHARE = 0.01
+#: A full map's slowest mode this many times slower than the diagonal's is warned about.
+SLOW_FACTOR = 3.0
+#: Most maps whose histories are simulated and drawn per cell (diagonal first).
+MAX_SIMULATED = 4
+#: Significant digits of the matrices shown.
+DIGITS = 4
+COLUMNS = ["map", "by", "cost", "time", "slowest Re s", "min damping", "‖K‖₂", "cond K",
+           "poles from"]
+
+
+def best_per_map(g: pd.DataFrame) -> dict[str, pd.Series]:
+    """The converged start with the lowest cost of each map of ``g`` (over every
+    optimizer, the baseline excluded), diagonal first."""
+    ok = g[converged(g) & (g["optimizer"] != "baseline")]
+    out = {}
+    for param, cell in ok.groupby("param", sort=True):
+        out[str(param)] = cell.loc[cell["best_cost"].astype(float).idxmin()]
+    order = sorted(out, key=lambda p: (p != "diagonal", p))
+    return {p: out[p] for p in order}
+
+
+def _problem(row: pd.Series) -> Any:
+    return problems.make(row["problem"], row["case"], protocol.params_of(row.get("problem_params")))
+
+
+def _matrices(row: pd.Series) -> dict[str, np.ndarray]:
+    return {k: np.asarray(v, float) for k, v in (decode_json(row.get("matrices")) or {}).items()}
+
+
+def loop_of(row: pd.Series) -> tuple[ClosedLoop | None, str]:
+    """The closed loop of a job's best candidate and where it came from: the stored
+    ``closed_loop`` column, or the problem's hook on the stored matrices (older results);
+    (None, reason) when there is none."""
+    stored = decode_json(row.get("closed_loop")) if isinstance(row.get("closed_loop"), str) \
+        else None
+    if stored:
+        return dg.loop_from_json(stored), "stored"
+    if protocol.module(row["problem"]) is None:
+        return None, "problem module not importable"
+    prob = _problem(row)
+    if not hasattr(prob, "closed_loop"):
+        return None, "no linearization"
+    loop = dg.closed_loop_of(prob, _matrices(row), decode_json(row.get("scalars")) or None)
+    return loop, "recomputed from the stored matrices" if loop else "no closed loop"
+
+
+def controller_rows(g: pd.DataFrame) -> pd.DataFrame:
+    """One row per map of one problem × case × variant: the best start's closed-loop
+    diagnostics (columns :data:`COLUMNS` plus the raw ``param`` and ``slowest``)."""
+    unit = protocol.info_of(g).cost_unit
+    rows = []
+    for param, row in best_per_map(g).items():
+        try:
+            loop, source = loop_of(row)
+        except Exception as exc:  # an old parameter set the problem no longer takes
+            loop, source = None, f"not available ({exc})"
+        d = dg.diagnose(loop) if loop is not None else None
+        rows.append({
+            "map": param, "by": f"{row['optimizer']} s{int(row['start'])}",
+            "cost": with_unit(float(row["best_cost"]), unit, 5),
+            "time": loop.time if loop is not None else "—",
+            "slowest Re s": fmt(d.slowest_real, 4) if d else "—",
+            "min damping": fmt(d.min_damping, 3) if d else "—",
+            "‖K‖₂": fmt(d.gain_norm, 4) if d else "—",
+            "cond K": fmt(d.gain_cond, 4) if d else "—",
+            "poles from": source,
+            "param": param, "slowest": d.slowest_real if d else np.nan,
+            "poles": d.poles if d else None, "loop": loop, "row": row})
+    return pd.DataFrame(rows)
+
+
+def matrix_block(name: str, M: Any, rows: tuple[str, ...] = (),
+                 cols: tuple[str, ...] = ()) -> list[str]:
+    """A matrix as an aligned, fenced text block, entries to :data:`DIGITS` significant
+    digits, with row and column names where given."""
+    M = np.atleast_2d(np.asarray(M, float))
+    cells = [[fmt(float(v), DIGITS) for v in r] for r in M]
+    head = list(cols) if len(cols) == M.shape[1] else []
+    left = list(rows) if len(rows) == M.shape[0] else [""] * M.shape[0]
+    width = max(len(c) for c in [*head, *(c for r in cells for c in r)])
+    lw = max(len(x) for x in left)
+    lines = [f"{name} =", "```"]
+    if head:
+        lines.append(" " * (lw + 1) + " ".join(h.rjust(width) for h in head))
+    lines += [(f"{lab.rjust(lw)} " if lw else "") + " ".join(c.rjust(width) for c in r)
+              for lab, r in zip(left, cells)]
+    return lines + ["```", ""]
+
+
+def bound_warnings(row: pd.Series, share: float = BOUND_SHARE) -> list[str]:
+    """Lines for the decision variables of a best start within ``share`` of the box width
+    of a bound (the box of its map: :func:`penaltyrun.runner.setup.build_layout`)."""
+    from penaltyrun.runner.setup import build_layout
+
+    z = row.get("best_z")
+    if z is None or protocol.module(row["problem"]) is None:
+        return []
+    layout = build_layout(_problem(row), row["param"],
+                          decode_json(row.get("param_options")) or {})
+    lb, ub = layout.bounds()
+    z = np.asarray(z, float)
+    if z.shape != lb.shape:
+        return []
+    names = list(row.get("z_names") if row.get("z_names") is not None else layout.names())
+    lines = []
+    for i in np.flatnonzero(np.isfinite(lb) & np.isfinite(ub)):
+        width = ub[i] - lb[i]
+        for bound, side in ((lb[i], "lower"), (ub[i], "upper")):
+            if abs(z[i] - bound) <= share * width:
+                lines.append(f"- ⚠ best {row['param']} ({row['optimizer']}): {names[i]} = "
+                             f"{z[i]:.6g} sits at its {side} bound {bound:g} (within "
+                             f"{100 * share:g} % of the box [{lb[i]:g}, {ub[i]:g}]) — the "
+                             "box may be too small.")
+    return lines
+
+
+def mode_warnings(table: pd.DataFrame, factor: float = SLOW_FACTOR) -> list[str]:
+    """Lines for loops not asymptotically stable at the target, and for full maps whose
+    slowest mode is ``factor`` or more times slower than the diagonal's."""
+    lines = []
+    slow = dict(zip(table["param"], table["slowest"]))
+    for param, s in slow.items():
+        if np.isfinite(s) and s >= 0:
+            lines.append(f"- ⚠ best {param}: its closed loop is not asymptotically stable at "
+                         f"the target (slowest Re s = {s:.4g}).")
+    diag = slow.get("diagonal", np.nan)
+    if not (np.isfinite(diag) and diag < 0):
+        return lines
+    for param, s in slow.items():
+        if param != "diagonal" and np.isfinite(s) and s < 0 and diag / s >= factor:
+            lines.append(f"- ⚠ best {param}: its slowest closed-loop mode (Re s = {s:.4g}) "
+                         f"is {diag / s:.3g}× slower than the best diagonal's ({diag:.4g}): "
+                         "starts that excite it settle slowly.")
+    return lines
+
+
+def _simulations(table: pd.DataFrame) -> dict[str, Any]:
+    sims = {}
+    for row in table["row"].iloc[:MAX_SIMULATED]:
+        try:
+            sims[f"{row['param']} ({row['optimizer']})"] = protocol.simulate(row)
+        except Exception as exc:  # one map's simulation must not lose the others
+            logger.warning("simulate of the best %s failed: %s", row["param"], exc)
+    return {k: v for k, v in sims.items() if v is not None}
+
+
+def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
+    """Markdown lines of one problem × case × variant's tuned controllers (figures saved
+    into ``out`` with names starting ``controller_<stem>``)."""
+    table = controller_rows(g)
+    if table.empty:
+        return []
+    title = f"{g.iloc[0]['problem']} / {g.iloc[0]['case']}"
+    lines = ["### Tuned controllers", "",
+             "The best converged start of each map (every optimizer). Poles s of the closed "
+             "loop linearized at the target, continuous-time (a discrete loop's z as "
+             "s = log z / dt), in 1 / time unit; damping ζ = −Re s / |s|; K the gain of "
+             "u = −K x (the gain block below).", "", markdown(table, COLUMNS), ""]
+    for _, r in table.iterrows():
+        row, loop = r["row"], r["loop"]
+        lines += [f"**{r['map']}** ({r['by']}):", ""]
+        for name, M in _matrices(row).items():
+            lines += matrix_block(name, M)
+        if loop is not None and loop.gain is not None:
+            lines += matrix_block("gain", loop.gain, loop.input_names, loop.state_names)
+    poles = {p: s for p, s in zip(table["param"], table["poles"]) if s is not None}
+    path = pole_map(poles, f"{title}: closed-loop poles of the best starts",
+                    out / f"controller_{stem}_poles.png")
+    if path is not None:
+        lines += [f"![closed-loop poles]({path.name})", ""]
+    sims = _simulations(table)
+    if sims:
+        path = channel_figure(sims, f"{title}: channels of the best starts",
+                              out / f"controller_{stem}_channels.png")
+        if path is not None:
+            lines += [f"![channels]({path.name})", ""]
+    warnings = [w for row in table["row"] for w in _safe(bound_warnings, row)]
+    warnings += mode_warnings(table)
+    if warnings:
+        lines += warnings + [""]
+    return lines
+
+
+def _safe(func: Any, row: pd.Series) -> list[str]:
+    try:
+        return func(row)
+    except Exception as exc:  # an old parameter set the problem no longer takes
+        logger.warning("%s of %s failed: %s", func.__name__, row.get("job_id"), exc)
+        return []
+
+
+def csv_rows(df: pd.DataFrame) -> pd.DataFrame:
+    """The ``controllers`` table: one row per problem × case × variant × map with the best
+    start's job id and its closed-loop diagnostics (numbers, not text)."""
+    rows = []
+    for (problem, case, variant), g in df.groupby(["problem", "case", "variant"], sort=True):
+        for _, r in controller_rows(g).iterrows():
+            loop = r["loop"]
+            d = dg.diagnose(loop) if loop is not None else None
+            rows.append({"problem": problem, "case": case, "variant": variant,
+                         "map": r["map"], "job_id": r["row"]["job_id"],
+                         "best_cost": float(r["row"]["best_cost"]),
+                         "time": loop.time if loop is not None else "",
+                         "slowest_real": d.slowest_real if d else np.nan,
+                         "min_damping": d.min_damping if d else np.nan,
+                         "gain_norm": d.gain_norm if d else np.nan,
+                         "gain_cond": d.gain_cond if d else np.nan,
+                         "poles_from": r["poles from"]})
+    return pd.DataFrame(rows)
+
+
+__all__ = ["BOUND_SHARE", "SLOW_FACTOR", "best_per_map", "bound_warnings", "controller_rows",
+           "csv_rows", "loop_of", "matrix_block", "mode_warnings", "section"]

@@ -102,7 +102,8 @@ def _limit_values(limit: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
 def channel_figure(sims: Mapping[str, Mapping[str, Any]], title: str,
                    path: Path) -> Path | None:
     """Every channel of the ``simulate`` dicts against time, one panel per history key
-    (the keys named in ``channels`` first), maps by line style, limits as dotted lines.
+    (the keys named in ``channels`` first): channels by colour (legend per panel), maps by
+    line style (legend on top), limits as dotted lines.
 
     Parameters
     ----------
@@ -121,22 +122,25 @@ def channel_figure(sims: Mapping[str, Mapping[str, Any]], title: str,
     keys = [k for k in keys if any(k in h for h in series.values())][:MAX_PANELS]
     if not keys:
         return None
-    fig, axes = plt.subplots(len(keys), 1, figsize=(8, 2.1 * len(keys) + 0.8), sharex=True,
+    from matplotlib.lines import Line2D
+
+    fig, axes = plt.subplots(len(keys), 1, figsize=(8, 2.1 * len(keys) + 1.0), sharex=True,
                              squeeze=False)
     for ax, key in zip(axes[:, 0], keys):
+        channels: dict[str, str] = {}
         drawn_limit = False
         for k, (label, hist) in enumerate(series.items()):
             if key not in hist:
                 continue
             sim = sims[label]
-            t = np.asarray(sim["t"], float)
             data = hist[key][:, :MAX_CHANNELS]
             names = list((sim.get("channels") or {}).get(key, []))
             for j in range(data.shape[1]):
                 name = names[j] if j < len(names) else (f"{key}[{j}]" if data.shape[1] > 1
                                                         else key)
-                ax.plot(t, data[:, j], STYLES[k % len(STYLES)], color=f"C{j % 10}",
-                        label=f"{name} — {label}")
+                channels.setdefault(name, f"C{j % 10}")
+                ax.plot(np.asarray(sim["t"], float), data[:, j], STYLES[k % len(STYLES)],
+                        color=f"C{j % 10}")
             limit = (sim.get("limits") or {}).get(key)
             if limit is not None and not drawn_limit:
                 lo, hi = _limit_values(limit, hist[key].shape[1])
@@ -146,9 +150,13 @@ def channel_figure(sims: Mapping[str, Mapping[str, Any]], title: str,
                     drawn_limit = True
         ax.set_ylabel(key + (" (limits dotted)" if drawn_limit else ""))
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=2, loc="best")
+        ax.legend([Line2D([], [], color=c) for c in channels.values()], list(channels),
+                  fontsize=8, ncol=min(len(channels), 6), loc="best")
     axes[-1, 0].set_xlabel("t (time unit of the problem)")
-    fig.suptitle(title)
+    maps = [Line2D([], [], color="k", ls=STYLES[k % len(STYLES)]) for k in range(len(series))]
+    fig.legend(maps, list(series), loc="upper center", ncol=min(len(series), 4), fontsize=9,
+               bbox_to_anchor=(0.5, 0.965), frameon=False)
+    fig.suptitle(title, y=0.995)
     return save_figure(fig, path)
 
 

@@ -12,7 +12,8 @@ lowest cost over every optimizer (the baseline left out) is shown with
 * a pole map (every map overlaid) and the per-channel histories of ``simulate`` with the
   limits the problem declares;
 * a warning when a decision variable (eigenvalue, angle or scalar) of a best start sits
-  within :data:`BOUND_SHARE` of the box width of a bound of its map's box, and when a full
+  within :data:`BOUND_SHARE` of the box width of a bound of its map's box (the width of a
+  positive box spanning :data:`LOG_SPAN` or more in log scale), and when a full
   map's slowest closed-loop mode is :data:`SLOW_FACTOR` or more times slower than the
   diagonal's (or a loop is not asymptotically stable at the target).
 
@@ -41,12 +42,17 @@ logger = logging.getLogger(__name__)
 
 #: Share of a box's width within which a decision variable is "at" its bound.
 BOUND_SHARE = 0.01
+#: A positive box whose upper bound is at least this multiple of its lower bound (an
+#: eigenvalue box over decades) is measured in log scale by the bound warning.
+LOG_SPAN = 10.0
 #: A full map's slowest mode this many times slower than the diagonal's is warned about.
 SLOW_FACTOR = 3.0
 #: Most maps whose histories are simulated and drawn per cell (diagonal first).
 MAX_SIMULATED = 4
 #: Significant digits of the matrices shown.
 DIGITS = 4
+#: Entries of a shown matrix below this share of its largest entry are round-off: shown 0.
+ROUNDOFF = 1e-12
 COLUMNS = ["map", "by", "cost", "time", "slowest Re s", "min damping", "‖K‖₂", "cond K",
            "poles from"]
 
@@ -115,8 +121,10 @@ def controller_rows(g: pd.DataFrame) -> pd.DataFrame:
 def matrix_block(name: str, M: Any, rows: tuple[str, ...] = (),
                  cols: tuple[str, ...] = ()) -> list[str]:
     """A matrix as an aligned, fenced text block, entries to :data:`DIGITS` significant
-    digits, with row and column names where given."""
+    digits (entries below :data:`ROUNDOFF` times the largest shown as 0), with row and
+    column names where given."""
     M = np.atleast_2d(np.asarray(M, float))
+    M = np.where(np.abs(M) <= ROUNDOFF * np.max(np.abs(M), initial=0.0), 0.0, M)
     cells = [[fmt(float(v), DIGITS) for v in r] for r in M]
     head = list(cols) if len(cols) == M.shape[1] else []
     left = list(rows) if len(rows) == M.shape[0] else [""] * M.shape[0]
@@ -131,8 +139,9 @@ def matrix_block(name: str, M: Any, rows: tuple[str, ...] = (),
 
 
 def bound_warnings(row: pd.Series, share: float = BOUND_SHARE) -> list[str]:
-    """Lines for the decision variables of a best start within ``share`` of the box width
-    of a bound (the box of its map: :func:`penaltyrun.runner.setup.build_layout`)."""
+    """One line naming the decision variables of a best start within ``share`` of the box
+    width of a bound (the box of its map: :func:`penaltyrun.runner.setup.build_layout`);
+    none when no variable is there."""
     from penaltyrun.runner.setup import build_layout
 
     z = row.get("best_z")
@@ -145,16 +154,20 @@ def bound_warnings(row: pd.Series, share: float = BOUND_SHARE) -> list[str]:
     if z.shape != lb.shape:
         return []
     names = list(row.get("z_names") if row.get("z_names") is not None else layout.names())
-    lines = []
+    hits = []
     for i in np.flatnonzero(np.isfinite(lb) & np.isfinite(ub)):
-        width = ub[i] - lb[i]
-        for bound, side in ((lb[i], "lower"), (ub[i], "upper")):
-            if abs(z[i] - bound) <= share * width:
-                lines.append(f"- ⚠ best {row['param']} ({row['optimizer']}): {names[i]} = "
-                             f"{z[i]:.6g} sits at its {side} bound {bound:g} (within "
-                             f"{100 * share:g} % of the box [{lb[i]:g}, {ub[i]:g}]) — the "
-                             "box may be too small.")
-    return lines
+        log = lb[i] > 0 and ub[i] >= LOG_SPAN * lb[i]
+        pos = np.log(max(z[i], lb[i])) if log else z[i]
+        lo, hi = (np.log(lb[i]), np.log(ub[i])) if log else (lb[i], ub[i])
+        for bound, edge, side in ((lb[i], lo, "lower"), (ub[i], hi, "upper")):
+            if abs(pos - edge) <= share * (hi - lo):
+                hits.append(f"{names[i]} = {z[i]:.6g} at its {side} bound {bound:.6g} "
+                            f"(box [{lb[i]:.6g}, {ub[i]:.6g}])")
+    if not hits:
+        return []
+    return [f"- ⚠ best {row['param']} ({row['optimizer']}): {'; '.join(hits)} — within "
+            f"{100 * share:g} % of the box width (in log scale for a box spanning "
+            f"{LOG_SPAN:g}× or more); the box may be too small."]
 
 
 def mode_warnings(table: pd.DataFrame, factor: float = SLOW_FACTOR) -> list[str]:

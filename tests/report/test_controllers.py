@@ -59,7 +59,9 @@ def test_report_section_shows_matrices_gain_poles_channels_and_bound_warning(rep
                    "**diagonal** (pso", "**full** (pso", "K =\n```", "gain =\n```",
                    "![closed-loop poles](controller_zermelo_default_poles.png)",
                    "![channels](controller_zermelo_default_channels.png)",
-                   "sits at its lower bound 2 (within 1 % of the box [2, 10])"):
+                   "at its lower bound 2 (box [2, 10])",
+                   "within 1 % of the box width (in log scale for a box spanning 10× or "
+                   "more); the box may be too small."):
         assert needle in section, needle
     assert "K.lam1 = 2" in section  # the forced diagonal entry, named as the layout names it
     for name in ("controller_zermelo_default_poles.png", "controller_zermelo_default_channels.png"):
@@ -95,6 +97,18 @@ def test_bound_warning_within_one_percent_of_the_box_width(run):
     z[0] = 2.0 + 0.02 * 8.0  # 2 % of the width: not at the bound
     row["best_z"] = z.copy()
     assert not any("K.lam1" in w for w in controllers.bound_warnings(row))
+
+
+def test_bound_warning_in_log_scale_for_an_eigenvalue_box_over_decades(run):
+    df = add_variant(read_results(run))
+    row = df[df["param"] == "diagonal"].iloc[0].copy()
+    row["param_options"] = '{"eig_bounds": [0.001, 10.0]}'
+    row["best_z"] = np.array([0.0036, 9.95])  # 3.6× the lower bound; 0.5 ‰ below the upper
+    lines = controllers.bound_warnings(row)
+    assert len(lines) == 1 and "K.lam2 = 9.95 at its upper bound 10" in lines[0]
+    assert "K.lam1" not in lines[0]
+    row["best_z"] = np.array([0.00109, 5.0])  # log distance 0.086 < 1 % of log(1e4) = 0.092
+    assert "K.lam1 = 0.00109 at its lower bound 0.001" in controllers.bound_warnings(row)[0]
 
 
 def test_mode_warnings():

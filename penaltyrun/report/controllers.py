@@ -214,11 +214,14 @@ def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
              "u = −K x (the gain block below).", "", markdown(table, COLUMNS), ""]
     for _, r in table.iterrows():
         row, loop = r["row"], r["loop"]
-        lines += [f"**{r['map']}** ({r['by']}):", ""]
+        has_gain = loop is not None and loop.gain is not None
+        lines += [f"<details><summary>best {r['map']} ({r['by']}): matrices"
+                  f"{' and gain' if has_gain else ''}</summary>", ""]
         for name, M in _matrices(row).items():
             lines += matrix_block(name, M)
-        if loop is not None and loop.gain is not None:
+        if has_gain:
             lines += matrix_block("gain", loop.gain, loop.input_names, loop.state_names)
+        lines += ["</details>", ""]
     poles = {p: s for p, s in zip(table["param"], table["poles"]) if s is not None}
     path = pole_map(poles, f"{title}: closed-loop poles of the best starts",
                     out / f"controller_{stem}_poles.png")

@@ -2,8 +2,9 @@
 network access), from the Markdown the report writes.
 
 Only the Markdown the report itself produces is converted: headings, paragraphs, ``- ``
-lists, pipe tables, images, ``**bold**`` and ```code```. Tables sort by a click on a column
-header (a few lines of inline JavaScript).
+lists, pipe tables, images, ``**bold**``, ```code```, fenced code blocks (kept as
+preformatted text) and folds (lines starting ``<details>`` or ``</details>``, kept as they
+are). Tables sort by a click on a column header (a few lines of inline JavaScript).
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ th{background:#eef;cursor:pointer;user-select:none;position:sticky;top:0}
 tr:nth-child(even) td{background:#f8f8f8}
 img{max-width:100%;height:auto;margin:0.5em 0;border:1px solid #eee}
 code{background:#f2f2f2;padding:0 0.2em}
+pre{background:#f6f6f6;padding:0.5em;overflow-x:auto;font-size:0.85em}
+summary{cursor:pointer;margin:0.4em 0}
 li{margin:0.3em 0}
 """
 SCRIPT = """
@@ -39,6 +42,8 @@ document.querySelectorAll('table').forEach(function(t){
 """
 
 _IMAGE = re.compile(r"^!\[([^\]]*)\]\(([^)]+)\)$")
+#: Lines of a fold, passed through as HTML.
+FOLD_LINES = ("<details>", "</details>")
 
 
 def inline(text: str) -> str:
@@ -76,6 +81,17 @@ def to_html(markdown: str, folder: Path) -> str:
             level = len(line) - len(line.lstrip("#"))
             parts.append(f"<h{level}>{inline(line[level:].strip())}</h{level}>")
             i += 1
+        elif line.startswith("```"):
+            block = []
+            i += 1
+            while i < len(lines) and not lines[i].startswith("```"):
+                block.append(lines[i])
+                i += 1
+            parts.append("<pre>" + html.escape("\n".join(block), quote=False) + "</pre>")
+            i += 1
+        elif line.startswith(FOLD_LINES):
+            parts.append(line)
+            i += 1
         elif line.startswith("|"):
             block = []
             while i < len(lines) and lines[i].startswith("|"):
@@ -98,7 +114,7 @@ def to_html(markdown: str, folder: Path) -> str:
         else:
             para = []
             while i < len(lines) and lines[i].strip() and not lines[i].startswith(
-                    ("#", "|", "- ", "![")):
+                    ("#", "|", "- ", "![", "```") + FOLD_LINES):
                 para.append(lines[i])
                 i += 1
             parts.append(f"<p>{inline(' '.join(para))}</p>")

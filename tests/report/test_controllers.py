@@ -56,7 +56,8 @@ def test_report_section_shows_matrices_gain_poles_channels_and_bound_warning(rep
     section = text[text.index("### Tuned controllers"):]
     section = section[:section.index("\n## ")]
     for needle in ("| map | by | cost | time | slowest Re s | min damping | ‖K‖₂ | cond K |",
-                   "**diagonal** (pso", "**full** (pso", "K =\n```", "gain =\n```",
+                   "<details><summary>best diagonal (pso s", "K =\n```", "gain =\n```",
+                   "<details><summary>best full (pso s", "matrices and gain</summary>",
                    "![closed-loop poles](controller_zermelo_default_poles.png)",
                    "![channels](controller_zermelo_default_channels.png)",
                    "at its lower bound 2 (box [2, 10])",
@@ -66,6 +67,9 @@ def test_report_section_shows_matrices_gain_poles_channels_and_bound_warning(rep
     assert "K.lam1 = 2" in section  # the forced diagonal entry, named as the layout names it
     for name in ("controller_zermelo_default_poles.png", "controller_zermelo_default_channels.png"):
         assert (report / name).stat().st_size > 0
+    page = (report / "report.html").read_text(encoding="utf-8")
+    assert "<details><summary>best full (pso s" in page and "</details>" in page
+    assert page.count("<pre>") == section.count("```") // 2
     table = pd.read_csv(report / "controllers.csv")
     assert list(table["map"]) == ["diagonal", "full"]
     assert (table["poles_from"] == "stored").all() and (table["slowest_real"] <= -2.0).all()

@@ -68,6 +68,25 @@ def test_lqr_closed_loop_is_a_minus_bk_with_python_control_gain(seed):
     check_columns(loop, A - B @ np.asarray(K), np.asarray(K))
 
 
+def test_lqr_closed_loop_of_a_sampled_plant_uses_the_dlqr_gain():
+    """A plant with a sample time dt > 0 (python-control's convention) gives the discrete
+    loop x_{k+1} = (A − B K) x_k with python-control's ``dlqr`` gain."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(11)
+    A = np.array([[1.0, 0.1], [0.0, 1.0]])
+    B = np.array([[0.005], [0.1]])
+    prob = problems.make("lqr", "default", {"A": A.tolist(), "B": B.tolist(),
+                                            "x0": [[1.0, 0.0]]})
+    prob.plant = SimpleNamespace(A=A, B=B, dt=0.1, n_states=2, n_inputs=1)
+    Q, R = spd(rng, 2), spd(rng, 1)
+    K, _, _ = control.dlqr(A, B, Q, R)
+    loop = prob.closed_loop({"Q": Q, "R": R})
+    assert loop.time == "discrete" and loop.dt == 0.1
+    np.testing.assert_allclose(loop.gain, K, rtol=1e-9)
+    check_columns(loop, A - B @ np.asarray(K), np.asarray(K))
+
+
 def attitude_fd_closed_loop(prob, G):
     """Jacobian of the nonlinear closed loop in x = (q_v, ω) at the target by central
     differences of the plain-numpy right-hand side (q0 = √(1 − ‖q_v‖²))."""

@@ -292,17 +292,33 @@ class LQRProblem:
 
     def closed_loop(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
                     ) -> ClosedLoop | None:
-        """The closed loop ẋ = (A − B K) x of one (Q, R) on the linear model (the plant's
-        Jacobians at the origin for a nonlinear ``dynamics``), K the LQR gain; None when
-        the Riccati equation has no stabilizing solution. Input limits are inactive at the
-        origin, so they do not enter."""
+        """The closed loop of one (Q, R) on the linear model (the plant's Jacobians at the
+        origin for a nonlinear ``dynamics``): ẋ = (A − B K) x with the continuous LQR gain,
+        or, for a plant with a sample time ``dt`` > 0, x_{k+1} = (A − B K) x_k with the
+        discrete one K = (R + BᵀPB)⁻¹BᵀPA (P from the discrete Riccati equation). None
+        when the Riccati equation has no stabilizing solution. Input limits are inactive
+        at the origin, so they do not enter."""
         Q, R = self._check(mats)
-        K, ok, _ = lqr_gains(self.plant.A, self.plant.B, Q[None], R[None])
+        A, B = self.plant.A, self.plant.B
+        states, inputs = self.channel_names()
+        dt = getattr(self.plant, "dt", None)
+        if dt:
+            from scipy.linalg import solve_discrete_are
+
+            try:
+                P = solve_discrete_are(A, B, Q, R)
+            except (np.linalg.LinAlgError, ValueError):
+                return None
+            K = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+            if not np.all(np.abs(np.linalg.eigvals(A - B @ K)) < 1.0):
+                return None
+            return ClosedLoop(A - B @ K, "discrete", dt=float(dt), gain=K,
+                              state_names=states, input_names=inputs)
+        K, ok, _ = lqr_gains(A, B, Q[None], R[None])
         if not ok[0]:
             return None
-        states, inputs = self.channel_names()
-        return ClosedLoop(self.plant.A - self.plant.B @ K[0], "continuous", gain=K[0],
-                          state_names=states, input_names=inputs)
+        return ClosedLoop(A - B @ K[0], "continuous", gain=K[0], state_names=states,
+                          input_names=inputs)
 
     # -- scenarios --------------------------------------------------------------------------
     def training_scenario(self) -> dict[str, Any]:

@@ -12,8 +12,8 @@ lowest cost over every optimizer (the baseline left out) is shown with
 * a pole map (every map overlaid) and the per-channel histories of ``simulate`` with the
   limits the problem declares;
 * a warning when a decision variable (eigenvalue, angle or scalar) of a best start sits
-  within :data:`BOUND_SHARE` of the box width of a bound of its map's box (the width of a
-  positive box spanning :data:`LOG_SPAN` or more in log scale), and when a full
+  within :data:`BOUND_SHARE` of the box width of a bound of its map's box (see
+  :func:`bound_warnings`), and when a full
   map's slowest closed-loop mode is :data:`SLOW_FACTOR` or more times slower than the
   diagonal's (or a loop is not asymptotically stable at the target).
 
@@ -141,7 +141,13 @@ def matrix_block(name: str, M: Any, rows: tuple[str, ...] = (),
 def bound_warnings(row: pd.Series, share: float = BOUND_SHARE) -> list[str]:
     """One line naming the decision variables of a best start within ``share`` of the box
     width of a bound (the box of its map: :func:`penaltyrun.runner.setup.build_layout`);
-    none when no variable is there."""
+    none when no variable is there.
+
+    A positive box spanning :data:`LOG_SPAN` or more (an eigenvalue box over decades) must
+    also be within ``share`` of its width in log scale, so 0.0036 in [0.001, 10] is not
+    "at" 0.001 and 86 in [1e-8, 100] is not "at" 100. An angle whose box spans a full turn
+    (2π) is periodic and never warned about.
+    """
     from penaltyrun.runner.setup import build_layout
 
     z = row.get("best_z")
@@ -156,17 +162,20 @@ def bound_warnings(row: pd.Series, share: float = BOUND_SHARE) -> list[str]:
     names = list(row.get("z_names") if row.get("z_names") is not None else layout.names())
     hits = []
     for i in np.flatnonzero(np.isfinite(lb) & np.isfinite(ub)):
+        if ".ang" in names[i] and ub[i] - lb[i] >= 2.0 * np.pi - 1e-9:
+            continue  # a full turn: the rotation is periodic, its bounds constrain nothing
         log = lb[i] > 0 and ub[i] >= LOG_SPAN * lb[i]
-        pos = np.log(max(z[i], lb[i])) if log else z[i]
-        lo, hi = (np.log(lb[i]), np.log(ub[i])) if log else (lb[i], ub[i])
-        for bound, edge, side in ((lb[i], lo, "lower"), (ub[i], hi, "upper")):
-            if abs(pos - edge) <= share * (hi - lo):
+        for bound, side in ((lb[i], "lower"), (ub[i], "upper")):
+            near = abs(z[i] - bound) <= share * (ub[i] - lb[i])
+            if near and log:
+                near = abs(np.log(max(z[i], lb[i]) / bound)) <= share * np.log(ub[i] / lb[i])
+            if near:
                 hits.append(f"{names[i]} = {z[i]:.6g} at its {side} bound {bound:.6g} "
                             f"(box [{lb[i]:.6g}, {ub[i]:.6g}])")
     if not hits:
         return []
     return [f"- ⚠ best {row['param']} ({row['optimizer']}): {'; '.join(hits)} — within "
-            f"{100 * share:g} % of the box width (in log scale for a box spanning "
+            f"{100 * share:g} % of the box width (and in log scale for a box spanning "
             f"{LOG_SPAN:g}× or more); the box may be too small."]
 
 
@@ -207,11 +216,17 @@ def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
     if table.empty:
         return []
     title = f"{g.iloc[0]['problem']} / {g.iloc[0]['case']}"
-    lines = ["### Tuned controllers", "",
-             "The best converged start of each map (every optimizer). Poles s of the closed "
-             "loop linearized at the target, continuous-time (a discrete loop's z as "
-             "s = log z / dt), in 1 / time unit; damping ζ = −Re s / |s|; K the gain of "
-             "u = −K x (the gain block below).", "", markdown(table, COLUMNS), ""]
+    lines = ["### Tuned controllers", ""]
+    if table["loop"].notna().any():
+        lines += ["The best converged start of each map (every optimizer). Poles s of the "
+                  "closed loop linearized at the target, continuous-time (a discrete loop's "
+                  "z as s = log z / dt), in 1 / time unit; damping ζ = −Re s / |s|; K the "
+                  "gain of u = −K x (the gain block below).", "", markdown(table, COLUMNS),
+                  ""]
+    else:
+        lines += ["The best converged start of each map (every optimizer); no closed-loop "
+                  "poles: " + ", ".join(sorted(set(table["poles from"]))) + ".", "",
+                  markdown(table, ["map", "by", "cost"]), ""]
     for _, r in table.iterrows():
         row, loop = r["row"], r["loop"]
         has_gain = loop is not None and loop.gain is not None

@@ -61,7 +61,7 @@ def test_report_section_shows_matrices_gain_poles_channels_and_bound_warning(rep
                    "![closed-loop poles](controller_zermelo_default_poles.png)",
                    "![channels](controller_zermelo_default_channels.png)",
                    "at its lower bound 2 (box [2, 10])",
-                   "within 1 % of the box width (in log scale for a box spanning 10× or "
+                   "within 1 % of the box width (and in log scale for a box spanning 10× or "
                    "more); the box may be too small."):
         assert needle in section, needle
     assert "K.lam1 = 2" in section  # the forced diagonal entry, named as the layout names it
@@ -113,6 +113,24 @@ def test_bound_warning_in_log_scale_for_an_eigenvalue_box_over_decades(run):
     assert "K.lam1" not in lines[0]
     row["best_z"] = np.array([0.00109, 5.0])  # log distance 0.086 < 1 % of log(1e4) = 0.092
     assert "K.lam1 = 0.00109 at its lower bound 0.001" in controllers.bound_warnings(row)[0]
+    row["param_options"] = '{"eig_bounds": [1e-8, 100.0]}'
+    row["best_z"] = np.array([1.1e-8, 86.0])  # 86 is 14 % of the width below 100: not at it
+    lines = controllers.bound_warnings(row)
+    assert len(lines) == 1 and "K.lam1 = 1.1e-08 at its lower bound 1e-08" in lines[0]
+    assert "K.lam2" not in lines[0]
+
+
+def test_no_bound_warning_for_a_full_turn_angle(run):
+    df = add_variant(read_results(run))
+    row = df[df["param"] == "full"].iloc[0].copy()
+    z = np.array(row["best_z"], float)
+    z[:2] = [5.0, 6.0]
+    for name, lo in (("givens", -np.pi), ("cayley_tan", -1.5608)):
+        row["param"] = name
+        z[2] = lo + 1e-4
+        row["best_z"] = z.copy()
+        lines = controllers.bound_warnings(row)
+        assert bool(lines) == (name == "cayley_tan"), (name, lines)
 
 
 def test_mode_warnings():

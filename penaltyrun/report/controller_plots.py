@@ -150,13 +150,14 @@ def channel_figure(sims: Mapping[str, Mapping[str, Any]], title: str,
                     drawn_limit = True
         ax.set_ylabel(key + (" (limits dotted)" if drawn_limit else ""))
         ax.grid(alpha=0.3)
-        ax.legend([Line2D([], [], color=c) for c in channels.values()], list(channels),
-                  fontsize=8, ncol=min(len(channels), 6), loc="best")
+        ax.add_artist(ax.legend([Line2D([], [], color=c) for c in channels.values()],
+                                list(channels), fontsize=8, ncol=min(len(channels), 6),
+                                loc="best"))
     axes[-1, 0].set_xlabel("t (time unit of the problem)")
     maps = [Line2D([], [], color="k", ls=STYLES[k % len(STYLES)]) for k in range(len(series))]
-    fig.legend(maps, list(series), loc="upper center", ncol=min(len(series), 4), fontsize=9,
-               bbox_to_anchor=(0.5, 0.965), frameon=False)
-    fig.suptitle(title, y=0.995)
+    axes[0, 0].legend(maps, list(series), loc="lower center", bbox_to_anchor=(0.5, 1.0),
+                      ncol=min(len(series), 4), fontsize=9, frameon=False)
+    fig.suptitle(title)
     return save_figure(fig, path)
 
 

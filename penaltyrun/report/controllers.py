@@ -4,8 +4,8 @@ its channels over time, and plain warnings.
 Per problem × case × variant, for each map (parameterization) the converged start with the
 lowest cost over every optimizer (the baseline left out) is shown with
 
-* its matrices and its gain (u = −K x, where the problem's ``closed_loop`` hook gives one),
-  rounded to four significant digits;
+* its matrices, its gain (u = −K x, where the problem's ``closed_loop`` hook gives one) and
+  its closed-loop poles, to four significant digits, behind a fold;
 * a table of its closed-loop diagnostics (:mod:`penaltyrun.problems.diagnostics`): slowest
   real part, smallest damping ratio, ‖K‖₂ and cond(K) — from the stored columns, or, for
   results of an older schema, computed here from the stored matrices;
@@ -138,6 +138,27 @@ def matrix_block(name: str, M: Any, rows: tuple[str, ...] = (),
     return lines + ["```", ""]
 
 
+def _complex_text(values: np.ndarray) -> str:
+    """``a ± bj`` per conjugate pair (one member shown), ``a`` per real value."""
+    out = []
+    for v in values:
+        if v.imag < 0 and np.any(np.isclose(values, np.conj(v), rtol=1e-9, atol=0.0)):
+            continue  # the pair is shown with its positive member
+        re = fmt(float(v.real), DIGITS)
+        out.append(f"{re} ± {fmt(float(v.imag), DIGITS)}j" if v.imag > 0 else re)
+    return ", ".join(out)
+
+
+def pole_line(loop: ClosedLoop) -> str:
+    """The closed-loop poles of a loop as one line, slowest first (continuous s; a
+    discrete loop also its z)."""
+    d = dg.diagnose(loop)
+    text = f"Closed-loop poles s (1 / time unit, slowest first): {_complex_text(d.poles)}."
+    if loop.time == "discrete":
+        text += f" As z (sample time {fmt(loop.dt, DIGITS)}): {_complex_text(d.eigenvalues)}."
+    return text
+
+
 def bound_warnings(row: pd.Series, share: float = BOUND_SHARE) -> list[str]:
     """One line naming the decision variables of a best start within ``share`` of the box
     width of a bound (the box of its map: :func:`penaltyrun.runner.setup.build_layout`);
@@ -236,6 +257,8 @@ def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
             lines += matrix_block(name, M)
         if has_gain:
             lines += matrix_block("gain", loop.gain, loop.input_names, loop.state_names)
+        if loop is not None:
+            lines += [pole_line(loop), ""]
         lines += ["</details>", ""]
     poles = {p: s for p, s in zip(table["param"], table["poles"]) if s is not None}
     path = pole_map(poles, f"{title}: closed-loop poles of the best starts",
@@ -284,4 +307,4 @@ def csv_rows(df: pd.DataFrame) -> pd.DataFrame:
 
 
 __all__ = ["BOUND_SHARE", "SLOW_FACTOR", "best_per_map", "bound_warnings", "controller_rows",
-           "csv_rows", "loop_of", "matrix_block", "mode_warnings", "section"]
+           "csv_rows", "loop_of", "matrix_block", "mode_warnings", "pole_line", "section"]

@@ -58,6 +58,7 @@ def test_report_section_shows_matrices_gain_poles_channels_and_bound_warning(rep
     for needle in ("| map | by | cost | time | slowest Re s | min damping | ‖K‖₂ | cond K |",
                    "<details><summary>best diagonal (pso s", "K =\n```", "gain =\n```",
                    "<details><summary>best full (pso s", "matrices and gain</summary>",
+                   "Closed-loop poles s (1 / time unit, slowest first): -",
                    "![closed-loop poles](controller_zermelo_default_poles.png)",
                    "![channels](controller_zermelo_default_channels.png)",
                    "at its lower bound 2 (box [2, 10])",
@@ -141,6 +142,21 @@ def test_mode_warnings():
     assert "best givens: its closed loop is not asymptotically stable" in lines[0]
     assert "best geagsp" in lines[1] and "10.9× slower than the best diagonal's" in lines[1]
     assert controllers.mode_warnings(table[table["param"] != "diagonal"]) == [lines[0]]
+
+
+def test_pole_line_lists_each_conjugate_pair_once():
+    from penaltyrun.problems.base import ClosedLoop
+
+    wn, zeta = 2.0, 0.3
+    A = np.zeros((3, 3))
+    A[:2, :2] = [[0.0, 1.0], [-wn ** 2, -2 * zeta * wn]]
+    A[2, 2] = -0.05
+    line = controllers.pole_line(ClosedLoop(A))
+    assert line == ("Closed-loop poles s (1 / time unit, slowest first): -0.05, "
+                    "-0.6 ± 1.908j.")
+    line = controllers.pole_line(ClosedLoop(np.diag([0.5, 0.9]), "discrete", dt=2.0))
+    assert line.endswith("As z (sample time 2): 0.9, 0.5.")
+    assert "-0.05268, -0.3466" in line
 
 
 def test_matrix_block_is_aligned_and_rounded():

@@ -102,7 +102,8 @@ def controller_rows(g: pd.DataFrame) -> pd.DataFrame:
         try:
             loop, source = loop_of(row)
         except Exception as exc:  # an old parameter set the problem no longer takes
-            loop, source = None, f"not available ({exc})"
+            logger.warning("closed loop of %s not available: %s", row.get("job_id"), exc)
+            loop, source = None, f"not available ({type(exc).__name__})"
         d = dg.diagnose(loop) if loop is not None else None
         rows.append({
             "map": param, "by": f"{row['optimizer']} s{int(row['start'])}",

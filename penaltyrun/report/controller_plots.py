@@ -161,4 +161,42 @@ def channel_figure(sims: Mapping[str, Mapping[str, Any]], title: str,
     return save_figure(fig, path)
 
 
-__all__ = ["channel_figure", "pole_map"]
+def cost_mode_scatter(modes: Any, title: str, path: Path, cost_label: str = "cost"
+                      ) -> Path | None:
+    """Every start's cost against its slowest closed-loop real part, one colour per map
+    (the diagonal first, as in :func:`pole_map`).
+
+    Parameters
+    ----------
+    modes : DataFrame
+        Columns ``param``, ``cost``, ``slowest`` (max Re s, 1 / time unit).
+    title : str
+    path : Path
+    cost_label : str
+        Label of the cost axis (name and unit).
+
+    Returns
+    -------
+    Path or None
+        ``path``, or None when no start has a finite slowest mode.
+    """
+    finite = modes[np.isfinite(modes["slowest"].to_numpy(float))]
+    if finite.empty:
+        return None
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    params = sorted(set(finite["param"]), key=lambda p: (p != "diagonal", p))
+    for k, param in enumerate(params):
+        m = finite[finite["param"] == param]
+        ax.scatter(m["slowest"], m["cost"], s=24, color=f"C{k}", marker=MARKERS[k % 6],
+                   alpha=0.8, label=f"{param} ({len(m)})")
+    ax.set_xlabel("slowest closed-loop real part max Re s (1 / time unit)")
+    ax.set_ylabel(cost_label)
+    if (finite["cost"] > 0).all() and finite["cost"].max() > 10 * finite["cost"].min():
+        ax.set_yscale("log")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, title="map (converged starts)", title_fontsize=8)
+    return save_figure(fig, path)
+
+
+__all__ = ["channel_figure", "cost_mode_scatter", "pole_map"]

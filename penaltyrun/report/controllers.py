@@ -9,8 +9,9 @@ lowest cost over every optimizer (the baseline left out) is shown with
 * a table of its closed-loop diagnostics (:mod:`penaltyrun.problems.diagnostics`): slowest
   real part, smallest damping ratio, ‖K‖₂ and cond(K) — from the stored columns, or, for
   results of an older schema, computed here from the stored matrices;
-* a pole map (every map overlaid) and the per-channel histories of ``simulate`` with the
-  limits the problem declares;
+* a pole map (every map overlaid), the per-channel histories of ``simulate`` with the
+  limits the problem declares, and every converged start's cost against its slowest mode
+  (with Spearman's ρ per map);
 * a warning when a decision variable (eigenvalue, angle or scalar) of a best start sits
   within :data:`BOUND_SHARE` of the box width of a bound of its map's box (see
   :func:`bound_warnings`), and when a full
@@ -34,7 +35,7 @@ from penaltyrun.io import decode_json
 from penaltyrun.problems import diagnostics as dg
 from penaltyrun.problems.base import ClosedLoop
 from penaltyrun.report import protocol
-from penaltyrun.report.controller_plots import channel_figure, pole_map
+from penaltyrun.report.controller_plots import channel_figure, cost_mode_scatter, pole_map
 from penaltyrun.report.stats import converged
 from penaltyrun.report.tables import fmt, markdown, with_unit
 
@@ -76,17 +77,17 @@ def _matrices(row: pd.Series) -> dict[str, np.ndarray]:
     return {k: np.asarray(v, float) for k, v in (decode_json(row.get("matrices")) or {}).items()}
 
 
-def loop_of(row: pd.Series) -> tuple[ClosedLoop | None, str]:
+def loop_of(row: pd.Series, prob: Any = None) -> tuple[ClosedLoop | None, str]:
     """The closed loop of a job's best candidate and where it came from: the stored
-    ``closed_loop`` column, or the problem's hook on the stored matrices (older results);
-    (None, reason) when there is none."""
+    ``closed_loop`` column, or the problem's hook on the stored matrices (older results;
+    ``prob``: the job's problem when already built); (None, reason) when there is none."""
     stored = decode_json(row.get("closed_loop")) if isinstance(row.get("closed_loop"), str) \
         else None
     if stored:
         return dg.loop_from_json(stored), "stored"
     if protocol.module(row["problem"]) is None:
         return None, "problem module not importable"
-    prob = _problem(row)
+    prob = _problem(row) if prob is None else prob
     if not hasattr(prob, "closed_loop"):
         return None, "no linearization"
     loop = dg.closed_loop_of(prob, _matrices(row), decode_json(row.get("scalars")) or None)
@@ -272,11 +273,57 @@ def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
                               out / f"controller_{stem}_channels.png")
         if path is not None:
             lines += [f"![channels]({path.name})", ""]
+    modes = start_modes(g)
+    path = cost_mode_scatter(modes, f"{title}: cost against the slowest closed-loop mode",
+                             out / f"controller_{stem}_cost_vs_mode.png",
+                             protocol.info_of(g).cost_label)
+    if path is not None:
+        lines += [f"![cost against the slowest mode]({path.name})", ""] + mode_lines(modes)
     warnings = [w for row in table["row"] for w in _safe(bound_warnings, row)]
     warnings += mode_warnings(table)
     if warnings:
         lines += warnings + [""]
     return lines
+
+
+def start_modes(g: pd.DataFrame) -> pd.DataFrame:
+    """``param``, ``cost`` and ``slowest`` (max Re s) of every converged start of ``g`` (the
+    baseline excluded): the stored column, else from the stored matrices (NaN without a
+    closed loop)."""
+    ok = g[converged(g) & (g["optimizer"] != "baseline")]
+    built: dict[tuple[str, str, str], Any] = {}
+    rows = []
+    for _, row in ok.iterrows():
+        slowest = row.get("cl_slowest_real")
+        if slowest is None or not np.isfinite(float(slowest)):
+            key = (str(row["problem"]), str(row["case"]), str(row.get("problem_params")))
+            try:
+                if key not in built:
+                    built[key] = _problem(row)
+                loop, _ = loop_of(row, built[key])
+            except Exception:  # counted as no closed loop; controller_rows logs the reason
+                loop = None
+            slowest = dg.diagnose(loop).slowest_real if loop is not None else np.nan
+        rows.append({"param": str(row["param"]), "cost": float(row["best_cost"]),
+                     "slowest": float(slowest)})
+    return pd.DataFrame(rows, columns=["param", "cost", "slowest"])
+
+
+def mode_lines(modes: pd.DataFrame) -> list[str]:
+    """One line with Spearman's ρ between cost and the slowest mode's decay rate per map
+    (maps with at least 3 starts that have a closed loop)."""
+    from scipy.stats import spearmanr
+
+    parts = []
+    for param, m in modes.dropna(subset=["slowest"]).groupby("param", sort=True):
+        if len(m) >= 3 and m["cost"].nunique() > 1 and m["slowest"].nunique() > 1:
+            rho = spearmanr(m["cost"], -m["slowest"]).statistic
+            parts.append(f"{param} {fmt(float(rho), 2)} (n = {len(m)})")
+    if not parts:
+        return []
+    return ["Spearman ρ between a start's cost and its slowest mode's decay rate −max Re s, "
+            "every converged start (ρ > 0: cheaper starts settle more slowly): "
+            + "; ".join(parts) + ".", ""]
 
 
 def _safe(func: Any, row: pd.Series) -> list[str]:
@@ -308,4 +355,5 @@ def csv_rows(df: pd.DataFrame) -> pd.DataFrame:
 
 
 __all__ = ["BOUND_SHARE", "SLOW_FACTOR", "best_per_map", "bound_warnings", "controller_rows",
-           "csv_rows", "loop_of", "matrix_block", "mode_warnings", "pole_line", "section"]
+           "csv_rows", "loop_of", "matrix_block", "mode_lines", "mode_warnings", "pole_line",
+           "section", "start_modes"]

@@ -66,7 +66,10 @@ def test_report_section_shows_matrices_gain_poles_channels_and_bound_warning(rep
                    "more); the box may be too small."):
         assert needle in section, needle
     assert "K.lam1 = 2" in section  # the forced diagonal entry, named as the layout names it
-    for name in ("controller_zermelo_default_poles.png", "controller_zermelo_default_channels.png"):
+    assert "![cost against the slowest mode](controller_zermelo_default_cost_vs_mode.png)" \
+        in section
+    for name in ("controller_zermelo_default_poles.png", "controller_zermelo_default_channels.png",
+                 "controller_zermelo_default_cost_vs_mode.png"):
         assert (report / name).stat().st_size > 0
     page = (report / "report.html").read_text(encoding="utf-8")
     assert "<details><summary>best full (pso s" in page and "</details>" in page
@@ -88,6 +91,25 @@ def test_older_results_get_the_diagnostics_from_the_stored_matrices(run):
     again = controllers.controller_rows(old)
     assert set(again["poles from"]) == {"recomputed from the stored matrices"}
     np.testing.assert_allclose(again["slowest"], new["slowest"], rtol=1e-12)
+
+
+def test_start_modes_from_the_stored_column_or_the_stored_matrices(run):
+    df = add_variant(read_results(run))
+    stored = controllers.start_modes(df)
+    assert len(stored) == 4
+    np.testing.assert_allclose(stored["slowest"], df["cl_slowest_real"], rtol=1e-12)
+    old = df.assign(cl_slowest_real=np.nan, closed_loop=None)
+    np.testing.assert_allclose(controllers.start_modes(old)["slowest"], stored["slowest"],
+                               rtol=1e-12)
+
+
+def test_mode_lines_give_spearman_per_map():
+    modes = pd.DataFrame({"param": ["full"] * 4 + ["diagonal"] * 2,
+                          "cost": [1.0, 2.0, 3.0, 4.0, 1.0, 2.0],
+                          "slowest": [-0.01, -0.02, -0.03, -0.05, -0.1, -0.2]})
+    (line, _) = controllers.mode_lines(modes)
+    assert line.endswith(": full 1 (n = 4).")  # diagonal: fewer than 3 starts
+    assert controllers.mode_lines(modes[modes["param"] == "diagonal"]) == []
 
 
 def test_bound_warning_within_one_percent_of_the_box_width(run):

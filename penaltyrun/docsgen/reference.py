@@ -284,7 +284,8 @@ def page_protocol() -> str:
              "## Report hooks (optional)", "",
              rst_to_md(inspect.getdoc(report_hooks) or ""), ""]
     for obj in (base.Problem, base.MatrixSpec, base.ScalarSpec, base.BatchEvaluation,
-                base.ParamsMixin, base.ReportInfo, base.PaperValues, base.ReportSection):
+                base.ClosedLoop, base.ParamsMixin, base.ReportInfo, base.PaperValues,
+                base.ReportSection):
         lines += [f"## `{obj.__name__}`", "", numpydoc_to_md(inspect.getdoc(obj) or ""), ""]
         for name, member in vars(obj).items():
             if callable(member) and not name.startswith("_") or isinstance(member, classmethod):

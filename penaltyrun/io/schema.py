@@ -29,9 +29,12 @@ logger = logging.getLogger(__name__)
 #: :mod:`penaltyrun.runner.validate`). 3: anytime traces and warm start; 4: ``started_at`` /
 #: ``finished_at`` are timestamp columns (UTC) — earlier versions stored ISO text, read back
 #: as timestamps; 5: ``packages`` (provenance), and the job id covers the root seed and the
-#: held-out setting — earlier files read back with ``packages`` null.
+#: held-out setting — earlier files read back with ``packages`` null; 6: closed-loop
+#: diagnostics of the best candidate (``closed_loop``, ``cl_*``) — earlier files read back
+#: with them null (the report computes them from the stored matrices).
 SCHEMA_HISTORY = {3: "anytime traces, warm start", 4: "timestamp columns",
-                  5: "packages column; job id covers runner.seed and runner.holdout"}
+                  5: "packages column; job id covers runner.seed and runner.holdout",
+                  6: "closed-loop diagnostics columns (closed_loop, cl_*)"}
 RESULTS_FILE = "results.parquet"
 
 #: Column name → (arrow type, description). JSON columns hold text.
@@ -58,6 +61,18 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "metrics": (pa.string(), "JSON: detailed evaluation of the best candidate"),
     "holdout": (pa.string(), "JSON: the best candidate on the problem's held-out set "
                              "(e.g. attitude robustness grid), or null"),
+    "closed_loop": (pa.string(), "JSON: the best candidate's closed loop linearized at the "
+                                 "target (time: continuous | discrete, dt, matrix, gain, "
+                                 "state_names, input_names), or null (no linearization)"),
+    "cl_eig_real": (pa.list_(pa.float64()), "closed-loop eigenvalues, real parts (z-plane "
+                                            "for a discrete loop), slowest first"),
+    "cl_eig_imag": (pa.list_(pa.float64()), "closed-loop eigenvalues, imaginary parts"),
+    "cl_slowest_real": (pa.float64(), "slowest real part max Re(s) of the closed-loop poles "
+                                      "(1/time unit; discrete: log|z|/dt)"),
+    "cl_min_damping": (pa.float64(), "smallest damping ratio −Re(s)/|s| of the closed-loop "
+                                     "poles"),
+    "cl_gain_norm": (pa.float64(), "2-norm of the gain K of u = −K x (null: no gain)"),
+    "cl_gain_cond": (pa.float64(), "2-norm condition number of the gain"),
     "n_evals": (pa.int64(), "objective evaluations"),
     "n_iters": (pa.int64(), "optimizer iterations"),
     "stop_reason": (pa.string(), "ftol (stall) | iters | max_evals (budget) | restarts | "
@@ -87,7 +102,7 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "schema_version": (pa.int64(), "version of this schema"),
 }
 SCHEMA = pa.schema([pa.field(name, typ) for name, (typ, _) in COLUMNS.items()])
-JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "warm_start",
+JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop", "warm_start",
                 "optimizer_settings", "problem_params", "param_options", "packages")
 TIMESTAMP_COLUMNS = ("started_at", "finished_at")
 

@@ -16,6 +16,17 @@ A problem module (``penaltyrun/problems/<name>.py``) exposes
   ``converged``, ``status``, ...; ``None`` when the set is empty); and for multi-scenario
   tuning (:mod:`penaltyrun.problems.multiscenario`) ``scenario_key()``, ``holdout_keys()``
   and ``sample_training(n, seed)``, with ``Params`` deriving from ``TrainingParams``.
+* optionally, on the problem object, ``closed_loop(mats, scalars) -> ClosedLoop | None``:
+  the closed loop of one candidate linearized at the target (:class:`ClosedLoop`: its
+  state matrix, continuous or discrete, the gain where there is one, state and input
+  names); ``None`` when the candidate has no closed loop (e.g. no stabilizing Riccati
+  solution). A law with no linearization at the target (e.g. a low-thrust steering law)
+  leaves the hook out. The runner stores its eigenvalue diagnostics with each job
+  (:mod:`penaltyrun.problems.diagnostics`) and the report shows them.
+* optionally, in the dict ``simulate`` returns, besides ``t`` and the time histories:
+  ``channels`` ({history key: [one name per column]}) and ``limits`` ({history key:
+  (lower, upper)}, scalars or one value per column, ``±inf`` for none), so the report
+  draws each channel with its limits.
 
 Exact cutoff (optional): a problem whose ``evaluate_batch`` takes a ``thresholds`` keyword
 (one value per candidate, ``inf``: none) may stop a candidate as soon as the part of its cost
@@ -129,8 +140,54 @@ class Problem(Protocol):
     def simulate(
         self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None
     ) -> dict[str, np.ndarray]:
-        """Time histories of one candidate for plots (``t`` plus named arrays)."""
+        """Time histories of one candidate for plots (``t`` plus named arrays; optionally
+        ``channels`` and ``limits``, see the module docstring)."""
         ...
+
+
+@dataclass(frozen=True)
+class ClosedLoop:
+    """The closed loop of one candidate, linearized at the target (``closed_loop`` hook).
+
+    Attributes
+    ----------
+    matrix : ndarray, shape (n, n)
+        Closed-loop state matrix: ẋ = matrix · x (``time="continuous"``) or
+        x_{k+1} = matrix · x_k (``time="discrete"``), x the deviation from the target.
+    time : str
+        ``"continuous"`` or ``"discrete"``.
+    dt : float or None
+        Sample time of a discrete loop (the problem's time unit); None when continuous.
+    gain : ndarray, shape (m, n), or None
+        The feedback gain of u = −gain · x where the law has one (linearized at the target).
+    state_names : tuple of str
+        One name per state (n).
+    input_names : tuple of str
+        One name per input (m; empty without a gain).
+    """
+
+    matrix: np.ndarray
+    time: str = "continuous"
+    dt: float | None = None
+    gain: np.ndarray | None = None
+    state_names: tuple[str, ...] = ()
+    input_names: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        matrix = np.asarray(self.matrix, dtype=float)
+        if matrix.ndim != 2 or matrix.shape[0] != matrix.shape[1]:
+            raise ValueError(f"closed-loop matrix must be square, got shape {matrix.shape}")
+        if self.time not in ("continuous", "discrete"):
+            raise ValueError(f"time must be 'continuous' or 'discrete', got {self.time!r}")
+        if self.time == "discrete" and not (self.dt is not None and self.dt > 0):
+            raise ValueError("a discrete closed loop needs a sample time dt > 0")
+        object.__setattr__(self, "matrix", matrix)
+        if self.gain is not None:
+            gain = np.atleast_2d(np.asarray(self.gain, dtype=float))
+            if gain.shape[1] != matrix.shape[0]:
+                raise ValueError(f"gain of shape {gain.shape} does not act on "
+                                 f"{matrix.shape[0]} states")
+            object.__setattr__(self, "gain", gain)
 
 
 @dataclass(frozen=True)
@@ -309,6 +366,7 @@ def status_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
 __all__ = [
     "CUTOFF_STATUS",
     "BatchEvaluation",
+    "ClosedLoop",
     "MatrixSpec",
     "ParamsMixin",
     "PaperValues",

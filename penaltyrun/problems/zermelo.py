@@ -33,6 +33,7 @@ from penaltyrun.dynamics.zermelo import drift, simulate_batch
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import (
     BatchEvaluation,
+    ClosedLoop,
     MatrixSpec,
     PaperValues,
     ParamsMixin,
@@ -268,7 +269,8 @@ class Zermelo:
     ) -> dict[str, np.ndarray]:
         """Closed-loop path of one gain, sampled with scipy's dense output for plots.
 
-        Returns ``t``, ``x``, ``y``, ``u1``, ``u2`` (arrays of length ``n_points``).
+        Returns ``t``, ``x``, ``y``, ``u1``, ``u2`` (arrays of length ``n_points``) and
+        ``limits`` (none: the control is unbounded).
         """
         from scipy.integrate import solve_ivp
 
@@ -286,7 +288,15 @@ class Zermelo:
         dx, dy = drift(x, y)
         u1 = -dx - (K[0, 0] * x + K[1, 0] * y)
         u2 = -dy - (K[0, 1] * x + K[1, 1] * y)
-        return {"t": sol.t, "x": x, "y": y, "u1": u1, "u2": u2}
+        return {"t": sol.t, "x": x, "y": y, "u1": u1, "u2": u2, "limits": {}}
+
+    def closed_loop(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                    ) -> ClosedLoop:
+        """The closed loop Ẋ = −Kᵀ X (exact: the law cancels the current). The current's
+        Jacobian at the origin is zero, so the linearized law is U = −Kᵀ X: gain Kᵀ."""
+        K = check_spd("matrices.K", mats["K"], 2)
+        return ClosedLoop(-K.T, "continuous", gain=K.T.copy(), state_names=("x", "y"),
+                          input_names=("u1", "u2"))
 
 
 def make_problem(case: str, overrides: Mapping[str, Any]) -> Zermelo:

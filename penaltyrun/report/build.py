@@ -17,7 +17,16 @@ import pandas as pd
 
 from penaltyrun.io import read_results
 from penaltyrun.problems import trust
-from penaltyrun.report import figures, holdout, html, outdir, protocol, sections, tuning
+from penaltyrun.report import (
+    controllers,
+    figures,
+    holdout,
+    html,
+    outdir,
+    protocol,
+    sections,
+    tuning,
+)
 from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
@@ -78,6 +87,9 @@ TABLES = {
     "targets": "fixed targets: share of starts reaching f* + ε·|f*| and the ERT",
     "holdout_tuning_modes": "multi- against single-scenario tuning, held-out gaps side by "
                             "side",
+    "controllers": "the best start of each map per problem × case × variant: its closed "
+                   "loop at the target (slowest real part, smallest damping ratio, gain "
+                   "norm and condition number)",
 }
 
 
@@ -192,6 +204,7 @@ def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]
                   "Statistics.", "", markdown(comp, COMPARISON_COLUMNS), ""]
     steps = [("figures", lambda: _figures(g, ctx["bk"], out, stem, plain, info, paper)),
              ("problem plots", lambda: sections.plots_section(g, out, stem)),
+             ("tuned controllers", lambda: controllers.section(g, out, stem)),
              ("paper values", lambda: sections.paper_section(g, ctx["paper"])
               if paper else []),
              ("held-out", lambda: holdout.problem_section(g, ctx["held"], ctx["imps"], out)
@@ -294,6 +307,7 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
     if paper:
         _write_csv(sections.paper_matrix_rows(df), out, "paper_matrices")
     _write_csv(holdout.discretization_rows(df), out, "discretization")
+    _write_csv(controllers.csv_rows(df), out, "controllers")
     lines = ["# penaltyrun report", "",
              f"Source: `{src}` — {len(df)} jobs, {df['run_id'].nunique()} run(s).", ""]
     if not verdict.empty:

@@ -2,9 +2,11 @@
 network access), from the Markdown the report writes.
 
 Only the Markdown the report itself produces is converted: headings, paragraphs, ``- ``
-lists, pipe tables, images, ``**bold**`` and ```code```. Every text is HTML-escaped; an
-image is embedded only when it is a ``.png`` file of the report folder itself. Tables sort
-by a click on a column header (a few lines of inline JavaScript).
+lists, pipe tables, images, ``**bold**``, ```code```, fenced code blocks (kept as
+preformatted text) and folds (a line ``<details><summary>TITLE</summary>`` or
+``</details>``). Every text is HTML-escaped, fold titles too; an image is embedded only when
+it is a ``.png`` file of the report folder itself. Tables sort by a click on a column header
+(a few lines of inline JavaScript).
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ th{background:#eef;cursor:pointer;user-select:none;position:sticky;top:0}
 tr:nth-child(even) td{background:#f8f8f8}
 img{max-width:100%;height:auto;margin:0.5em 0;border:1px solid #eee}
 code{background:#f2f2f2;padding:0 0.2em}
+pre{background:#f6f6f6;padding:0.5em;overflow-x:auto;font-size:0.85em}
+summary{cursor:pointer;margin:0.4em 0}
 li{margin:0.3em 0}
 """
 SCRIPT = """
@@ -42,6 +46,9 @@ document.querySelectorAll('table').forEach(function(t){
 """
 
 _IMAGE = re.compile(r"^!\[([^\]]*)\]\(([^)]+)\)$")
+#: How the lines of a fold start.
+FOLD_LINES = ("<details>", "</details>")
+_FOLD_OPEN = re.compile(r"^<details><summary>(.*)</summary>$")
 
 
 _ESCAPED = re.compile(r"\\([!-/:-@\[-`{-~])")
@@ -59,6 +66,16 @@ def inline(text: str) -> str:
     out = re.sub(r"(?<![*\w])\*([^*\s][^*]*?[^*\s])\*(?![*\w])", r"<i>\1</i>", out)
     return re.sub("[\ue000-\ue07f]", lambda m: html.escape(chr(ord(m.group()) - _HELD)),
                   out)
+
+
+def _fold(line: str) -> str:
+    """A fold line as HTML: its title escaped; any other text after ``<details>`` is text."""
+    title = _FOLD_OPEN.match(line)
+    if title:
+        return f"<details><summary>{inline(title.group(1))}</summary>"
+    if line in FOLD_LINES:
+        return line
+    return f"<p>{inline(line)}</p>"
 
 
 def _cells(line: str) -> list[str]:
@@ -90,6 +107,17 @@ def to_html(markdown: str, folder: Path) -> str:
             level = len(line) - len(line.lstrip("#"))
             parts.append(f"<h{level}>{inline(line[level:].strip())}</h{level}>")
             i += 1
+        elif line.startswith("```"):
+            block = []
+            i += 1
+            while i < len(lines) and not lines[i].startswith("```"):
+                block.append(lines[i])
+                i += 1
+            parts.append("<pre>" + html.escape("\n".join(block), quote=False) + "</pre>")
+            i += 1
+        elif line.startswith(FOLD_LINES):
+            parts.append(_fold(line.strip()))
+            i += 1
         elif line.startswith("|"):
             block = []
             while i < len(lines) and lines[i].startswith("|"):
@@ -112,7 +140,7 @@ def to_html(markdown: str, folder: Path) -> str:
         else:
             para = []
             while i < len(lines) and lines[i].strip() and not lines[i].startswith(
-                    ("#", "|", "- ", "![")):
+                    ("#", "|", "- ", "![", "```") + FOLD_LINES):
                 para.append(lines[i])
                 i += 1
             parts.append(f"<p>{inline(' '.join(para))}</p>")

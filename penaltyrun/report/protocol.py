@@ -31,11 +31,14 @@ logger = logging.getLogger(__name__)
 
 #: Warning lines of this report (problems whose module could not be imported, ...).
 WARNINGS: list[str] = []
+#: ``simulate`` results of this report, per job (:func:`simulate`).
+_SIMULATIONS: dict[tuple[str, str, str], Any] = {}
 
 
 def reset() -> None:
-    """Forget cached modules and warnings (one report at a time)."""
+    """Forget cached modules, warnings and simulations (one report at a time)."""
     WARNINGS.clear()
+    _SIMULATIONS.clear()
     _module.cache_clear()
     _info.cache_clear()
 
@@ -138,7 +141,15 @@ def jobs_of(df: pd.DataFrame) -> list[dict[str, Any]]:
 
 
 def simulate(row: pd.Series) -> dict[str, np.ndarray] | None:
-    """``simulate`` of a job's best matrices (None when the problem cannot be rebuilt)."""
+    """``simulate`` of a job's best matrices (None when the problem cannot be rebuilt);
+    kept per job for this report (several sections draw the same start)."""
+    key = (str(row.get("job_id")), str(row.get("config_hash")), str(row.get("matrices")))
+    if key not in _SIMULATIONS:
+        _SIMULATIONS[key] = _simulate(row)
+    return _SIMULATIONS[key]
+
+
+def _simulate(row: pd.Series) -> dict[str, np.ndarray] | None:
     if module(row["problem"]) is None:
         return None
     prob = make(row["problem"], row["case"], row.get("problem_params"))

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun import optim
+from penaltyrun.problems import diagnostics
 from penaltyrun.problems.base import CUTOFF_STATUS
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
@@ -276,6 +277,7 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
             "trace_best": [float(c) for c in result.trace_best],
             "max_evals": getattr(settings, "max_evals", None),
         })
+        record.update(_jsonable(diagnostics.record_columns(prob, best_mats, best_scalars)))
     except Exception as exc:  # a failing job is recorded, never crashes the run
         text = describe_job_error(exc)
         logger.error("job %s failed: %s", job.job_id, text)

@@ -19,7 +19,7 @@ from typing import Any
 JOB_STATUSES = ("ok", "diverged", "failed")
 #: Version of the record / results schema this code writes (see :mod:`penaltyrun.io.schema`
 #: for the history). Records of a newer version are refused: their meaning is unknown here.
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 _INT = "an integer"
 _NUMBER = "a number"
@@ -41,6 +41,9 @@ OPTIONAL: dict[str, str] = {
     "best_converged": "true or false", "best_z": "a list of numbers",
     "history": "a list of numbers", "trace_best": "a list of numbers",
     "trace_evals": "a list of integers", "z_names": "a list of text",
+    "cl_eig_real": "a list of numbers", "cl_eig_imag": "a list of numbers",
+    "cl_slowest_real": _NUMBER, "cl_min_damping": _NUMBER, "cl_gain_norm": _NUMBER,
+    "cl_gain_cond": _NUMBER,
 }
 
 

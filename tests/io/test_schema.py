@@ -241,3 +241,41 @@ def test_decode_json_treats_every_missing_value_as_none():
     assert decode_json(frame.loc[0, "holdout"]) is None
     assert decode_json(frame.loc[1, "holdout"]) == {"x": 1}
     assert decode_json(None) is None and decode_json("") is None
+
+
+# --------------------------------------------------------------------------- schema 6
+
+
+REPO = Path(__file__).resolve().parents[2]
+CL_COLUMNS = ("closed_loop", "cl_eig_real", "cl_eig_imag", "cl_slowest_real",
+              "cl_min_damping", "cl_gain_norm", "cl_gain_cond")
+
+
+def test_closed_loop_columns_round_trip(tmp_path):
+    loop = {"time": "continuous", "dt": None, "matrix": [[-1.0, -0.5], [-0.5, -2.0]],
+            "gain": [[1.0, 0.5], [0.5, 2.0]], "state_names": ["x", "y"],
+            "input_names": ["u1", "u2"]}
+    rec = record(closed_loop=loop, cl_eig_real=[-0.79, -2.21], cl_eig_imag=[0.0, 0.0],
+                 cl_slowest_real=-0.79, cl_min_damping=1.0, cl_gain_norm=2.21,
+                 cl_gain_cond=math.inf)
+    df = read_results(write_run(tmp_path / "run", [rec, record(start=1)]))
+    first, second = df.iloc[0], df.iloc[1]
+    assert decode_json(first["closed_loop"]) == loop
+    assert list(first["cl_eig_real"]) == [-0.79, -2.21]
+    assert first["cl_slowest_real"] == -0.79 and first["cl_gain_cond"] == math.inf
+    assert decode_json(second["closed_loop"]) is None and math.isnan(second["cl_slowest_real"])
+    assert int(first["schema_version"]) == SCHEMA_VERSION
+
+
+def test_committed_study_of_an_older_schema_reads_with_null_diagnostics():
+    path = REPO / "studies" / "referee_zermelo" / "results.parquet"
+    raw = pq.read_table(path)
+    assert max(v for v in raw.column("schema_version").to_pylist() if v is not None) \
+        < SCHEMA_VERSION
+    df = read_results(path)
+    assert len(df) == raw.num_rows and not df.attrs["skipped_files"]
+    for name in CL_COLUMNS:
+        assert df[name].isna().all()
+    old = raw.to_pandas()
+    pd.testing.assert_series_equal(df["best_cost"], old["best_cost"], check_names=False)
+    assert list(df["job_id"]) == list(old["job_id"])

@@ -26,3 +26,12 @@ def test_page_embeds_figures_and_renders_tables(tmp_path):
 
 def test_inline_escapes_and_leaves_formula_stars():
     assert inline("a < b & f* + ε·|f*|") == "a &lt; b &amp; f* + ε·|f*|"
+
+
+def test_fenced_blocks_are_preformatted_and_folds_pass_through(tmp_path):
+    text = ("<details><summary>best full: matrices</summary>\n\nK =\n```\n  1 <2\n-3  4\n```\n\n"
+            "</details>\n\nafter\n")
+    page = to_html(text, tmp_path)
+    assert "<details><summary>best full: matrices</summary>" in page
+    assert "<p>K =</p>" in page and "<pre>  1 &lt;2\n-3  4</pre>" in page
+    assert "</details>" in page and "<p>after</p>" in page and "```" not in page

@@ -77,7 +77,7 @@ from penaltyrun.problems.attitude.reference import (
     trajectory,
 )
 from penaltyrun.problems.attitude.scenarios import AttitudeScenarios
-from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec
+from penaltyrun.problems.base import BatchEvaluation, ClosedLoop, MatrixSpec, ScalarSpec
 
 logger = logging.getLogger(__name__)
 
@@ -86,6 +86,9 @@ CARE_FAILURE = "care_failure"
 #: Relative margin by which J must exceed a threshold before a run is cut (covers the
 #: integrator's round-off in J, which never decreases in exact arithmetic).
 CUT_MARGIN = 1e-9
+#: Channel names of the body rates and torques (``simulate``, ``closed_loop``).
+OMEGA_NAMES = ("w1", "w2", "w3")
+TORQUE_NAMES = ("u1", "u2", "u3")
 
 
 def kernel_cutoffs(thresholds: np.ndarray, ok: np.ndarray, hard_cost: float) -> np.ndarray:
@@ -290,11 +293,34 @@ class AttitudeProblem(AttitudeScenarios):
         -------
         dict
             ``t`` (n,) s, ``q`` (n, 4), ``w`` (n, 3) rad/s, ``u`` (n, 3) N·m, ``J`` (n,),
-            ``dist`` (n,) distance to the target.
+            ``dist`` (n,) distance to the target; ``channels`` (names of the columns of
+            ``q``, ``w``, ``u``) and ``limits`` (``u``: ±``u_max`` when saturated).
         """
         G = self.gain(mats)
         t_end = float(self.run(G[None])[0][0])
-        return trajectory(G, self.params, t_end, n_points, self.y0)
+        out = trajectory(G, self.params, t_end, n_points, self.y0)
+        u_max = self.params.saturation()
+        out["channels"] = {"q": ["q0", "q1", "q2", "q3"], "w": list(OMEGA_NAMES),
+                           "u": list(TORQUE_NAMES)}
+        out["limits"] = {"u": (-u_max, u_max)} if np.isfinite(u_max) else {}
+        return out
+
+    def closed_loop(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                    ) -> ClosedLoop | None:
+        """The law linearized at the target q = (1, 0, 0, 0), ω = 0 with x = (q_v, ω):
+        q̇_v = ½ ω, I ω̇ = u (the gyroscopic term is quadratic), u = −G x, so
+        ẋ = (A − B G) x with A = [[0, ½I₃], [0, 0]], B = [[0], [I⁻¹]]; the torque limit is
+        inactive at the target. None when (LQR) no stabilizing Riccati solution exists."""
+        checked = self._check(mats)
+        G, ok = self.gains({k: v[None] for k, v in checked.items()})
+        if not ok[0]:
+            return None
+        A = np.zeros((6, 6))
+        A[:3, 3:] = 0.5 * np.eye(3)
+        B = np.vstack([np.zeros((3, 3)), self.inertia_inv])
+        return ClosedLoop(A - B @ G[0], "continuous", gain=G[0],
+                          state_names=("q1", "q2", "q3") + OMEGA_NAMES,
+                          input_names=TORQUE_NAMES)
 
     def evaluate_states(self, mats: Mapping[str, Any], y0: Any) -> dict[str, np.ndarray]:
         """Evaluate one candidate from many initial states (one kernel call).

@@ -46,7 +46,13 @@ import numpy as np
 from penaltyrun.dynamics import linear_feedback as loop
 from penaltyrun.dynamics.linear import quadratic_cost
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec, check_spd
+from penaltyrun.problems.base import (
+    BatchEvaluation,
+    ClosedLoop,
+    MatrixSpec,
+    ScalarSpec,
+    check_spd,
+)
 from penaltyrun.problems.lqr import constraints as cons
 from penaltyrun.problems.lqr import discrete
 from penaltyrun.problems.lqr import params as pm
@@ -320,7 +326,8 @@ class LQRProblem:
         -------
         dict
             ``t`` (n_points,), ``x`` (k, n_points, n), ``u`` (k, n_points, m), ``J``
-            (k, n_points) running cost.
+            (k, n_points) running cost; ``channels`` (names of the columns of ``x`` and
+            ``u``) and ``limits`` (``u``: ±``u_max`` when the inputs saturate).
         """
         from scipy.integrate import solve_ivp
 
@@ -352,7 +359,37 @@ class LQRProblem:
             xs.append(x)
             us.append(loop.feedback_input(np.repeat(K[None], n_points, 0), x, self.u_max))
             js.append(J)
-        return {"t": t, "x": np.asarray(xs), "u": np.asarray(us), "J": np.asarray(js)}
+        names = self.channel_names()
+        limits = {} if self.u_max is None else {"u": (-self.u_max, self.u_max)}
+        return {"t": t, "x": np.asarray(xs), "u": np.asarray(us), "J": np.asarray(js),
+                "channels": {"x": list(names[0]), "u": list(names[1])}, "limits": limits}
+
+    def channel_names(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """Names of the states (``x1`` … ``xn``) and inputs (``u1`` … ``um``)."""
+        return (tuple(f"x{i + 1}" for i in range(self.plant.n_states)),
+                tuple(f"u{i + 1}" for i in range(self.plant.n_inputs)))
+
+    def closed_loop(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                    ) -> ClosedLoop | None:
+        """The closed loop of one (Q̃, R) on the linear model (the plant's Jacobians at the
+        origin for a nonlinear ``dynamics``): ẋ = (A − B K) x with the continuous LQR gain
+        of the Riccati Q (:meth:`state_penalty`), or, for a plant with a sample time ``dt``,
+        x_{k+1} = (A − B K) x_k with the discrete one K = (R + BᵀPB)⁻¹BᵀPA. None when the
+        Riccati equation has no stabilizing solution. Input limits are inactive
+        at the origin, so they do not enter."""
+        Q, R = self._check(mats)
+        states, inputs = self.channel_names()
+        K, ok, _ = self.gains(Q[None], R[None])
+        if not ok[0]:
+            return None
+        A_cl = self.plant.A - self.plant.B @ K[0]
+        if self.dt is None:
+            return ClosedLoop(A_cl, "continuous", gain=K[0], state_names=states,
+                              input_names=inputs)
+        if not np.all(np.abs(np.linalg.eigvals(A_cl)) < 1.0):
+            return None
+        return ClosedLoop(A_cl, "discrete", dt=float(self.dt), gain=K[0], state_names=states,
+                          input_names=inputs)
 
     # -- scenarios --------------------------------------------------------------------------
     def training_scenario(self) -> dict[str, Any]:

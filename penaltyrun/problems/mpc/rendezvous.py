@@ -32,7 +32,13 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec, check_spd
+from penaltyrun.problems.base import (
+    BatchEvaluation,
+    ClosedLoop,
+    MatrixSpec,
+    ScalarSpec,
+    check_spd,
+)
 from penaltyrun.problems.mpc import controller as ctl
 from penaltyrun.problems.mpc import scenarios as scen
 from penaltyrun.problems.mpc.model import cw_continuous, mean_motion, solve_dare_batch, zoh
@@ -57,6 +63,9 @@ CUT_MARGIN = 1e-9
 COST_UNIT = "m/s"
 #: Label of a converged start's cost (axis labels, tables).
 COST_LABEL = "Δv = Σ Tₛ‖u_k‖₂ (m/s)"
+#: Names of the relative state (m, m/s) and input (m/s²) channels.
+STATE_NAMES = ("x", "y", "z", "vx", "vy", "vz")
+INPUT_NAMES = ("ux", "uy", "uz")
 
 
 class RendezvousMPC:
@@ -239,7 +248,8 @@ class RendezvousMPC:
         dict
             ``t`` (k + 1,) s, ``r`` (k + 1, 3) m, ``v`` (k + 1, 3) m/s, ``u`` (k + 1, 3)
             m/s² (input applied from each sample; the last row is zero), ``delta_v``
-            (k + 1,) cumulative m/s.
+            (k + 1,) cumulative m/s; ``channels`` (names of the columns of ``r``, ``v``,
+            ``u``) and ``limits`` (``u``: ±``u_max``).
 
         Raises
         ------
@@ -255,7 +265,24 @@ class RendezvousMPC:
                                                * np.linalg.norm(res.inputs, axis=1))])
         t = self.params.sample_time_s * np.arange(res.states.shape[0])
         return {"t": t, "r": res.states[:, :3], "v": res.states[:, 3:], "u": u,
-                "delta_v": dv}
+                "delta_v": dv,
+                "channels": {"r": list(STATE_NAMES[:3]), "v": list(STATE_NAMES[3:]),
+                             "u": list(INPUT_NAMES)},
+                "limits": {"u": (-self.u_max, self.u_max)}}
+
+    def closed_loop(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                    ) -> ClosedLoop | None:
+        """The MPC's unconstrained gain on the discrete CW model: with no input bound
+        active, the QP's minimizer is Ũ = −H̃⁻¹ F̃ s, so u_0 = −K s with K the first three
+        rows of diag(u_max) H̃⁻¹ F̃, and s_{k+1} = (A_d − B_d K) s_k (sample time
+        ``sample_time_s``). None without a stabilizing Riccati solution."""
+        H, F, _, ok = self.controller(mats)
+        if not ok:
+            return None
+        K = self.u_max[:, None] * np.linalg.solve(H, F)[:3]
+        return ClosedLoop(self.Ad - self.Bd @ K, "discrete",
+                          dt=float(self.params.sample_time_s), gain=K,
+                          state_names=STATE_NAMES, input_names=INPUT_NAMES)
 
     # --- scenarios ----------------------------------------------------------------------
 

@@ -40,6 +40,8 @@ from typing import Any
 
 import yaml
 
+from penaltyrun.io.longholdout import LONG_FILE, LONG_PROVENANCE
+
 logger = logging.getLogger(__name__)
 
 STUDY_FILE = "study.yaml"
@@ -213,6 +215,11 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
     dest = Path(dest) if dest else study.folder
     dest.mkdir(parents=True, exist_ok=True)
+    for stale in (LONG_FILE, LONG_PROVENANCE):  # re-judged data of the records replaced
+        if (dest / stale).is_file():
+            logger.info("study %s: removing %s (it re-judged the previous records)", name,
+                        stale)
+            (dest / stale).unlink()
     frame = read_results(run_dir)
     frame = frame.drop(columns=[c for c in study.drop_columns if c in frame.columns])
     frame = frame.sort_values(["problem", "case", "param", "optimizer", "job_id"],

@@ -13,6 +13,8 @@ of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLU
 * a status other than ok / diverged / failed is kept but marked: ``status_known`` is False
   for its rows and ``df.attrs["unknown_statuses"]`` maps each such status to its count, so
   a report can say so instead of counting it;
+* a ``holdout_long.parquet`` beside a results file (re-judged held-out data, see
+  :mod:`penaltyrun.io.longholdout`) replaces that file's ``holdout`` column;
 * reading many files shows a progress bar on a terminal (a log line every few seconds
   elsewhere).
 """
@@ -30,6 +32,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from penaltyrun.errors import ResultsUnreadableError
+from penaltyrun.io import longholdout
 from penaltyrun.io.schema import (
     COLUMNS,
     RESULTS_FILE,
@@ -119,7 +122,7 @@ def _read_one(path: Path) -> pd.DataFrame:
     frame["optimizer_settings"] = [
         _upgrade_settings(opt, settings)
         for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
-    frame = frame[list(COLUMNS)]
+    frame = longholdout.apply(frame[list(COLUMNS)], path)
     frame.attrs = {}
     frame["_source"] = str(path)
     return frame

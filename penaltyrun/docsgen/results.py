@@ -395,10 +395,14 @@ def render_all(root: Path, reference: bool = True) -> list[Path]:
     return written
 
 
-def check(root: Path, reference: bool = True) -> list[str]:
+def check(root: Path, reference: bool = True, tables: bool = True) -> list[str]:
     """Differences between the committed generated files and a fresh rendering (rendered
-    into a temporary folder); empty when they agree."""
-    problems: list[str] = []
+    into a temporary folder), and (``tables``) between each study's committed tables and
+    tables rebuilt from its committed data (:mod:`penaltyrun.docsgen.tablecheck`); empty
+    when they agree."""
+    from penaltyrun.docsgen.tablecheck import check_all
+
+    problems: list[str] = check_all(root) if tables else []
     rendered = render(root, reference=reference)
     with tempfile.TemporaryDirectory(prefix="check-docs-") as tmp:
         for rel, text in rendered.items():

@@ -86,6 +86,8 @@ def _horizon_words(h: dict) -> str:
             f"{_count(h['full_conv'], n)}/{n}"
     reach = (f"converged by {fmt(h['horizon'], 4)}: diagonal {_count(h['diag_conv'], n)}/{n}, "
              f"full {_count(h['full_conv'], n)}/{n}")
+    if h["horizon"] == h["training_horizon"]:  # free final time: no earlier deadline
+        return reach + " (the training horizon)"
     return f"{reach}; {deadline}"
 
 

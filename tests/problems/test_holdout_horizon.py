@@ -123,12 +123,18 @@ def test_attitude_long_horizon_cost_matches_solve_ivp(problem, case):
         G = prob.gain(rec["mats"])
         y0 = np.concatenate([held["q_init"], held["omega_init"]], axis=1)
         late = np.flatnonzero(~held["converged_by_deadline"] & held["converged"])
-        picks = list(late[np.argsort(held["arrival_time"][late])[:2]]) or [0]
+        picks = list(late[np.argsort(held["arrival_time"][late])[:2]])
+        picks += list(np.flatnonzero(~held["converged"])[:1])   # graded cost at T
         for k in picks:
             cost, conv = _attitude_reference(G, prob.params, y0[k], held["horizon"])
             assert conv == bool(held["converged"][k])
-            assert held["cost"][k] == pytest.approx(cost, rel=1e-6)
-            assert held["cost"][k] != pytest.approx(held["cost_at_deadline"][k], rel=1e-3)
+            if conv:
+                assert held["cost"][k] == pytest.approx(cost, rel=1e-6)
+                assert held["cost"][k] != pytest.approx(held["cost_at_deadline"][k], rel=1e-3)
+            else:
+                # a gain that keeps the body tumbling: the path is chaotic (scipy at rtol
+                # 1e-10 and 1e-12 part within 1 000 s), so only the graded bound is shared
+                assert min(cost, held["cost"][k]) > prob.params.failure_penalty
 
 
 @pytest.mark.slow

@@ -243,13 +243,14 @@ def rejudge_study(root: Path, name: str, *, jobs: str = "all", workers: int | st
 
 
 def git_commit(root: Path) -> str:
-    """Commit of the repository at ``root`` (``-dirty`` if tracked files are modified), or
-    ``unknown``."""
+    """Commit of the repository at ``root`` (``-dirty`` if tracked files of the package
+    source are modified: the study folders being re-judged do not count), or ``unknown``."""
     try:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
                              text=True, timeout=5, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               cwd=root, capture_output=True, text=True, timeout=5).stdout
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--",
+                                "penaltyrun"], cwd=root, capture_output=True, text=True,
+                               timeout=5).stdout
         return sha + ("-dirty" if dirty.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"

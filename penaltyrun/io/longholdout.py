@@ -30,6 +30,11 @@ LONG_PROVENANCE = "holdout_long.json"
 LONG_COLUMNS = ("job_id", "config_hash", "holdout", "status", "wall_time_s")
 
 
+def _key(config_hash: object) -> str:
+    """A configuration hash as a dictionary key (missing: empty, whether None or NaN)."""
+    return "" if config_hash is None or config_hash != config_hash else str(config_hash)
+
+
 def apply(frame: pd.DataFrame, results: Path) -> pd.DataFrame:
     """``frame`` (read from ``results``) with the ``holdout`` column of the re-judged file
     beside it, matched by ``job_id`` and ``config_hash``; ``frame`` unchanged without one.
@@ -38,11 +43,11 @@ def apply(frame: pd.DataFrame, results: Path) -> pd.DataFrame:
     if not path.is_file() or "holdout" not in frame:
         return frame
     long = pd.read_parquet(path, columns=["job_id", "config_hash", "holdout"])
-    table = {(j, h): v for j, h, v in zip(long["job_id"], long["config_hash"],
-                                          long["holdout"])}
+    table = {(str(j), _key(h)): v for j, h, v in zip(long["job_id"], long["config_hash"],
+                                                     long["holdout"])}
     out = frame.copy()
-    out["holdout"] = [table.get((j, h)) for j, h in zip(frame["job_id"],
-                                                        frame["config_hash"])]
+    out["holdout"] = [table.get((str(j), _key(h))) for j, h in zip(frame["job_id"],
+                                                                   frame["config_hash"])]
     missing = int(out["holdout"].isna().sum() - frame["holdout"].isna().sum())
     if missing > 0:
         logger.info("%s: %d job(s) not re-judged carry no held-out data", path, missing)

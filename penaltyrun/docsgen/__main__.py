@@ -11,7 +11,9 @@ Commands (every one takes ``--root``, the repository root, default the current f
   merge its data and tables into ``studies/NAME`` (``make study-NAME``);
 * ``study rejudge NAME``: re-evaluate the study's stored best matrices on the held-out set at
   the held-out horizon, write ``studies/NAME/holdout_long.parquet`` and the tables
-  (:mod:`penaltyrun.docsgen.rejudge`; ``--jobs paired`` re-judges only the paired starts).
+  (:mod:`penaltyrun.docsgen.rejudge`; ``--jobs paired`` re-judges only the paired starts);
+* ``study tables NAME``: rebuild ``studies/NAME/tables`` from the committed data (after a
+  report change; nothing is re-run).
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
         command.add_argument("--no-reference", action="store_true",
                              help="leave out the reference pages generated from the code")
     study = sub.add_parser("study", help="run or merge a study")
-    study.add_argument("action", choices=("list", "run", "merge", "rejudge"))
+    study.add_argument("action", choices=("list", "run", "merge", "rejudge", "tables"))
     study.add_argument("name", nargs="?")
     study.add_argument("--run-dir", type=Path, help="fixed run directory "
                        "(default outputs/studies/NAME)")
@@ -83,13 +85,15 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name}: {studies.load_study(root, name).title}")
         return 0
     if not args.name:
-        parser.error("study run/merge/rejudge needs a NAME")
+        parser.error("study run/merge/rejudge/tables needs a NAME")
     try:
         if args.action == "run":
             studies.run_study(root, args.name, run_dir=args.run_dir,
                               resume=args.resume == "true", workers=args.workers,
                               reduced=args.reduced, extra=args.set, dest=args.dest,
                               tables=not args.no_tables)
+        elif args.action == "tables":
+            studies.rebuild_tables(root, args.name)
         elif args.action == "rejudge":
             rejudge.rejudge_study(root, args.name, jobs=args.jobs, workers=args.workers,
                                   tables=not args.no_tables)

@@ -237,6 +237,27 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     return dest / RESULTS
 
 
+def rebuild_tables(root: Path, name: str) -> Path:
+    """Rebuild ``studies/<name>/tables`` from the committed data (``results.parquet`` and a
+    re-judged ``holdout_long.parquet``), nothing re-run; return the tables folder.
+
+    Raises
+    ------
+    StudyError
+        If the study has no merged results.
+    """
+    import tempfile
+
+    study = load_study(root, name)
+    results = study.folder / RESULTS
+    if not results.is_file():
+        raise StudyError(f"study {name!r} has no {RESULTS} (run `{study.make_target}`)")
+    with tempfile.TemporaryDirectory(prefix="tables-") as tmp:
+        write_tables(results, Path(tmp), study.folder / TABLES,
+                     label=_display_path(results, root))
+    return study.folder / TABLES
+
+
 def write_tables(results: Path, report_dir: Path, tables_dir: Path,
                  label: str | None = None) -> None:
     """Build the report of ``results`` in ``report_dir`` and copy its tables (CSV,

@@ -6,7 +6,7 @@ The results pages and the README are rendered from each study's committed tables
 rebuilds the report's tables from the data into a temporary folder and compares them with
 the committed ones: numbers to a relative 1e-9 (NaN equals NaN), text exactly, and the set
 of files. A table edited by hand, or data changed without regenerating the tables
-(``python -m penaltyrun.docsgen study rejudge NAME`` or ``study merge NAME``), fails it.
+(``python -m penaltyrun.docsgen study tables NAME`` rebuilds them), fails it.
 """
 
 from __future__ import annotations
@@ -69,8 +69,7 @@ def check_study(root: Path, name: str) -> list[str]:
             why = compare_csv(tables / file, fresh / file)
             if why:
                 problems.append(f"{shown}/{file}: differs from the data ({why}); run "
-                                f"`python -m penaltyrun.docsgen study rejudge {name}` or "
-                                f"`{study.make_target}`")
+                                f"`python -m penaltyrun.docsgen study tables {name}`")
     return problems
 
 

@@ -66,3 +66,13 @@ def test_a_failing_record_is_recorded_not_raised():
                                  "matrices": '{"K": [[1.0, 0.0], [0.0, -1.0]]}',
                                  "scalars": None})
     assert row["holdout"] is None and row["status"].startswith("failed: ConfigError")
+
+
+@pytest.mark.slow
+def test_tables_rebuilt_from_the_committed_data(copy):
+    from penaltyrun.docsgen import studies, tablecheck
+    table = copy / "studies" / STUDY / "tables" / "holdout.csv"
+    table.write_text(table.read_text().replace("ratio_median", "edited"))
+    assert tablecheck.check_study(copy, STUDY)
+    studies.rebuild_tables(copy, STUDY)
+    assert tablecheck.check_study(copy, STUDY) == []

@@ -8,7 +8,12 @@ Commands (every one takes ``--root``, the repository root, default the current f
 * ``check``: exit 1, listing the differing lines, if those files differ from a fresh
   rendering (``make check-docs``);
 * ``study list`` / ``study run NAME`` / ``study merge NAME``: run a study (resumable) and
-  merge its data and tables into ``studies/NAME`` (``make study-NAME``).
+  merge its data and tables into ``studies/NAME`` (``make study-NAME``);
+* ``study rejudge NAME``: re-evaluate the study's stored best matrices on the held-out set at
+  the held-out horizon, write ``studies/NAME/holdout_long.parquet`` and the tables
+  (:mod:`penaltyrun.docsgen.rejudge`; ``--jobs paired`` re-judges only the paired starts);
+* ``study tables NAME``: rebuild ``studies/NAME/tables`` from the committed data (after a
+  report change; nothing is re-run).
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ import logging
 import sys
 from pathlib import Path
 
-from penaltyrun.docsgen import results, studies
+from penaltyrun.docsgen import rejudge, results, studies
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -35,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
         command.add_argument("--no-reference", action="store_true",
                              help="leave out the reference pages generated from the code")
     study = sub.add_parser("study", help="run or merge a study")
-    study.add_argument("action", choices=("list", "run", "merge"))
+    study.add_argument("action", choices=("list", "run", "merge", "rejudge", "tables"))
     study.add_argument("name", nargs="?")
     study.add_argument("--run-dir", type=Path, help="fixed run directory "
                        "(default outputs/studies/NAME)")
@@ -48,6 +53,9 @@ def main(argv: list[str] | None = None) -> int:
     study.add_argument("--dest", type=Path, help="where results and tables go "
                        "(default studies/NAME)")
     study.add_argument("--no-tables", action="store_true", help="skip the report tables")
+    study.add_argument("--jobs", default="all", choices=rejudge.SELECTIONS,
+                       help="rejudge: every job with held-out data, or only the starts the "
+                       "held-out tables pair")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     root = args.root.resolve()
@@ -77,13 +85,18 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name}: {studies.load_study(root, name).title}")
         return 0
     if not args.name:
-        parser.error("study run/merge needs a NAME")
+        parser.error("study run/merge/rejudge/tables needs a NAME")
     try:
         if args.action == "run":
             studies.run_study(root, args.name, run_dir=args.run_dir,
                               resume=args.resume == "true", workers=args.workers,
                               reduced=args.reduced, extra=args.set, dest=args.dest,
                               tables=not args.no_tables)
+        elif args.action == "tables":
+            studies.rebuild_tables(root, args.name)
+        elif args.action == "rejudge":
+            rejudge.rejudge_study(root, args.name, jobs=args.jobs, workers=args.workers,
+                                  tables=not args.no_tables)
         else:
             studies.merge_study(root, args.name, run_dir=args.run_dir, dest=args.dest,
                                 tables=not args.no_tables)

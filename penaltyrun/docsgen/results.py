@@ -104,8 +104,13 @@ class StudyData:
 #: variant, no note), not a missing number.
 LABEL_COLUMNS = ("variant", "problem_variant", "note", "ci_note", "label")
 #: Columns of ``holdout.csv`` the results pages show.
-HELD_OUT_COLUMNS = ["optimizer", "full_map", "scenarios", "pairs", "diag_conv", "full_conv",
-                    "full_better_share", "median_imp_pct", "wilcoxon_p", "p_holm"]
+HELD_OUT_COLUMNS = ["optimizer", "full_map", "judged_at", "scenarios", "full_cheaper",
+                    "ratio_median", "ratio_q05", "ratio_q95", "ratio_p_holm",
+                    "arrival_shift_median"]
+#: Second table of the held-out section: convergence and the pairs both converge.
+HELD_OUT_CONV_COLUMNS = ["optimizer", "full_map", "diag_conv", "full_conv",
+                         "diag_conv_deadline", "full_conv_deadline", "pairs",
+                         "median_imp_pct", "p_holm"]
 
 
 def report_table(stem: str) -> str:
@@ -295,8 +300,9 @@ class Context:
                                                              sort=True):
             title = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
             parts.append(f"**Held-out scenarios, {title}:**\n\n"
-                         + markdown_table(group[[c for c in HELD_OUT_COLUMNS
-                                                 if c in group]], spec))
+                         + "\n\n".join(markdown_table(group[[c for c in cols if c in group]],
+                                                       spec)
+                                        for cols in (HELD_OUT_COLUMNS, HELD_OUT_CONV_COLUMNS)))
         return "\n\n".join(parts)
 
     def provenance(self, name: str) -> str:
@@ -393,10 +399,14 @@ def render_all(root: Path, reference: bool = True) -> list[Path]:
     return written
 
 
-def check(root: Path, reference: bool = True) -> list[str]:
+def check(root: Path, reference: bool = True, tables: bool = True) -> list[str]:
     """Differences between the committed generated files and a fresh rendering (rendered
-    into a temporary folder); empty when they agree."""
-    problems: list[str] = []
+    into a temporary folder), and (``tables``) between each study's committed tables and
+    tables rebuilt from its committed data (:mod:`penaltyrun.docsgen.tablecheck`); empty
+    when they agree."""
+    from penaltyrun.docsgen.tablecheck import check_all
+
+    problems: list[str] = check_all(root) if tables else []
     rendered = render(root, reference=reference)
     with tempfile.TemporaryDirectory(prefix="check-docs-") as tmp:
         for rel, text in rendered.items():

@@ -40,6 +40,8 @@ from typing import Any
 
 import yaml
 
+from penaltyrun.io.longholdout import LONG_FILE, LONG_PROVENANCE
+
 logger = logging.getLogger(__name__)
 
 STUDY_FILE = "study.yaml"
@@ -213,6 +215,11 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
     dest = Path(dest) if dest else study.folder
     dest.mkdir(parents=True, exist_ok=True)
+    for stale in (LONG_FILE, LONG_PROVENANCE):  # re-judged data of the records replaced
+        if (dest / stale).is_file():
+            logger.info("study %s: removing %s (it re-judged the previous records)", name,
+                        stale)
+            (dest / stale).unlink()
     frame = read_results(run_dir)
     frame = frame.drop(columns=[c for c in study.drop_columns if c in frame.columns])
     frame = frame.sort_values(["problem", "case", "param", "optimizer", "job_id"],
@@ -228,6 +235,27 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     logger.info("study %s: %d records, %.1f MB", name, len(frame),
                 (dest / RESULTS).stat().st_size / 1e6)
     return dest / RESULTS
+
+
+def rebuild_tables(root: Path, name: str) -> Path:
+    """Rebuild ``studies/<name>/tables`` from the committed data (``results.parquet`` and a
+    re-judged ``holdout_long.parquet``), nothing re-run; return the tables folder.
+
+    Raises
+    ------
+    StudyError
+        If the study has no merged results.
+    """
+    import tempfile
+
+    study = load_study(root, name)
+    results = study.folder / RESULTS
+    if not results.is_file():
+        raise StudyError(f"study {name!r} has no {RESULTS} (run `{study.make_target}`)")
+    with tempfile.TemporaryDirectory(prefix="tables-") as tmp:
+        write_tables(results, Path(tmp), study.folder / TABLES,
+                     label=_display_path(results, root))
+    return study.folder / TABLES
 
 
 def write_tables(results: Path, report_dir: Path, tables_dir: Path,

@@ -19,6 +19,8 @@ of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLU
 * a run directory with finished job records (``jobs/*.json``) but no ``results.parquet``
   (an interrupted run, or one still running) is read from its records, with one warning
   saying so and naming ``runner.resume=true``;
+* a ``holdout_long.parquet`` beside a results file (re-judged held-out data, see
+  :mod:`penaltyrun.io.longholdout`) replaces that file's ``holdout`` column;
 * reading many files shows a progress bar on a terminal (a log line every few seconds
   elsewhere).
 """
@@ -36,6 +38,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from penaltyrun.errors import ResultsUnreadableError
+from penaltyrun.io import longholdout
 from penaltyrun.io.schema import (
     COLUMNS,
     RESULTS_FILE,
@@ -156,7 +159,7 @@ def _frame(table: pa.Table, path: Path) -> pd.DataFrame:
     frame["optimizer_settings"] = [
         _upgrade_settings(opt, settings)
         for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
-    frame = frame[list(COLUMNS)]
+    frame = longholdout.apply(frame[list(COLUMNS)], path)
     frame.attrs = {}
     frame["_source"] = str(path)
     return frame

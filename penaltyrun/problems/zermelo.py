@@ -31,6 +31,7 @@ import numpy as np
 from penaltyrun.dynamics import integrate
 from penaltyrun.dynamics.zermelo import drift, simulate_batch
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
@@ -49,7 +50,8 @@ CASES = ("default",)
 DEFAULT_CASE = "default"
 CASE_PARAMS: dict[str, dict[str, Any]] = {"default": {}}
 #: Parameters that do not change a run's result (reports do not split cells by them).
-VARIANT_IGNORE = ("holdout_radii", "holdout_n_angles", "holdout_angle_offset_deg")
+VARIANT_IGNORE = ("holdout_radii", "holdout_n_angles", "holdout_angle_offset_deg",
+                  "holdout_horizon_factor", "holdout_t_max_cap")
 
 #: Relative margin by which J must exceed a threshold before a run is cut.
 CUT_MARGIN = 1e-9
@@ -91,6 +93,12 @@ class Params(ParamsMixin, TrainingParams):
         Starts per circle, at angles offset + 360°·k / n.
     holdout_angle_offset_deg : float
         Angle of the first start on each circle (degrees from the +x axis).
+    holdout_horizon_factor, holdout_t_max_cap : float
+        Held-out horizon T = min(factor · t_max, cap), never below ``t_max``: the held-out
+        starts are judged at T (a gain still not converged there gets the graded penalty
+        at T) and at ``t_max`` (see :mod:`penaltyrun.problems.horizon`). Defaults 10 and
+        10 000: the closed loop Ẋ = −KᵀX from ‖X0‖ = 10 to the event radius takes
+        ln(10⁴)/λ_min(K_sym), under 1 000 for every λ_min above 0.01.
     train_scenarios, train_aggregate
         Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
@@ -108,6 +116,8 @@ class Params(ParamsMixin, TrainingParams):
     holdout_radii: tuple[float, ...] = (2.0, 5.0, 10.0)
     holdout_n_angles: int = 8
     holdout_angle_offset_deg: float = 0.0
+    holdout_horizon_factor: float = 10.0
+    holdout_t_max_cap: float = 10_000.0
 
 
 class Zermelo:
@@ -236,19 +246,35 @@ class Zermelo:
 
     def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
                 ) -> dict[str, np.ndarray] | None:
-        """Evaluate one K on the held-out starts (runner hook).
+        """Evaluate one K on the held-out starts (runner hook) at the training deadline
+        ``t_max`` and at the held-out horizon (see :mod:`penaltyrun.problems.horizon`).
 
         Returns
         -------
         dict of ndarray or None
-            Per scenario: ``scenario``, ``x0`` (n, 2), ``cost`` (graded), ``energy``,
-            ``converged``, ``status``, ``t_final``, ``final_distance``; ``None`` when the
-            held-out set is empty.
+            Per scenario, at the held-out horizon: ``scenario``, ``x0`` (n, 2), ``cost``
+            (graded), ``energy``, ``converged``, ``status``, ``t_final``,
+            ``arrival_time``, ``final_distance``; at the training deadline the fields of
+            :data:`~penaltyrun.problems.horizon.DEADLINE_FIELDS`; ``horizon`` and
+            ``training_horizon``. ``None`` when the held-out set is empty.
         """
-        K = check_spd("matrices.K", mats["K"], 2)
         sc = self.holdout_scenarios()
         if not len(sc["scenario"]):
             return None
+        p = self.params
+        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap)
+        short = self._holdout_runs(mats, sc)
+        long = horizon.at_horizon(self, long_t)._holdout_runs(mats, sc) \
+            if long_t > p.t_max else short
+        res = horizon.combine(short, long, p.t_max, long_t)
+        res.update(sc)
+        return res
+
+    def _holdout_runs(self, mats: Mapping[str, Any], sc: Mapping[str, np.ndarray]
+                      ) -> dict[str, np.ndarray]:
+        """Per-scenario results of one K at this problem's ``t_max``."""
+        K = check_spd("matrices.K", mats["K"], 2)
         out: dict[str, list] = {k: [] for k in ("cost", "energy", "converged", "status",
                                                 "t_final", "final_distance")}
         for x0 in sc["x0"]:
@@ -260,7 +286,6 @@ class Zermelo:
                 out[key].append(value)
         res = {k: np.asarray(v) for k, v in out.items()}
         res["status"] = np.asarray(out["status"], dtype=object)
-        res.update(sc)
         return res
 
     def simulate(
@@ -307,6 +332,7 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> Zermelo:
         raise ConfigError("problem.params.holdout_radii", "radii must be positive numbers")
     if not (isinstance(params.holdout_n_angles, int) and params.holdout_n_angles >= 1):
         raise ConfigError("problem.params.holdout_n_angles", "must be a positive integer")
+    horizon.check_settings(params, "problem.params")
     return Zermelo(case, params)
 
 

@@ -73,8 +73,9 @@ TABLES = {
     "comparison": "map against map within one optimizer and variant: medians, A12, "
                   "Mann–Whitney p, Holm p, equal-budget flag",
     "holdout": "held-out scenarios, every problem: per cell × full map and per best-known "
-               "pair, scenarios, pairs, convergence, share full better, median change, "
-               "Wilcoxon and Holm p",
+               "pair, at the held-out horizon: cost ratio full/diagonal (median, 5–95 %, "
+               "share cheaper, Wilcoxon on log ratios, Holm p), arrival shift, convergence "
+               "at the horizon and by the training deadline, and the converged pairs",
     "discretization": "the discretization check of each cell's best diagonal and best full "
                       "start (problems that declare discretization re-runs)",
     "paper": "our cells beside the published mean / median with Mood's median test and its "
@@ -111,9 +112,10 @@ def methods() -> str:
         "between two maps of one optimizer and budget; Vargha–Delaney A12 = P(a start of "
         "map b beats a start of map a) + ½ P(tie), magnitude |A12 − 0.5| ≥ 0.06 / 0.14 / "
         f"0.21 (small / medium / large); below n = {MIN_N_TEST} converged starts per group a "
-        "test is underpowered. Held-out: two-sided Wilcoxon signed-rank on the scenarios "
-        "where both matrices converge. A non-significant result is no evidence of a "
-        "difference at that n, not evidence of equality.")
+        "test is underpowered. Held-out: the cost ratio J_full / J_diag over every scenario "
+        "at the held-out horizon, two-sided Wilcoxon signed-rank of the log ratios; beside "
+        "it the Wilcoxon test on the scenarios where both converge. A non-significant "
+        "result is no evidence of a difference at that n, not evidence of equality.")
 
 
 def checks(df: pd.DataFrame) -> list[str]:
@@ -317,9 +319,9 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
         lines += [f"- {md_line(s)}" for s in verdict["sentence"]] + [""]
         lines += ["Gain = (diagonal − full)/diagonal of the best-known costs; equal budget: "
                   "A12 = P(a full start beats a diagonal start), Holm-corrected; held-out: "
-                  "the best-known starts paired on the problem's held-out scenarios "
-                  "(change = (J_diag − J_full)/J_diag, median). Details per case below; "
-                  "methods at the end.", ""]
+                  "the best-known starts paired on the problem's held-out scenarios at the "
+                  "held-out horizon (J_full / J_diag over every scenario). Details per case "
+                  "below; methods at the end.", ""]
     body = checks(df)
     if body:
         lines += ["## Checks", ""] + body + [""]

@@ -10,10 +10,19 @@ label):
 * per problem × case × problem variant (``optimizer`` = :data:`BEST_KNOWN`): the starts that
   hold the best-known diagonal and full costs (over every optimizer) — the verdict's row.
 
-Statistics: convergence rates; improvement (J_diag − J_full)/J_diag per scenario where both
-converge (median, 5 / 95 % quantiles); the share of those where full is better; the
-two-sided Wilcoxon signed-rank test (``scipy.stats.wilcoxon``), Holm-corrected over every
-held-out test of the report (:data:`FAMILY`), "underpowered" below 10 pairs.
+The held-out answer is the paired cost ratio J_full / J_diag over *every* scenario of the
+pairing (graded costs for runs that did not converge; see
+:mod:`penaltyrun.problems.horizon` for the held-out horizon): median, 5 / 95 % quantiles,
+the share of scenarios where full is cheaper, and the two-sided Wilcoxon signed-rank test of
+the log ratios (``scipy.stats.wilcoxon``, zeros dropped), Holm-corrected over every
+held-out ratio test of the report (:data:`FAMILY`); plus the median arrival-time shift
+t_full − t_diag over the scenarios both reach. Records written before the long-horizon
+evaluation were judged at the training deadline: their rows say so (``judged_at``).
+
+Beside it, the older comparison over the scenarios both matrices bring to the target
+(``pairs``): improvement (J_diag − J_full)/J_diag (median, 5 / 95 % quantiles), share where
+full is better, Wilcoxon on the paired costs (``wilcoxon_p``, ``p_holm``), "underpowered"
+below 10 pairs; and the convergence rates at the horizon and by the training deadline.
 
 Scenarios whose ``kind`` the problem lists in ``ReportInfo.discretization_kinds`` re-run the
 training scenario at another discretization: they are left out of the pairing and give the
@@ -47,7 +56,10 @@ MIN_PAIRS = 10
 #: ``optimizer`` label of the rows pairing the best-known starts (over all optimizers).
 BEST_KNOWN = "best-known (all optimizers)"
 #: Holm family of the held-out tests, named in the report.
-FAMILY = "every held-out Wilcoxon test of this report (all problems, cases and rows)"
+FAMILY = ("every held-out test of the same kind in this report (all problems, cases and rows; "
+          "the log-ratio tests and the tests over converged pairs are two families)")
+#: ``judged_at`` of records without a held-out horizon (written before it existed).
+AT_DEADLINE = "training deadline (older record)"
 
 
 def scenario_table(holdout: Any, drop_kinds: tuple[str, ...] = ()) -> pd.DataFrame | None:
@@ -59,19 +71,30 @@ def scenario_table(holdout: Any, drop_kinds: tuple[str, ...] = ()) -> pd.DataFra
     Returns
     -------
     DataFrame or None
-        Columns ``cost``, ``converged`` and, where stored, ``kind``; None if empty.
+        Columns ``cost``, ``converged``, ``arrival_time`` (NaN where not stored),
+        ``converged_by_deadline`` (= ``converged`` for records judged at the training
+        deadline) and, where stored, ``kind``; ``attrs["horizon"]`` and
+        ``attrs["training_horizon"]`` (NaN for older records). None if empty.
     """
     data = decode_json(holdout) if isinstance(holdout, str) else holdout
     if not data or "cost" not in data:
         return None
     n = len(data["cost"])
     labels = data.get("scenario") or [str(k) for k in range(n)]
-    table = pd.DataFrame({"cost": np.asarray(data["cost"], float),
-                          "converged": np.asarray(data["converged"], bool)},
-                         index=pd.Index([str(s) for s in labels], name="scenario"))
+    converged = np.asarray(data["converged"], bool)
+    arrival = data.get("arrival_time")
+    table = pd.DataFrame({
+        "cost": np.asarray(data["cost"], float), "converged": converged,
+        "arrival_time": np.full(n, np.nan) if arrival is None
+        else np.asarray([np.nan if a is None else a for a in arrival], float),
+        "converged_by_deadline": np.asarray(data.get("converged_by_deadline", converged),
+                                            bool)},
+        index=pd.Index([str(s) for s in labels], name="scenario"))
     if "kind" in data:
         table["kind"] = list(data["kind"])
         table = table[~table["kind"].isin(drop_kinds)]
+    table.attrs["horizon"] = float(data.get("horizon", np.nan))
+    table.attrs["training_horizon"] = float(data.get("training_horizon", np.nan))
     return table if len(table) else None
 
 
@@ -96,15 +119,61 @@ def _rate_all(g: pd.DataFrame, drop: tuple[str, ...] = ()) -> float:
     return hits / total if total else np.nan
 
 
+def ratio_stats(jd: np.ndarray, jf: np.ndarray) -> dict[str, Any]:
+    """Paired cost-ratio statistics of J_full / J_diag over every scenario.
+
+    Ratios use the scenarios where both costs are finite and positive (``n_ratio``); the
+    share where full is cheaper counts every scenario. Wilcoxon: two-sided signed-rank test
+    of log(J_full / J_diag), zero differences dropped (``zero_method="wilcox"``).
+
+    Returns
+    -------
+    dict
+        ``n_ratio``, ``ratio_median``, ``ratio_q05``, ``ratio_q95``,
+        ``full_cheaper_share``, ``full_cheaper``, ``ratio_p``.
+    """
+    jd, jf = np.asarray(jd, float), np.asarray(jf, float)
+    good = np.isfinite(jd) & np.isfinite(jf) & (jd > 0.0) & (jf > 0.0)
+    log_r = np.log(jf[good] / jd[good])
+    p = np.nan
+    if log_r.size and np.any(log_r != 0.0):
+        p = float(stats.wilcoxon(log_r, zero_method="wilcox",
+                                 alternative="two-sided").pvalue)
+    ratio = np.exp(log_r)
+    return {"n_ratio": int(good.sum()),
+            "ratio_median": float(np.median(ratio)) if ratio.size else np.nan,
+            "ratio_q05": float(np.quantile(ratio, 0.05)) if ratio.size else np.nan,
+            "ratio_q95": float(np.quantile(ratio, 0.95)) if ratio.size else np.nan,
+            "full_cheaper": int(np.sum(jf < jd)),
+            "full_cheaper_share": float(np.mean(jf < jd)) if jd.size else np.nan,
+            "ratio_p": p}
+
+
+def _judged_at(diag: pd.DataFrame, full: pd.DataFrame) -> tuple[str, float, float]:
+    """(label, horizon, training horizon) of a pairing: the held-out horizon when both
+    records carry one, else :data:`AT_DEADLINE`."""
+    hd, hf = diag.attrs.get("horizon", np.nan), full.attrs.get("horizon", np.nan)
+    if not (np.isfinite(hd) and np.isfinite(hf)):
+        return AT_DEADLINE, np.nan, np.nan
+    train = diag.attrs.get("training_horizon", np.nan)
+    label = f"{hd:g}" if hd == hf else f"{hd:g} / {hf:g}"
+    return label, float(max(hd, hf)), float(train)
+
+
 def paired(diag: pd.DataFrame, full: pd.DataFrame) -> dict[str, Any]:
     """Paired statistics of two held-out tables (see the module docstring).
 
     Returns
     -------
     dict
-        ``scenarios``, ``diag_conv``, ``full_conv`` (rates), ``pairs`` (both converged),
+        The cost-ratio statistics of :func:`ratio_stats` over every common scenario,
+        ``arrival_shift_median`` (median t_full − t_diag where both arrive, s),
+        ``judged_at``, ``horizon``, ``training_horizon``; ``scenarios``, ``diag_conv``,
+        ``full_conv`` (rates at the horizon), ``diag_conv_deadline``,
+        ``full_conv_deadline`` (by the training deadline), ``pairs`` (both converged),
         ``full_better_share``, ``median_imp_pct``, ``q05_imp_pct``, ``q95_imp_pct``,
-        ``wilcoxon_p`` and ``note``; plus ``improvements`` (ndarray, %).
+        ``wilcoxon_p`` and ``note``; plus ``improvements`` (ndarray, %) and ``ratios``
+        (ndarray).
     """
     common = diag.index.intersection(full.index)
     d, f = diag.loc[common], full.loc[common]
@@ -120,15 +189,29 @@ def paired(diag: pd.DataFrame, full: pd.DataFrame) -> dict[str, Any]:
         note = "identical costs"
     if diff.size < MIN_PAIRS:
         note = (note + "; " if note else "") + f"underpowered (n = {diff.size} < {MIN_PAIRS})"
-    return {"scenarios": len(common),
-            "diag_conv": float(d["converged"].mean()) if len(common) else np.nan,
-            "full_conv": float(f["converged"].mean()) if len(common) else np.nan,
+    all_d, all_f = d["cost"].to_numpy(float), f["cost"].to_numpy(float)
+    ratios = ratio_stats(all_d, all_f)
+    shift = (f["arrival_time"] - d["arrival_time"]).to_numpy(float)
+    shift = shift[np.isfinite(shift)]
+    judged, horizon, train = _judged_at(diag, full)
+    good = np.isfinite(all_d) & np.isfinite(all_f) & (all_d > 0.0) & (all_f > 0.0)
+
+    def rate(x: pd.Series) -> float:
+        return float(x.mean()) if len(common) else np.nan
+
+    return {**ratios, "arrival_shift_median": float(np.median(shift)) if shift.size else np.nan,
+            "judged_at": judged, "horizon": horizon, "training_horizon": train,
+            "scenarios": len(common),
+            "diag_conv": rate(d["converged"]), "full_conv": rate(f["converged"]),
+            "diag_conv_deadline": rate(d["converged_by_deadline"]),
+            "full_conv_deadline": rate(f["converged_by_deadline"]),
             "pairs": int(both.sum()),
             "full_better_share": float(np.mean(jf < jd)) if jd.size else np.nan,
             "median_imp_pct": float(np.median(imp)) if imp.size else np.nan,
             "q05_imp_pct": float(np.quantile(imp, 0.05)) if imp.size else np.nan,
             "q95_imp_pct": float(np.quantile(imp, 0.95)) if imp.size else np.nan,
-            "wilcoxon_p": p, "note": note, "improvements": imp}
+            "wilcoxon_p": p, "note": note, "improvements": imp,
+            "ratios": all_f[good] / all_d[good]}
 
 
 def _row(problem: str, case: str, variant: str, optimizer: str, param: str,
@@ -150,7 +233,7 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
     table : DataFrame
         Columns of :func:`paired` plus ``p_holm`` (Holm over every row with a p-value) and
         the convergence rates over all starts of the cell.
-    improvements : dict label → ndarray of per-scenario improvements (%)
+    ratios : dict label → ndarray of per-scenario cost ratios J_full / J_diag
     """
     if "holdout" not in df or df.empty:
         return pd.DataFrame(), {}
@@ -187,16 +270,18 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
     if table.empty:
         return table, imps
     for _, r in table.iterrows():
-        if r["improvements"].size:
+        if r["ratios"].size:
             variant = f" [{r['variant']}]" if r["variant"] else ""
             label = f"{r['problem']} / {r['case']}{variant} / {r['optimizer']} / {r['full_map']}"
-            imps[label] = r["improvements"]
+            imps[label] = r["ratios"]
     table["label"] = [f"{r['problem']} / {r['case']}"
                       f"{' [' + r['variant'] + ']' if r['variant'] else ''} / "
                       f"{r['optimizer']} / {r['full_map']}" for _, r in table.iterrows()]
-    table = table.drop(columns="improvements")
+    table = table.drop(columns=["improvements", "ratios"])
     table.insert(table.columns.get_loc("wilcoxon_p") + 1, "p_holm",
                  holm(table["wilcoxon_p"].to_numpy(float)))
+    table.insert(table.columns.get_loc("ratio_p") + 1, "ratio_p_holm",
+                 holm(table["ratio_p"].to_numpy(float)))
     return table, imps
 
 
@@ -255,25 +340,29 @@ def discretization_rows(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def figure(imps: dict[str, np.ndarray], path: Path, title: str) -> Path:
-    """Box plot of the per-scenario improvements (%), symlog axis (outliers of −1 000 %
-    do not squash the boxes)."""
-    fig, ax = plt.subplots(figsize=(10, 0.55 * len(imps) + 2.0))
-    ax.boxplot(list(imps.values()), showfliers=True, orientation="horizontal")
-    ax.set_yticks(range(1, len(imps) + 1), list(imps), fontsize=9)
-    ax.axvline(0.0, color="k", lw=0.8)
-    ax.set_xscale("symlog", linthresh=1.0)
-    ax.set_xlabel("(J_diag − J_full)/J_diag per held-out scenario, both converged (%; "
-                  "symlog axis, linear within ±1 %)")
+def figure(ratios: dict[str, np.ndarray], path: Path, title: str) -> Path:
+    """Box plot of the per-scenario cost ratios J_full / J_diag on a log axis."""
+    fig, ax = plt.subplots(figsize=(10, 0.55 * len(ratios) + 2.0))
+    ax.boxplot(list(ratios.values()), showfliers=True, orientation="horizontal")
+    ax.set_yticks(range(1, len(ratios) + 1), list(ratios), fontsize=9)
+    ax.axvline(1.0, color="k", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_xlabel("J_full / J_diag per held-out scenario (log axis; below 1: full is cheaper)")
     ax.set_title(title)
     ax.grid(True, axis="x", alpha=0.3)
     return save_figure(fig, path)
 
 
-COLUMNS = ["optimizer", "full_map", "pairs", "scenarios", "diag_conv", "full_conv",
-           "full_better_share", "median_imp_pct", "wilcoxon_p", "p_holm"]
-HEADERS = ["optimizer", "full map", "pairs (both conv.)", "scenarios", "diag conv.",
-           "full conv.", "full better (of pairs)", "median change %", "Wilcoxon p", "Holm p"]
+#: The held-out answer (cost ratios over every scenario) and, second table, convergence.
+COLUMNS = ["optimizer", "full_map", "judged_at", "full_cheaper_share", "ratio_median",
+           "ratio_range", "ratio_p_holm", "arrival_shift_median"]
+HEADERS = ["optimizer", "full map", "horizon", "full cheaper", "median J_full/J_diag",
+           "5–95 %", "Holm p (log ratio)", "median arrival shift"]
+CONV_COLUMNS = ["optimizer", "full_map", "diag_conv", "full_conv", "diag_conv_deadline",
+                "full_conv_deadline", "pairs", "median_imp_pct", "p_holm"]
+CONV_HEADERS = ["optimizer", "full map", "diag conv.", "full conv.", "diag conv. by t_max",
+                "full conv. by t_max", "pairs (both conv.)", "median change % (pairs)",
+                "Holm p (pairs)"]
 
 
 def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.ndarray],
@@ -289,17 +378,25 @@ def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.nd
     info = protocol.info_of(df)
     what = info.holdout_description or "the problem does not describe its held-out set"
     lines = ["### Held-out scenarios", "", f"Held-out set: {what}.", "",
-             "Best diagonal vs best full start, re-evaluated on the held-out set and paired "
-             "by scenario; change = (J_diag − J_full)/J_diag over the scenarios where both "
-             "converge (positive: full is lower). Wilcoxon signed-rank, two-sided; Holm p "
-             f"over {FAMILY}.", ""]
-    shown = sel.assign(full_better_share=[
-        "—" if not p else f"{int(round(s * p))}/{p}"
-        for s, p in zip(sel["full_better_share"], sel["pairs"])])
+             "Best diagonal vs best full start, re-evaluated on the held-out set at the "
+             "held-out horizon (column *horizon*; a run not converged there costs the graded "
+             "failure cost) and paired by scenario. The answer: the cost ratio J_full / "
+             "J_diag over every scenario (median, 5–95 % range), the scenarios where full is "
+             "cheaper, the two-sided Wilcoxon signed-rank test of the log ratios (Holm p "
+             f"over {FAMILY}), and the median arrival-time shift t_full − t_diag. Beside it: "
+             "convergence at the horizon and by the training deadline t_max, and the older "
+             "comparison over the scenarios both converge (change = (J_diag − J_full)/J_diag, "
+             "Wilcoxon on the paired costs). Rows judged at the training deadline come from "
+             "records written before the held-out horizon existed.", ""]
+    shown = sel.assign(full_cheaper_share=[
+        "—" if not n else f"{int(c)}/{n}"
+        for c, n in zip(sel["full_cheaper"], sel["scenarios"])],
+        ratio_range=[f"{a:.3g}–{b:.3g}" for a, b in zip(sel["ratio_q05"], sel["ratio_q95"])])
     for variant, g in shown.groupby("variant", sort=True):
         if variant:
             lines += [f"Variant {md_text(variant)}:", ""]
-        lines += [markdown(g, COLUMNS, HEADERS), ""]
+        lines += [markdown(g, COLUMNS, HEADERS), "", markdown(g, CONV_COLUMNS, CONV_HEADERS),
+                  ""]
     mine = {k: imps[k] for k in sel["label"] if k in imps}
     if mine:
         label = f"{first['problem']}_{first['case']}_{first['problem_variant']}"

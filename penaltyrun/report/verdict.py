@@ -8,8 +8,10 @@ A row joins (all computed elsewhere, from the same data):
   best-known gain (diagonal − full)/diagonal;
 * the equal-budget comparison of each optimizer (:mod:`.compare`: A12 = P(a full start beats
   a diagonal start) and Holm p, or "budgets differ: no test");
-* the held-out pairing of the best-known starts (:mod:`.holdout`): share of scenarios where
-  full is better, median change, Wilcoxon p (Holm);
+* the held-out pairing of the best-known starts (:mod:`.holdout`), judged at the held-out
+  horizon: share of scenarios where full is cheaper, median cost ratio J_full / J_diag with
+  its 5–95 % range, Wilcoxon p of the log ratios (Holm), arrival-time shift, and convergence
+  at the horizon and by the training deadline (a column, never a gate);
 * the discretization check where the problem declares one.
 """
 
@@ -23,7 +25,7 @@ import pandas as pd
 from penaltyrun.report import protocol
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_rows
 from penaltyrun.report.compare import NO_TEST
-from penaltyrun.report.holdout import BEST_KNOWN, MIN_PAIRS, discretization_check
+from penaltyrun.report.holdout import BEST_KNOWN, discretization_check
 from penaltyrun.report.tables import fmt, with_unit
 
 #: Significance level of the words in the sentences (the p-values are always printed).
@@ -68,35 +70,42 @@ def _held(held: pd.DataFrame, problem: str, case: str, pvar: str) -> dict | None
     return None if sel.empty else sel.iloc[0].to_dict()
 
 
-def _reached(h: dict) -> tuple[int, int, int]:
-    """(scenarios, reached by diagonal, reached by full) of a held-out pairing."""
+def _count(rate: float, n: int) -> int:
+    return int(round(rate * n)) if np.isfinite(rate) else 0
+
+
+def _horizon_words(h: dict) -> str:
+    """Where a held-out pairing was judged, and convergence by the training deadline."""
     n = int(h["scenarios"])
-    return n, int(round(h["diag_conv"] * n)), int(round(h["full_conv"] * n))
+    deadline = (f"converged by the training deadline: diagonal "
+                f"{_count(h['diag_conv_deadline'], n)}/{n}, full "
+                f"{_count(h['full_conv_deadline'], n)}/{n}")
+    if not np.isfinite(h["horizon"]):
+        return f"judged at the training deadline (record older than the held-out horizon); " \
+            f"converged: diagonal {_count(h['diag_conv'], n)}/{n}, full " \
+            f"{_count(h['full_conv'], n)}/{n}"
+    reach = (f"converged by {fmt(h['horizon'], 4)}: diagonal {_count(h['diag_conv'], n)}/{n}, "
+             f"full {_count(h['full_conv'], n)}/{n}")
+    if h["horizon"] == h["training_horizon"]:  # free final time: no earlier deadline
+        return reach + " (the training horizon)"
+    return f"{reach}; {deadline}"
 
 
-def _few_pairs(h: dict) -> bool:
-    """Whether fewer than :data:`MIN_PAIRS` and under half of the held-out scenarios are
-    converged under both matrices: then the converged counts are the held-out answer."""
-    return h["pairs"] < MIN_PAIRS and h["pairs"] < h["scenarios"] / 2
-
-
-def _reach_counts(h: dict) -> str:
-    """How many held-out scenarios each matrix brings to the target, in words."""
-    n, d, f = _reached(h)
-    return f"diagonal reaches the target on {d} of {n}, full on {f} of {n}"
+def _ratio_words(h: dict) -> str:
+    """The cost-ratio answer of a held-out pairing, e.g. "full cheaper on 9/216, median
+    J_full/J_diag 4.1 (5–95 %: 0.9–30), Holm p < 0.0001"."""
+    text = (f"full cheaper on {int(h['full_cheaper'])}/{int(h['scenarios'])}, median "
+            f"J_full/J_diag {fmt(h['ratio_median'], 3)} (5–95 %: {fmt(h['ratio_q05'], 2)}–"
+            f"{fmt(h['ratio_q95'], 2)}), Holm p {_p(h['ratio_p_holm'])}")
+    if np.isfinite(h.get("arrival_shift_median", np.nan)):
+        text += f", median arrival shift {fmt(h['arrival_shift_median'], 3)}"
+    return text
 
 
 def _held_text(h: dict | None) -> str:
     if h is None or not h["scenarios"]:
         return "—"
-    n, d, f = _reached(h)
-    reach = f"converged: diagonal {d}/{n}, full {f}/{n}"
-    if not h["pairs"]:
-        return reach
-    better = int(round(h["full_better_share"] * h["pairs"]))
-    text = (f"full better on {better}/{h['pairs']}, median {fmt(h['median_imp_pct'], 3)} %, "
-            f"Holm p {_p(h['p_holm'])}")
-    return f"{text}; {reach}" if _few_pairs(h) else text
+    return f"{_ratio_words(h)}; {_horizon_words(h)}"
 
 
 def verdict_rows(df: pd.DataFrame, bk: pd.DataFrame, comp: pd.DataFrame,
@@ -177,29 +186,23 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
                 "diagonal set lies inside the full set, so this is an optimizer shortfall, "
                 f"not a property of the map ({stop_advice(jobs[jobs['param'] != 'diagonal'])})")
     parts = [head]
-    if h is not None and h["pairs"]:
-        better = int(round(h["full_better_share"] * h["pairs"]))
-        worse = h["pairs"] - better
-        p = h["p_holm"]
-        if np.isfinite(p) and p < ALPHA and h["median_imp_pct"] < 0:
-            tail = (f"worse on {worse} of {h['pairs']} held-out scenarios (median "
-                    f"{fmt(h['median_imp_pct'], 3)} %, Holm p {_p(p)})")
-            parts.append(("but " if gain > 0 else "and ") + tail +
+    if h is not None and h["scenarios"] and h["n_ratio"]:
+        p = h["ratio_p_holm"]
+        if np.isfinite(p) and p < ALPHA and h["ratio_median"] > 1.0:
+            parts.append(("but " if gain > 0 else "and ") + "from the held-out scenarios full "
+                         f"costs more ({_ratio_words(h)})" +
                          (": the gain is specific to the training scenario" if gain > 0
                           else ""))
         elif np.isfinite(p) and p < ALPHA:
-            parts.append(f"and better on {better} of {h['pairs']} held-out scenarios (median "
-                         f"+{fmt(h['median_imp_pct'], 3)} %, Holm p {_p(p)}): the gain "
-                         "holds off the training scenario")
+            parts.append(f"and from the held-out scenarios full costs less "
+                         f"({_ratio_words(h)}): the gain holds off the training scenario")
         else:
-            parts.append(f"on the held-out scenarios there is no evidence of a difference at "
-                         f"n = {h['pairs']} (full better on {better}, Holm p {_p(p)})")
-        if _few_pairs(h):
-            parts.append("few held-out scenarios are converged under both matrices: "
-                         + _reach_counts(h))
+            parts.append("on the held-out scenarios there is no evidence of a difference "
+                         f"({_ratio_words(h)})")
+        parts.append(_horizon_words(h))
     elif h is not None and h["scenarios"]:
-        parts.append(f"no held-out scenario is converged under both matrices "
-                     f"({_reach_counts(h)})")
+        parts.append(f"no held-out scenario has a positive finite cost under both matrices "
+                     f"({_horizon_words(h)})")
     else:
         parts.append("no held-out result")
     tested = [r for r in budgets if r["equal_budget"] and np.isfinite(r["p_mwu"])]

@@ -151,7 +151,7 @@ def test_templates_use_only_tables_the_report_writes(zermelo_study, tmp_path):
         assert f"has no `{stem}` table" not in text
     assert "has no held-out table" not in text
     assert "**Held-out scenarios, zermelo / default:**" in text
-    assert "full_better_share" in text
+    assert "ratio_median" in text and "full_conv_deadline" in text
 
 
 def test_a_template_naming_a_table_the_report_never_writes_fails(zermelo_study):

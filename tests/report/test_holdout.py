@@ -92,3 +92,63 @@ def test_file_stem_keeps_long_labels_within_file_system_limits():
     assert len(stem) == 80 and stem.replace("_", "").isalnum()
     assert file_stem(other) != stem and file_stem("a-b") == "a-b"
     assert file_stem("a b") != file_stem("a_b") and file_stem("a b").startswith("a_b_")
+
+
+def _long(costs, converged, by_deadline, arrival, labels):
+    return {"scenario": labels, "cost": costs, "converged": converged,
+            "converged_by_deadline": by_deadline, "arrival_time": arrival,
+            "horizon": 5000.0, "training_horizon": 100.0}
+
+
+def test_ratio_statistics_match_a_direct_scipy_computation():
+    rng = np.random.default_rng(3)
+    n = 40
+    labels = [f"g{k}" for k in range(n)]
+    jd = rng.uniform(0.5, 2.0, n)
+    jf = jd * np.exp(rng.normal(0.3, 0.5, n))
+    jf[:3] = 1000.0 + jf[:3]            # not converged by the horizon: graded cost
+    conv_f = np.ones(n, bool)
+    conv_f[:3] = False
+    arr_d, arr_f = rng.uniform(100, 300, n), rng.uniform(200, 900, n)
+    diag = _long(jd.tolist(), [True] * n, [False] * n, arr_d.tolist(), labels)
+    full = _long(jf.tolist(), conv_f.tolist(), [False] * n,
+                 [None if not c else a for c, a in zip(conv_f, arr_f)], labels)
+    res = rh.paired(rh.scenario_table(diag), rh.scenario_table(full))
+    ratio = jf / jd
+    assert res["scenarios"] == res["n_ratio"] == n
+    assert res["ratio_median"] == pytest.approx(np.median(ratio), rel=1e-12)
+    assert res["ratio_q05"] == pytest.approx(np.quantile(ratio, 0.05), rel=1e-12)
+    assert res["ratio_q95"] == pytest.approx(np.quantile(ratio, 0.95), rel=1e-12)
+    assert res["full_cheaper"] == int(np.sum(jf < jd))
+    assert res["full_cheaper_share"] == pytest.approx(np.mean(jf < jd))
+    assert res["ratio_p"] == pytest.approx(
+        stats.wilcoxon(np.log(jf) - np.log(jd), alternative="two-sided").pvalue, rel=1e-12)
+    assert res["arrival_shift_median"] == pytest.approx(np.median((arr_f - arr_d)[3:]))
+    assert res["diag_conv"] == 1.0 and res["full_conv"] == pytest.approx((n - 3) / n)
+    assert res["diag_conv_deadline"] == res["full_conv_deadline"] == 0.0
+    assert (res["judged_at"], res["horizon"], res["training_horizon"]) == ("5000", 5000.0,
+                                                                           100.0)
+
+
+def test_old_records_are_judged_at_the_deadline_with_a_note():
+    res = rh.paired(rh.scenario_table(DIAG), rh.scenario_table(FULL))
+    assert res["judged_at"] == rh.AT_DEADLINE and np.isnan(res["horizon"])
+    # the ratio statistics still cover every scenario, the deadline column = converged
+    assert res["n_ratio"] == 4 and res["full_cheaper"] == 2  # s1, s4
+    assert res["diag_conv_deadline"] == res["diag_conv"] == 0.75
+    assert np.isnan(res["arrival_shift_median"])
+
+
+def test_holm_over_the_ratio_family():
+    labels = [f"g{k}" for k in range(12)]
+    d = _long([1.0] * 12, [True] * 12, [True] * 12, [1.0] * 12, labels)
+    rows = [_job("diagonal", 1.0, True, d)]
+    for k, param in enumerate(("full", "geagsp")):
+        f = _long([2.0 + 0.1 * i + k for i in range(12)], [True] * 12, [True] * 12,
+                  [1.0] * 12, labels)
+        rows.append(_job(param, 0.9, True, f))
+    table, ratios = rh.holdout_rows(pd.DataFrame(rows))
+    from penaltyrun.report.stats import holm
+    assert np.allclose(table["ratio_p_holm"], holm(table["ratio_p"].to_numpy(float)),
+                       equal_nan=True)
+    assert all(np.all(r > 1.0) for r in ratios.values())

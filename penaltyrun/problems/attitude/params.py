@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import horizon
 from penaltyrun.problems.attitude.frames import ATTITUDE_TYPES, attitude_to_quaternion
 from penaltyrun.problems.attitude.objective import OBJECTIVE_FORMS
 from penaltyrun.problems.base import ParamsMixin
@@ -35,7 +36,8 @@ from penaltyrun.problems.multiscenario import TrainingParams
 
 #: Parameters that do not change a run's result (reports do not split cells by them).
 VARIANT_IGNORE = ("holdout_n", "holdout_lo_deg", "holdout_hi_deg", "holdout_n_perturbed",
-                  "holdout_perturb_deg", "holdout_rate_rel", "holdout_seed")
+                  "holdout_perturb_deg", "holdout_rate_rel", "holdout_seed",
+                  "holdout_horizon_factor", "holdout_t_max_cap")
 
 _SCHAUB: dict[str, Any] = {
     "inertia": (140.0, 100.0, 80.0), "attitude_type": "mrp", "attitude": (0.6, -0.4, 0.2),
@@ -114,6 +116,12 @@ class Params(ParamsMixin, TrainingParams):
         Perturbation sizes (degrees; relative).
     holdout_seed : int
         Seed of the perturbations (the held-out set is the same for every job).
+    holdout_horizon_factor, holdout_t_max_cap : float
+        Held-out horizon T = min(factor · t_max, cap) s, never below ``t_max``: the
+        held-out starts are judged at T (a gain still not converged there gets the graded
+        failure cost at T) and at ``t_max`` (see :mod:`penaltyrun.problems.horizon`).
+        Defaults 50 and 10 000 s: the slowest stable gains tuned at t_max = 100 s need
+        up to ~5 000 s from held-out attitudes.
     train_scenarios, train_aggregate
         Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
@@ -146,6 +154,8 @@ class Params(ParamsMixin, TrainingParams):
     holdout_perturb_deg: float = 10.0
     holdout_rate_rel: float = 0.1
     holdout_seed: int = 20250422
+    holdout_horizon_factor: float = 50.0
+    holdout_t_max_cap: float = 10_000.0
 
     def __post_init__(self) -> None:
         inertia = self.inertia
@@ -247,6 +257,7 @@ def validate(params: Params) -> Params:
         value = getattr(params, key)
         if not (isinstance(value, Real) and 0 <= value):
             raise ConfigError(f"problem.{key}", f"must be a number >= 0, got {value!r}")
+    horizon.check_settings(params, "problem")
     return params
 
 

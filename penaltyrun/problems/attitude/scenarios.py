@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import horizon
 from penaltyrun.problems.attitude.frames import (
     euler_to_quaternion,
     perturbed_states,
@@ -95,27 +96,37 @@ class AttitudeScenarios:
     def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
                 ) -> dict[str, np.ndarray] | None:
         """Evaluate one candidate on the held-out set (runner hook, see
-        :meth:`holdout_scenarios`); inertia, horizon, event and tolerances are this
+        :meth:`holdout_scenarios`) at the training deadline ``t_max`` and at the held-out
+        horizon (``holdout_horizon_factor``, ``holdout_t_max_cap``; see
+        :mod:`penaltyrun.problems.horizon`); inertia, event and tolerances are this
         problem's.
 
         Returns
         -------
         dict of ndarray or None
-            Per scenario: ``scenario``, ``cost``, ``converged``, ``status``, ``energy``,
-            ``t_final``, ``final_distance``, ``initial_distance``, ``attitudes_deg`` (NaN
-            rows for perturbed states), ``q_init`` (n, 4), ``omega_init`` (n, 3). ``None``
-            if the set is empty or the candidate has no gain (LQR without a stabilizing
-            Riccati solution).
+            Per scenario, at the held-out horizon: ``scenario``, ``cost``, ``converged``,
+            ``status``, ``energy``, ``t_final``, ``arrival_time``, ``final_distance``,
+            ``initial_distance``, ``attitudes_deg`` (NaN rows for perturbed states),
+            ``q_init`` (n, 4), ``omega_init`` (n, 3); at the training deadline the fields
+            of :data:`~penaltyrun.problems.horizon.DEADLINE_FIELDS`; ``horizon`` and
+            ``training_horizon`` (s). ``None`` if the set is empty or the candidate has no
+            gain (LQR without a stabilizing Riccati solution).
         """
         sc = self.holdout_scenarios()
         if not len(sc["scenario"]):
             return None
+        p = self.params
+        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap)
         try:
-            res = self.evaluate_states(mats, sc["y0"])
+            short = self.evaluate_states(mats, sc["y0"])
+            res = horizon.at_horizon(self, long_t).evaluate_states(mats, sc["y0"]) \
+                if long_t > p.t_max else dict(short)
         except ConfigError as exc:
             logger.warning("no held-out evaluation: %s", exc)
             return None
         y0 = res.pop("y0")
+        res = horizon.combine(short, res, p.t_max, long_t)
         res.update({"scenario": sc["scenario"], "attitudes_deg": sc["attitudes_deg"],
                     "q_init": y0[:, :4], "omega_init": y0[:, 4:7]})
         return res

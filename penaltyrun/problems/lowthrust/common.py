@@ -307,8 +307,12 @@ class LowThrustProblem:
             Per scenario (lists): ``scenario``, ``kind``, ``control_step_s``,
             ``rk4_substeps``, ``cost``, ``converged``, ``status``, ``tof_days``,
             ``propellant_kg``, ``revolutions``; plus the training run's ``training``
-            summary (cost, converged, status, tof_days, propellant_kg). ``None`` when the
-            set is empty.
+            summary (cost, converged, status, tof_days, propellant_kg); ``arrival_time`` (s,
+            None if not converged), ``converged_by_deadline`` (= ``converged``) and
+            ``horizon`` = ``training_horizon`` = the time-of-flight cap (s): the transfers
+            are free-final-time, ending on arrival or at the training caps
+            (``tof_cap_days``, ``max_revs``), so there is no earlier deadline to lift.
+            ``None`` when the set is empty.
         """
         if not self._holdout:
             return None
@@ -335,6 +339,14 @@ class LowThrustProblem:
                            "propellant_kg": float(self.params.m0_kg - y[6]),
                            "control_step_s": float(self.params.control_step_s),
                            "rk4_substeps": int(self.params.rk4_substeps)}
+        # free final time: a held-out transfer ends on arrival or at the training caps, so
+        # its horizon is the training one and "by the deadline" is "converged"
+        conv = np.asarray(out["converged"], dtype=bool)
+        cap_s = float(self.params.tof_cap_days) * 86400.0
+        out["arrival_time"] = [float(t) * 86400.0 if c else None
+                               for t, c in zip(out["tof_days"], conv)]
+        out["converged_by_deadline"] = conv.tolist()
+        out["horizon"] = out["training_horizon"] = cap_s
         return out
 
     def simulate(

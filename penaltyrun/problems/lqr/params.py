@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import horizon
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.lqr import expr
 from penaltyrun.problems.multiscenario import TrainingParams
@@ -28,8 +29,9 @@ PLANT_KEYS = ("A", "B", "plant_file", "plant", "dynamics")
 CASES = ("default",)
 DEFAULT_CASE = "default"
 #: Keys that do not define the tuned objective (left out of :attr:`Params.setup`).
-NOT_SETUP = ("holdout_x0", "holdout_n", "holdout_seed", "cost_unit", "train_scenarios",
-             "train_aggregate", "train_sample", "train_seed", "setup", "constants")
+NOT_SETUP = ("holdout_x0", "holdout_n", "holdout_seed", "holdout_horizon_factor",
+             "holdout_t_max_cap", "cost_unit", "train_scenarios", "train_aggregate",
+             "train_sample", "train_seed", "setup", "constants")
 #: Keys whose strings are not arithmetic (names, paths, units, training scenarios).
 NOT_ARITHMETIC = ("plant_file", "plant", "dynamics", "cost_unit", "constants",
                   "train_scenarios", "train_aggregate", "train_sample", "train_seed")
@@ -78,6 +80,10 @@ class Params(ParamsMixin, TrainingParams):
         Size of the seeded held-out sample (uniform on the sphere of radius mean ‖x0‖).
     holdout_seed : int
         Seed of that sample.
+    holdout_horizon_factor, holdout_t_max_cap : float
+        Held-out horizon T = min(factor · t_max, cap) (time unit), never below ``t_max``:
+        the held-out starts are judged with the cost integrated to T and to ``t_max`` (see
+        :mod:`penaltyrun.problems.horizon`). Defaults 10 and 1 000.
     t_max : float
         Horizon T of the cost (time unit).
     u_max : float, tuple of float or None
@@ -156,6 +162,8 @@ class Params(ParamsMixin, TrainingParams):
     holdout_x0: tuple | None = None
     holdout_n: int = 16
     holdout_seed: int = 20250422
+    holdout_horizon_factor: float = 10.0
+    holdout_t_max_cap: float = 1000.0
     t_max: float = 20.0
     u_max: float | tuple | None = None
     state_weight: tuple | None = None
@@ -341,6 +349,7 @@ def scalars(p: Params) -> None:
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise ConfigError(f"{PREFIX}.{key}", f"must be an integer >= {low}, got "
                               f"{value!r}")
+    horizon.check_settings(p, PREFIX)
     if not isinstance(p.cost_unit, str):
         raise ConfigError(f"{PREFIX}.cost_unit", f"must be a string, got {p.cost_unit!r}")
 

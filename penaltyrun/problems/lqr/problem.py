@@ -46,6 +46,7 @@ import numpy as np
 from penaltyrun.dynamics import linear_feedback as loop
 from penaltyrun.dynamics.linear import quadratic_cost
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
@@ -448,23 +449,42 @@ class LQRProblem:
 
     def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
                 ) -> dict[str, np.ndarray] | None:
-        """One (Q, R) on every held-out start (runner hook); ``None`` when the set is empty.
+        """One (Q, R) on every held-out start (runner hook), the cost integrated to the
+        training horizon ``t_max`` and to the held-out horizon (see
+        :mod:`penaltyrun.problems.horizon`); ``None`` when the set is empty.
 
         Returns
         -------
         dict of ndarray
-            Per start: ``scenario``, ``x0``, ``cost`` (graded), ``J``, ``converged``,
-            ``status``, ``t_final``.
+            Per start, at the held-out horizon: ``scenario``, ``x0``, ``cost`` (graded),
+            ``J``, ``converged``, ``status``, ``t_final``, ``final_distance`` (‖x(T)‖);
+            ``arrival_time`` is NaN (the cost has no target event); at ``t_max`` the
+            fields of :data:`~penaltyrun.problems.horizon.DEADLINE_FIELDS`; ``horizon``
+            and ``training_horizon``.
         """
         sc = self.holdout_scenarios()
         if not len(sc["scenario"]):
             return None
         Q, R = self._check(mats)
-        res = self.rows(Q[None], R[None], sc["x0"])
-        return {**sc, "cost": res["cost"][0], "J": res["J"][0],
+        p = self.params
+        long_t = horizon.holdout_horizon(self.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap)
+        short = self._holdout_runs(Q, R, sc["x0"])
+        long = horizon.at_horizon(self, long_t, t_max=long_t)._holdout_runs(Q, R, sc["x0"]) \
+            if long_t > self.t_max else short
+        out = horizon.combine(short, long, self.t_max, long_t)
+        out["arrival_time"] = np.full(len(sc["scenario"]), np.nan)
+        return {**sc, **out}
+
+    def _holdout_runs(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray
+                      ) -> dict[str, np.ndarray]:
+        """Per-start results of one (Q, R) at this problem's horizon ``t_max``."""
+        res = self.rows(Q[None], R[None], X0)
+        return {"cost": res["cost"][0], "J": res["J"][0],
                 "converged": res["status"][0] == "converged",
                 "status": np.asarray(res["status"][0], dtype=object),
-                "t_final": res["t_final"][0]}
+                "t_final": res["t_final"][0],
+                "final_distance": np.linalg.norm(res["x_final"][0], axis=1)}
 
 
 __all__ = ["CUT_MARGIN", "HARD_FACTOR", "STATUSES", "LQRProblem"]

@@ -17,6 +17,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import horizon
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.multiscenario import TrainingParams
 
@@ -33,7 +34,8 @@ CASE_PARAMS: dict[str, dict[str, Any]] = {
 }
 #: Parameters that do not change a run's result (reports do not split cells by them).
 VARIANT_IGNORE = ("holdout_n_sphere", "holdout_sphere_radius_m", "holdout_seed",
-                  "holdout_eccentricities", "holdout_thrust_scales")
+                  "holdout_eccentricities", "holdout_thrust_scales",
+                  "holdout_horizon_factor", "holdout_t_max_cap")
 PLANTS = ("cw", "keplerian")
 
 
@@ -92,6 +94,12 @@ class Params(ParamsMixin, TrainingParams):
         Model-mismatch scenarios: the Keplerian plant with these eccentricities.
     holdout_thrust_scales : tuple of float
         Model-mismatch scenarios: the CW plant with these thrust scales.
+    holdout_horizon_factor, holdout_t_max_cap : float
+        Held-out horizon T = min(factor · t_max, cap) s, rounded down to whole samples and
+        never below ``t_max``: the held-out scenarios are judged at T (a run still not
+        converged there gets the graded failure cost at T) and at ``t_max`` (see
+        :mod:`penaltyrun.problems.horizon`). Defaults 4 and 12 000 s: every best-known
+        gain of the rendezvous study converges from every held-out start within 12 000 s.
     train_scenarios, train_aggregate, train_sample, train_seed
         Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
     """
@@ -125,6 +133,8 @@ class Params(ParamsMixin, TrainingParams):
     holdout_seed: int = 20250422
     holdout_eccentricities: tuple[float, ...] = (0.01,)
     holdout_thrust_scales: tuple[float, ...] = (0.95, 1.05)
+    holdout_horizon_factor: float = 4.0
+    holdout_t_max_cap: float = 12_000.0
 
     @property
     def n_steps(self) -> int:
@@ -224,6 +234,7 @@ def validate(p: Params) -> Params:
             raise ConfigError(_key(name), f"out of range: {values}")
         if len(set(values)) != len(values):
             raise ConfigError(_key(name), f"lists a value twice: {values}")
+    horizon.check_settings(p, "problem.params")
     return p
 
 

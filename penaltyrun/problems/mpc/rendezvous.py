@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
@@ -318,21 +319,37 @@ class RendezvousMPC:
 
     def holdout(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
                 ) -> dict[str, np.ndarray] | None:
-        """Evaluate one candidate on the held-out set (runner hook).
+        """Evaluate one candidate on the held-out set (runner hook) at the training deadline
+        ``t_max`` and at the held-out horizon (see :mod:`penaltyrun.problems.horizon`).
 
         Returns
         -------
         dict of ndarray or None
-            Per scenario: the fields of :meth:`holdout_scenarios` plus ``cost``,
-            ``delta_v``, ``converged``, ``status``, ``t_final``, ``final_distance``,
-            ``final_speed``; ``None`` if the set is empty.
+            Per scenario: the fields of :meth:`holdout_scenarios`; at the held-out horizon
+            ``cost``, ``delta_v``, ``converged``, ``status``, ``t_final``,
+            ``arrival_time``, ``final_distance``, ``final_speed``; at the training deadline
+            the fields of :data:`~penaltyrun.problems.horizon.DEADLINE_FIELDS`;
+            ``horizon`` and ``training_horizon`` (s). ``None`` if the set is empty.
         """
         scenarios = scen.holdout(self.params)
         if not scenarios:
             return None
+        p = self.params
+        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap, p.sample_time_s)
+        short = self._holdout_runs(mats, scenarios)
+        long = horizon.at_horizon(self, long_t)._holdout_runs(mats, scenarios) \
+            if long_t > p.t_max else short
+        out = self.holdout_scenarios()
+        out.update(horizon.combine(short, long, p.t_max, long_t))
+        return out
+
+    def _holdout_runs(self, mats: Mapping[str, Any], scenarios: list[scen.Scenario]
+                      ) -> dict[str, np.ndarray]:
+        """Per-scenario results of one candidate at this problem's ``t_max``."""
         H, F, _, ok = self.controller(mats)
         rows = [self._summary(self.run(H, F, sc) if ok else None, sc) for sc in scenarios]
-        out = self.holdout_scenarios()
+        out: dict[str, np.ndarray] = {}
         for key in ("cost", "delta_v", "t_final", "final_distance", "final_speed"):
             out[key] = np.asarray([r[key] for r in rows], dtype=float)
         out["converged"] = np.asarray([r["converged"] for r in rows], dtype=bool)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -112,10 +113,15 @@ def test_holdout_perturbs_the_companion_state():
     np.testing.assert_array_equal(again.holdout_scenarios()["y0"], sc["y0"])
     held = prob.holdout(mats)
     assert held["cost"].shape == (6,) and list(held["scenario"]) == list(sc["scenario"])
+    long = replace(prob.params, t_max=float(held["horizon"]))
     for k in range(6):
-        single = ac.reference_run(np.hstack([mats["Kp"], mats["Kd"]]), prob.params,
-                                  sc["y0"][k])
-        assert held["cost"][k] == pytest.approx(single["cost"], rel=1e-6)
+        G = np.hstack([mats["Kp"], mats["Kd"]])
+        single = ac.reference_run(G, prob.params, sc["y0"][k])
+        assert held["cost_at_deadline"][k] == pytest.approx(single["cost"], rel=1e-6)
+        assert held["converged_by_deadline"][k] == single["converged"]
+        if held["converged"][k]:
+            single = ac.reference_run(G, long, sc["y0"][k])
+            assert held["cost"][k] == pytest.approx(single["cost"], rel=1e-6)
 
 
 def test_holdout_grid_plus_perturbed():

@@ -1,0 +1,59 @@
+"""Re-judged held-out data beside a results file: ``holdout_long.parquet``.
+
+A study's ``results.parquet`` keeps each job's held-out results as the job stored them
+(older jobs: judged at the training deadline). Re-judging (``python -m penaltyrun.docsgen
+study rejudge NAME``) re-evaluates the stored best matrices on the held-out set at the
+held-out horizon and writes ``holdout_long.parquet`` beside it: one row per re-judged job
+(``job_id``, ``config_hash``, ``holdout`` JSON text, ``status``, ``wall_time_s``) and, in
+``holdout_long.json``, its provenance (git commit, package versions, horizon settings).
+
+Reading a results file applies it (:func:`apply`): every job's ``holdout`` becomes its
+re-judged value; jobs the re-judging left out (``jobs: paired`` re-judges only the starts
+the held-out tables pair) get no held-out data, so no table mixes the two horizons.
+``attrs["holdout_source"]`` names the file used.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import pandas as pd
+
+logger = logging.getLogger(__name__)
+
+#: File name of the re-judged held-out data, beside ``results.parquet``.
+LONG_FILE = "holdout_long.parquet"
+#: Its provenance file.
+LONG_PROVENANCE = "holdout_long.json"
+#: Columns of :data:`LONG_FILE`.
+LONG_COLUMNS = ("job_id", "config_hash", "holdout", "status", "wall_time_s")
+
+
+def _key(config_hash: object) -> str:
+    """A configuration hash as a dictionary key (missing: empty, whether None or NaN)."""
+    return "" if config_hash is None or config_hash != config_hash else str(config_hash)
+
+
+def apply(frame: pd.DataFrame, results: Path) -> pd.DataFrame:
+    """``frame`` (read from ``results``) with the ``holdout`` column of the re-judged file
+    beside it, matched by ``job_id`` and ``config_hash``; ``frame`` unchanged without one.
+    """
+    path = Path(results).parent / LONG_FILE
+    if not path.is_file() or "holdout" not in frame:
+        return frame
+    long = pd.read_parquet(path, columns=["job_id", "config_hash", "holdout"])
+    table = {(str(j), _key(h)): v for j, h, v in zip(long["job_id"], long["config_hash"],
+                                                     long["holdout"])}
+    out = frame.copy()
+    out["holdout"] = [table.get((str(j), _key(h))) for j, h in zip(frame["job_id"],
+                                                                   frame["config_hash"])]
+    missing = int(out["holdout"].isna().sum() - frame["holdout"].isna().sum())
+    if missing > 0:
+        logger.info("%s: %d job(s) not re-judged carry no held-out data", path, missing)
+    out.attrs = dict(frame.attrs)
+    out.attrs["holdout_source"] = str(path)
+    return out
+
+
+__all__ = ["LONG_COLUMNS", "LONG_FILE", "LONG_PROVENANCE", "apply"]

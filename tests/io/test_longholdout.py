@@ -1,0 +1,34 @@
+"""A re-judged held-out file beside a results file replaces the stored held-out data."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pyarrow.parquet as pq
+
+from penaltyrun.io.longholdout import LONG_FILE
+from penaltyrun.io.schema import read_results, to_table
+
+
+def _records() -> list[dict]:
+    return [{"job_id": f"j{k}", "problem": "zermelo", "case": "default", "param": "diagonal",
+             "optimizer": "pso", "start": k, "seed": k, "status": "ok", "best_cost": 1.0 + k,
+             "best_converged": True, "holdout": {"cost": [1.0], "converged": [False]}}
+            for k in range(3)]
+
+
+def test_long_file_is_read_in_preference_and_left_out_jobs_carry_none(tmp_path):
+    path = tmp_path / "results.parquet"
+    pq.write_table(to_table(_records(), run_id="r"), path)
+    stored = read_results(path)
+    assert stored["holdout"].notna().all()
+    new = json.dumps({"cost": [2.0], "converged": [True], "horizon": 10.0})
+    pd.DataFrame({"job_id": ["j0", "j2"], "config_hash": list(stored["config_hash"].iloc[[0, 2]]),
+                  "holdout": [new, new], "status": ["ok", "ok"],
+                  "wall_time_s": [0.1, 0.1]}).to_parquet(tmp_path / LONG_FILE)
+    df = read_results(path).set_index("job_id")
+    assert json.loads(df.loc["j0", "holdout"])["horizon"] == 10.0
+    assert json.loads(df.loc["j2", "holdout"])["horizon"] == 10.0
+    assert pd.isna(df.loc["j1", "holdout"])
+    assert (df["best_cost"].to_numpy() == [1.0, 2.0, 3.0]).all()

@@ -8,13 +8,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from penaltyrun.report.tables import save_figure  # noqa: E402
+from penaltyrun.report.tables import save_figure
 
 #: Most panels of the channel figure (one per history key).
 MAX_PANELS = 6

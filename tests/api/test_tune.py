@@ -149,7 +149,7 @@ def test_two_problems_of_one_name_in_one_process_do_not_mix(tmp_path):
         penaltyrun.compare(res, res)
         results.append(res.best.cost)
     assert results[1] - results[0] == pytest.approx(5.0, abs=1e-3)
-    assert "user" not in problems._USER and not problems._OBJECTS
+    assert "user" not in problems.trust.named() and not problems._OBJECTS
 
 
 def test_an_interrupted_tune_keeps_its_jobs_and_resumes(tmp_path):

@@ -71,14 +71,11 @@ def test_lqr_closed_loop_is_a_minus_bk_with_python_control_gain(seed):
 def test_lqr_closed_loop_of_a_sampled_plant_uses_the_dlqr_gain():
     """A plant with a sample time dt > 0 (python-control's convention) gives the discrete
     loop x_{k+1} = (A − B K) x_k with python-control's ``dlqr`` gain."""
-    from types import SimpleNamespace
-
     rng = np.random.default_rng(11)
     A = np.array([[1.0, 0.1], [0.0, 1.0]])
     B = np.array([[0.005], [0.1]])
-    prob = problems.make("lqr", "default", {"A": A.tolist(), "B": B.tolist(),
+    prob = problems.make("lqr", "default", {"A": A.tolist(), "B": B.tolist(), "dt": 0.1,
                                             "x0": [[1.0, 0.0]]})
-    prob.plant = SimpleNamespace(A=A, B=B, dt=0.1, n_states=2, n_inputs=1)
     Q, R = spd(rng, 2), spd(rng, 1)
     K, _, _ = control.dlqr(A, B, Q, R)
     loop = prob.closed_loop({"Q": Q, "R": R})

@@ -77,18 +77,19 @@ def _count(rate: float, n: int) -> int:
 def _horizon_words(h: dict) -> str:
     """Where a held-out pairing was judged, and convergence by the training deadline."""
     n = int(h["scenarios"])
-    deadline = (f"converged by the training deadline: diagonal "
-                f"{_count(h['diag_conv_deadline'], n)}/{n}, full "
-                f"{_count(h['full_conv_deadline'], n)}/{n}")
+
+    def conv(diag: float, full: float) -> str:
+        return f"diagonal {_count(diag, n)}/{n}, full {_count(full, n)}/{n}"
+
     if not np.isfinite(h["horizon"]):
-        return f"judged at the training deadline (record older than the held-out horizon); " \
-            f"converged: diagonal {_count(h['diag_conv'], n)}/{n}, full " \
-            f"{_count(h['full_conv'], n)}/{n}"
-    reach = (f"converged by {fmt(h['horizon'], 4)}: diagonal {_count(h['diag_conv'], n)}/{n}, "
-             f"full {_count(h['full_conv'], n)}/{n}")
+        return ("judged at the training deadline (record older than the held-out horizon); "
+                f"converged: {conv(h['diag_conv'], h['full_conv'])}")
+    reach = (f"judged at horizon T = {fmt(h['horizon'], 4)}; converged by T: "
+             f"{conv(h['diag_conv'], h['full_conv'])}")
     if h["horizon"] == h["training_horizon"]:  # free final time: no earlier deadline
-        return reach + " (the training horizon)"
-    return f"{reach}; {deadline}"
+        return reach + " (T is the training horizon)"
+    return (f"{reach}; by the training deadline {fmt(h['training_horizon'], 4)}: "
+            f"{conv(h['diag_conv_deadline'], h['full_conv_deadline'])}")
 
 
 def _ratio_words(h: dict) -> str:
@@ -96,7 +97,8 @@ def _ratio_words(h: dict) -> str:
     J_full/J_diag 4.1 (5–95 %: 0.9–30), Holm p < 0.0001"."""
     text = (f"full cheaper on {int(h['full_cheaper'])}/{int(h['scenarios'])}, median "
             f"J_full/J_diag {fmt(h['ratio_median'], 3)} (5–95 %: {fmt(h['ratio_q05'], 2)}–"
-            f"{fmt(h['ratio_q95'], 2)}), Holm p {_p(h['ratio_p_holm'])}")
+            f"{fmt(h['ratio_q95'], 2)}), Wilcoxon signed-rank of the log ratios, Holm p "
+            f"{_p(h['ratio_p_holm'])}")
     if np.isfinite(h.get("arrival_shift_median", np.nan)):
         text += f", median arrival shift {fmt(h['arrival_shift_median'], 3)}"
     return text
@@ -180,7 +182,9 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         head = (f"full and diagonal reach the same best-known cost within {CERTIFY_RTOL:g} "
                 f"({evidence})")
     elif gain > 0:
-        head = f"full is {fmt(gain, 3)} % better on the training scenario ({evidence})"
+        head = (f"on the training scenario the best-known full cost is {fmt(gain, 3)} % below "
+                f"the diagonal's ({with_unit(d['best_known'], row['unit'])} → "
+                f"{with_unit(f['best_known'], row['unit'])}; {evidence})")
     else:
         head = (f"full is {fmt(-gain, 3)} % worse on the training scenario ({evidence}); the "
                 "diagonal set lies inside the full set, so this is an optimizer shortfall, "

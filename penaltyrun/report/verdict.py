@@ -74,7 +74,7 @@ def _count(rate: float, n: int) -> int:
     return int(round(rate * n)) if np.isfinite(rate) else 0
 
 
-def _horizon_words(h: dict) -> str:
+def horizon_words(h: dict) -> str:
     """Where a held-out pairing was judged, and convergence by the training deadline."""
     n = int(h["scenarios"])
 
@@ -92,7 +92,7 @@ def _horizon_words(h: dict) -> str:
             f"{conv(h['diag_conv_deadline'], h['full_conv_deadline'])}")
 
 
-def _ratio_words(h: dict) -> str:
+def ratio_words(h: dict) -> str:
     """The cost-ratio answer of a held-out pairing, e.g. "full cheaper on 9/216, median
     J_full/J_diag 4.1 (5–95 %: 0.9–30), Holm p < 0.0001"."""
     text = (f"full cheaper on {int(h['full_cheaper'])}/{int(h['scenarios'])}, median "
@@ -107,7 +107,7 @@ def _ratio_words(h: dict) -> str:
 def _held_text(h: dict | None) -> str:
     if h is None or not h["scenarios"]:
         return "—"
-    return f"{_ratio_words(h)}; {_horizon_words(h)}"
+    return f"{ratio_words(h)}; {horizon_words(h)}"
 
 
 def verdict_rows(df: pd.DataFrame, bk: pd.DataFrame, comp: pd.DataFrame,
@@ -194,19 +194,19 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         p = h["ratio_p_holm"]
         if np.isfinite(p) and p < ALPHA and h["ratio_median"] > 1.0:
             parts.append(("but " if gain > 0 else "and ") + "from the held-out scenarios full "
-                         f"costs more ({_ratio_words(h)})" +
+                         f"costs more ({ratio_words(h)})" +
                          (": the gain is specific to the training scenario" if gain > 0
                           else ""))
         elif np.isfinite(p) and p < ALPHA:
             parts.append(f"and from the held-out scenarios full costs less "
-                         f"({_ratio_words(h)}): the gain holds off the training scenario")
+                         f"({ratio_words(h)}): the gain holds off the training scenario")
         else:
             parts.append("on the held-out scenarios there is no evidence of a difference "
-                         f"({_ratio_words(h)})")
-        parts.append(_horizon_words(h))
+                         f"({ratio_words(h)})")
+        parts.append(horizon_words(h))
     elif h is not None and h["scenarios"]:
         parts.append(f"no held-out scenario has a positive finite cost under both matrices "
-                     f"({_horizon_words(h)})")
+                     f"({horizon_words(h)})")
     else:
         parts.append("no held-out result")
     tested = [r for r in budgets if r["equal_budget"] and np.isfinite(r["p_mwu"])]

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import difflib
 import json
-import math
 import tempfile
 from functools import cached_property
 from pathlib import Path
@@ -27,6 +26,7 @@ from typing import Any
 import jinja2
 
 from penaltyrun.docsgen import experiments
+from penaltyrun.docsgen.layout import MAX_COLUMNS, fmt, markdown_table, narrow_table
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
 
 TEMPLATES = Path("studies") / "templates"
@@ -138,32 +138,29 @@ def default_columns(stem: str) -> list[str]:
             "verdict": build.VERDICT_COLUMNS}.get(stem, [])
 
 
+def main_columns(stem: str, frame: Any) -> list[str] | None:
+    """The answer columns a results page shows of a report table wider than
+    :data:`~penaltyrun.docsgen.layout.MAX_COLUMNS` (the others go behind a fold); None for
+    a narrow table or one without a choice here (its first columns are shown)."""
+    if len(frame.columns) <= MAX_COLUMNS:
+        return None
+    if stem == "paper":
+        return [c for c in ["problem", "case", "variant", "optimizer", "map", "converged",
+                            "ours median / mean", "paper median / mean", "Holm p"]
+                if c in frame]
+    if stem == "holdout_tuning_modes":
+        answer = ["full cheaper", "median J_full/J_diag", "Wilcoxon p (log ratio)"]
+        modes = ["single", multi_column(dict.fromkeys(frame.columns))]
+        return ["case", "optimizer", "full_map",
+                *[f"{m}: {a}" for m in modes for a in answer if f"{m}: {a}" in frame]]
+    return None
+
+
 def _select(frame: Any, where: dict | None) -> Any:
     """Rows of ``frame`` matching ``where`` (column → value or list of values)."""
     for key, value in (where or {}).items():
         frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
     return frame
-
-
-def fmt(value: Any, spec: str = ".4g") -> str:
-    """A number formatted with ``spec`` (``—`` for missing / NaN)."""
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "—"
-    try:
-        return format(value, spec)
-    except (TypeError, ValueError):
-        return str(value)
-
-
-def markdown_table(frame: Any, spec: str = ".4g") -> str:
-    """A DataFrame as a Markdown table, numbers formatted with ``spec``."""
-    header = "| " + " | ".join(str(c) for c in frame.columns) + " |"
-    lines = [header, "|" + "---|" * len(frame.columns)]
-    for _, row in frame.iterrows():
-        cells = [fmt(v, spec) if isinstance(v, (int, float)) and not isinstance(v, bool)
-                 else str(v) for v in row]
-        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
-    return "\n".join(lines)
 
 
 class Context:
@@ -172,6 +169,9 @@ class Context:
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
         self._studies: dict[str, StudyData] = {}
+        #: Text files rendered beside the pages (the numbers of each figure), by path
+        #: relative to the root.
+        self.figures: dict[Path, str] = {}
 
     def study(self, name: str) -> StudyData:
         """The data of study ``name``."""
@@ -207,10 +207,11 @@ class Context:
 
     def summary(self, name: str, by: list[str], where: dict | None = None,
                 cost: str = "best_cost", spec: str = ".4g") -> str:
-        """Per group: starts, converged, best / median / mean / worst of ``cost`` over the
-        converged starts and the median evaluations, as a Markdown table. Starts with other
-        optimizer settings (another budget, swarm or stall rule) are never pooled: each
-        settings variant is its own row, with its ``max_evals`` budget."""
+        """Per group: its budget, converged starts (``k of n``), best / median / worst /
+        mean of ``cost`` over the converged starts and the median evaluations, as Markdown
+        (columns beyond the width behind a fold). Starts with other optimizer settings
+        (another budget, swarm or stall rule) are never pooled: each settings variant is
+        its own row, with its ``max_evals`` budget."""
         import pandas as pd
         frame = self.study(name).rows(where).copy()
         ok = (frame["status"] == "ok") & frame["best_converged"].astype(bool)
@@ -225,11 +226,10 @@ class Context:
             cap = budget.loc[group.index].dropna()
             rows.append({**dict(zip(by, key[:len(by)])),
                          "budget (max_evals)": f"{int(cap.iloc[0])}" if len(cap) else "—",
-                         "starts": len(group),
-                         "converged": int(len(good)), "best": good.min(),
-                         "median": good.median(), "mean": good.mean(), "worst": good.max(),
+                         "converged": f"{len(good)} of {len(group)}", "best": good.min(),
+                         "median": good.median(), "worst": good.max(), "mean": good.mean(),
                          "evaluations (median)": f"{group['n_evals'].median():.0f}"})
-        return markdown_table(pd.DataFrame(rows), spec)
+        return narrow_table(pd.DataFrame(rows), spec, keys=by)
 
     def csv(self, name: str, stem: str, columns: list[str] | None = None,
             where: dict | None = None, spec: str = ".4g") -> str:
@@ -248,7 +248,21 @@ class Context:
         if frame.empty:
             return f"*The `{stem}` table of `{name}` has no row for {where}.*"
         columns = columns or [c for c in default_columns(stem) if c in frame]
-        return markdown_table(frame[columns] if columns else frame, spec)
+        shown = frame[columns] if columns else frame
+        keys = ["problem", "case", "setting", "optimizer", "full_map"] \
+            if stem == "holdout_tuning_modes" else None
+        return narrow_table(shown, spec, main=main_columns(stem, shown), keys=keys)
+
+    def comparison(self, name: str) -> str:
+        """The study's equal-budget map-vs-map tests: the A12 figure (diagonal vs each full
+        map, by optimizer, with 95 % Brunner–Munzel intervals) and the comparison table
+        behind a fold (:func:`penaltyrun.docsgen.comparefig.section`); a note when the
+        report wrote no comparison."""
+        from penaltyrun.docsgen.comparefig import section
+        if not self.study(name).has_table("comparison"):
+            return f"*The report of `{name}` has no `comparison` table.*"
+        return section(name, self.study(name).df, self.study(name).table("comparison"),
+                       self.figures)
 
     def table_value(self, name: str, stem: str, column: str, where: dict | None = None,
                     spec: str = ".4g") -> str:
@@ -378,13 +392,15 @@ def paper_claim(problem: str, case: str) -> str:
     return paper.claim if paper is not None else ""
 
 
-def environment(root: Path) -> jinja2.Environment:
-    """The Jinja environment of ``<root>/studies/templates`` with :class:`Context`."""
+def environment(root: Path, ctx: Context | None = None) -> jinja2.Environment:
+    """The Jinja environment of ``<root>/studies/templates`` with ``ctx`` (default a new
+    :class:`Context`)."""
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(Path(root) / TEMPLATES)),
                              undefined=jinja2.StrictUndefined, keep_trailing_newline=True,
                              autoescape=False)
-    ctx = Context(root)
-    env.globals.update(study=ctx.study, pending=ctx.pending, value=ctx.value,
+    ctx = ctx or Context(root)
+    env.globals.update(comparison=ctx.comparison, study=ctx.study, pending=ctx.pending,
+                       value=ctx.value,
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
                        held_out=ctx.held_out, table_value=ctx.table_value,
@@ -400,9 +416,11 @@ def environment(root: Path) -> jinja2.Environment:
 
 def render(root: Path, reference: bool = True) -> dict[Path, str]:
     """Rendered text of every generated file, by path relative to ``root``: the results
-    pages, the README and (``reference``) the reference pages generated from the code."""
+    pages, the numbers of their figures (``docs/results/figures/*.csv``), the README and
+    (``reference``) the reference pages generated from the code."""
     root = Path(root)
-    env = environment(root)
+    ctx = Context(root)
+    env = environment(root, ctx)
     out: dict[Path, str] = {}
     if reference:
         from penaltyrun.docsgen.reference import pages
@@ -414,6 +432,7 @@ def render(root: Path, reference: bool = True) -> dict[Path, str]:
                 out[page] = splice_readme((root / page).read_text(), text, page)
         else:
             out[RESULTS_DOCS / path.name] = text
+    out.update(ctx.figures)
     return out
 
 
@@ -428,14 +447,22 @@ def splice_readme(readme: str, block: str, page: Path = README) -> str:
 
 
 def render_all(root: Path, reference: bool = True) -> list[Path]:
-    """Write every generated file; return the paths written."""
+    """Write every generated file and draw each figure whose numbers changed or whose
+    PNG is missing; return the paths written."""
+    from penaltyrun.docsgen.comparefig import FIGURES, draw
     written = []
     for rel, text in render(root, reference=reference).items():
         path = Path(root) / rel
         path.parent.mkdir(parents=True, exist_ok=True)
-        if not path.is_file() or path.read_text() != text:
+        changed = not path.is_file() or path.read_text() != text
+        if changed:
             path.write_text(text)
             written.append(rel)
+        png = path.with_suffix(".png")
+        if rel.parent == FIGURES and (changed or not png.is_file()):
+            draw(text, png, f"{rel.stem.removesuffix('_a12')}: full vs diagonal at equal "
+                            "budget")
+            written.append(rel.with_suffix(".png"))
     return written
 
 
@@ -467,4 +494,21 @@ def check(root: Path, reference: bool = True, tables: bool = True) -> list[str]:
             rel = page.relative_to(root)
             if rel not in expected:
                 problems.append(f"{rel}: not generated from a template (studies/templates)")
+        problems += _check_figures(Path(root), set(rendered))
+    return problems
+
+
+def _check_figures(root: Path, rendered: set[Path]) -> list[str]:
+    """A PNG for every figure's numbers and no figure file without them. The PNG's bytes
+    are not compared (they depend on the matplotlib version); its numbers are, as text."""
+    from penaltyrun.docsgen.comparefig import FIGURES
+    problems = []
+    numbers = {rel for rel in rendered if rel.parent == FIGURES}
+    for rel in sorted(numbers):
+        if not (root / rel.with_suffix(".png")).is_file():
+            problems.append(f"{rel.with_suffix('.png')}: missing (run `make docs-results`)")
+    for path in sorted((root / FIGURES).glob("*")) if (root / FIGURES).is_dir() else []:
+        rel = path.relative_to(root)
+        if rel.with_suffix(".csv") not in numbers:
+            problems.append(f"{rel}: no results page draws it (delete it)")
     return problems

@@ -26,7 +26,13 @@ from typing import Any
 import jinja2
 
 from penaltyrun.docsgen import experiments
-from penaltyrun.docsgen.layout import MAX_COLUMNS, fmt, markdown_table, narrow_table
+from penaltyrun.docsgen.layout import (
+    MAX_COLUMNS,
+    fmt,
+    fold,
+    markdown_table,
+    narrow_table,
+)
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
 
 TEMPLATES = Path("studies") / "templates"
@@ -103,6 +109,8 @@ class StudyData:
 #: Text columns of the report's tables where an empty value is a label (the default
 #: variant, no note), not a missing number.
 LABEL_COLUMNS = ("variant", "problem_variant", "note", "ci_note", "label")
+#: Columns of the verdict table shown outside its fold (one result per cell).
+VERDICT_MAIN = ("question", "diagonal best-known", "full best-known", "gain")
 #: Columns of ``holdout.csv`` the results pages show.
 HELD_OUT_COLUMNS = ["optimizer", "full_map", "judged_at", "scenarios", "full_cheaper",
                     "ratio_median", "ratio_q05", "ratio_q95", "ratio_p_holm",
@@ -293,11 +301,20 @@ class Context:
         return frame[column].iloc[0]
 
     def verdict(self, name: str, spec: str = ".4g") -> str:
-        """The report's verdict table of the study and, under it, its generated sentence per
-        row (a note when the report wrote no verdict)."""
-        table = self.csv(name, "verdict", spec=spec)
+        """The report's verdict of the study: a table of one result per cell (the
+        best-known values with their evidence and the gain), the equal-budget tests and
+        the held-out answer behind a fold, and under it the generated sentence per row (a
+        note when the report wrote no verdict)."""
         if not self.study(name).has_table("verdict"):
-            return table
+            return self.csv(name, "verdict", spec=spec)
+        frame = self.study(name).table("verdict")
+        columns = [c for c in default_columns("verdict") if c in frame]
+        main = [c for c in columns if c in VERDICT_MAIN]
+        rest = [c for c in columns if c not in main]
+        table = markdown_table(frame[main], spec)
+        if rest:
+            table += "\n\n" + fold("Per cell: " + ", ".join(rest),
+                                    markdown_table(frame[[main[0], *rest]], spec))
         sentences = self.study(name).table("verdict").get("sentence")
         lines = [f"- {s}" for s in ([] if sentences is None else sentences.dropna())]
         return "\n\n".join([table, *(["\n".join(lines)] if lines else [])])

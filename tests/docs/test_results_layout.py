@@ -130,3 +130,13 @@ def test_check_wants_each_figure_png_and_no_stray_figure(tmp_path):
     (folder / "old_a12.png").write_bytes(b"png")
     assert results._check_figures(tmp_path, {numbers}) == [
         f"{comparefig.FIGURES / 'old_a12.png'}: no results page draws it (delete it)"]
+
+
+def test_the_verdict_shows_one_result_per_cell_and_the_tests_behind_a_fold():
+    text = results.Context(ROOT).verdict("referee_attitude")
+    head, folded = text.split(layout.FOLD_OPEN)
+    assert head.strip().splitlines()[0] == \
+        "| question | diagonal best-known | full best-known | gain |"
+    assert "| question | equal budget | held-out | discretization |" in folded
+    assert "Holm p" not in head  # the tests sit behind the fold, the sentences under it
+    assert folded.split(layout.FOLD_CLOSE)[1].strip().startswith("- **attitude_lqr")

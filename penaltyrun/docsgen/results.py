@@ -350,7 +350,7 @@ class Context:
     def held_out(self, name: str, spec: str = ".4g") -> str:
         """The report's held-out table (``holdout.csv``: one row per cell × full map and
         per best-known pair, paired by scenario) as one Markdown table per problem × case,
-        under a heading naming it."""
+        under a heading naming it, with its convergence table behind a fold."""
         if not self.study(name).has_table("holdout"):
             return "*The study's report has no held-out table.*"
         frame = self.study(name).table("holdout")
@@ -358,10 +358,11 @@ class Context:
         for (problem, case, variant), group in frame.groupby(["problem", "case", "variant"],
                                                              sort=True):
             title = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
-            parts.append(f"**Held-out scenarios, {title}:**\n\n"
-                         + "\n\n".join(markdown_table(group[[c for c in cols if c in group]],
-                                                       spec)
-                                        for cols in (HELD_OUT_COLUMNS, HELD_OUT_CONV_COLUMNS)))
+            answer, conv = (markdown_table(group[[c for c in cols if c in group]], spec)
+                            for cols in (HELD_OUT_COLUMNS, HELD_OUT_CONV_COLUMNS))
+            parts.append(f"**Held-out scenarios, {title}:**\n\n{answer}\n\n"
+                         + fold(f"Convergence, {title}: at the horizon, by the training "
+                                "deadline, and the pairs both converge", conv))
         return "\n\n".join(parts)
 
     def provenance(self, name: str) -> str:

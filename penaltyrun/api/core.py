@@ -230,7 +230,8 @@ def _execute(jobs: list[Any], run_dir: Path, rc: Mapping[str, Any],
                    worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected,
                    evaluate_on=rc.get("evaluate_on", "local"),
                    chunks=rc.get("chunks", "auto"),
-                   stall_timeout=float(rc.get("stall_timeout", 600)))
+                   stall_timeout=float(rc.get("stall_timeout", 600)),
+                   job_timeout=rc.get("job_timeout"))
 
 
 __all__ = ["CellSpec", "local_workers", "plan_cell", "run_cell", "run_meta",

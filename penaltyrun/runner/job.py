@@ -14,6 +14,7 @@ import numpy as np
 from penaltyrun import optim
 from penaltyrun.problems import diagnostics
 from penaltyrun.problems.base import CUTOFF_STATUS
+from penaltyrun.runner import interrupts
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
 from penaltyrun.runner.swarm import LocalEvaluation
@@ -219,7 +220,9 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
     -------
     dict
         One flat record (see :mod:`penaltyrun.io.schema` for the columns). A job that
-        raises is returned with ``status="failed"`` and the error text.
+        raises is returned with ``status="failed"`` and the error text; so is one whose
+        code raises ``KeyboardInterrupt`` or ``SystemExit`` (a Ctrl-C or SIGTERM of the run
+        is raised on, see :mod:`penaltyrun.runner.interrupts`).
     """
     started = datetime.now(timezone.utc)
     t0 = time.perf_counter()
@@ -282,6 +285,12 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
         text = describe_job_error(exc)
         logger.error("job %s failed: %s", job.job_id, text)
         record.update({"status": "failed", "error": f"{text}\n{traceback.format_exc()}"})
+    except (KeyboardInterrupt, SystemExit) as exc:
+        if not interrupts.raised_by_job(exc):  # a Ctrl-C / SIGTERM of the run stops it
+            raise
+        text = interrupts.describe_exit_exception(exc)
+        logger.error("job %s failed: %s", job.job_id, text)
+        record.update({"status": "failed", "error": text})
     record["wall_time_s"] = time.perf_counter() - t0
     record["finished_at"] = datetime.now(timezone.utc).isoformat()
     return record

@@ -26,7 +26,7 @@ from typing import Any
 from penaltyrun.errors import EnvironmentProblemError, describe_os_error
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.provenance import packages_json
-from penaltyrun.runner.validate import SCHEMA_VERSION, record_problem
+from penaltyrun.runner.validate import NO_RESULT_STATUSES, SCHEMA_VERSION, record_problem
 
 logger = logging.getLogger(__name__)
 
@@ -160,7 +160,7 @@ def pending_jobs(jobs: Iterable[Job], run_dir: Path, resume: bool,
         if record is None:
             quarantine_with_warning(path, reason)
             todo.append(job)
-        elif retry_failed and record["status"] == "failed":
+        elif retry_failed and record["status"] in NO_RESULT_STATUSES:
             todo.append(job)
     logger.info("resume: %d of %d jobs already finished", len(jobs) - len(todo), len(jobs))
     return todo

@@ -126,7 +126,8 @@ def summarize(path: Path, run_dir: Path) -> dict[str, int]:
         first = df[df["status"].isin(NO_RESULT_STATUSES)].iloc[0]
         cause = str(first["error"] or "").strip().splitlines()[:1] or ["no error text"]
         line += (f"; errors in {run_dir}/jobs/<job_id>.json and {path} (column error), "
-                 f"e.g. {first['job_id']}: {cause[0]}; rerun failed jobs with "
+                 f"e.g. {first['job_id']}: {cause[0]}; rerun "
+                 f"{'failed and timed-out' if counts['timeout'] else 'failed'} jobs with "
                  f"runner.resume=true runner.retry_failed=true")
         FAILED_RUNS.append(str(run_dir))
     print(line, file=sys.stderr, flush=True)

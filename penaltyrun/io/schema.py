@@ -49,7 +49,7 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "start": (pa.int64(), "start index within the cell"),
     "seed": (pa.int64(), "job seed derived from runner.seed"),
     "status": (pa.string(), "ok | diverged | failed | timeout"),
-    "error": (pa.string(), "error text (failed) or why the best did not converge"),
+    "error": (pa.string(), "error text (failed, timeout) or why the best did not converge"),
     "best_cost": (pa.float64(), "best objective value"),
     "best_converged": (pa.bool_(), "whether the best candidate met the terminal condition"),
     "best_status": (pa.string(), "problem status of the best candidate"),

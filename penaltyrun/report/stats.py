@@ -220,7 +220,8 @@ def cell_summary(df: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     ``n_jobs`` counts every start, ``n_converged`` the converged ones, ``success_rate`` is
     their share. best / median / mean / worst / std and the BCa 95 % intervals of the
     median and the mean use converged starts only; ``ci_note`` says why an interval is
-    missing. Evaluations and wall time are means over all non-failed starts.
+    missing. Evaluations and wall time are means over all starts that produced a result;
+    ``n_failed`` counts those that did not (``failed`` and ``timeout``).
     """
     if "variant" not in df:
         df = df.assign(variant="")

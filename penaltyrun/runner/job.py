@@ -111,6 +111,18 @@ class Heartbeat:
                 f"({100.0 * self.n_evals / self.total:.1f} %, ≤ {left:.0f} s left at this pace)")
 
 
+def identity_columns(job: Job) -> dict[str, Any]:
+    """Columns every record of ``job`` has, whatever became of the job (also a record
+    written for it when its worker died or was killed at ``runner.job_timeout``): its key,
+    seed and settings, and the run's metadata. A report groups jobs into cells and
+    variants by these."""
+    return {"job_id": job.job_id, "problem": job.problem, "case": job.case,
+            "param": job.param, "optimizer": job.optimizer, "start": job.start,
+            "seed": job.seed, "optimizer_settings": _jsonable(job.optimizer_options),
+            "problem_params": _jsonable(job.problem_params),
+            "param_options": _jsonable(job.param_options), **job.meta}
+
+
 def numba_cache_dir() -> str:
     """Where numba keeps penaltyrun's compiled kernels: ``NUMBA_CACHE_DIR`` if set, else
     the ``__pycache__`` folders of :mod:`penaltyrun.dynamics`."""
@@ -226,15 +238,7 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
     """
     started = datetime.now(timezone.utc)
     t0 = time.perf_counter()
-    record: dict[str, Any] = {
-        "job_id": job.job_id, "problem": job.problem, "case": job.case, "param": job.param,
-        "optimizer": job.optimizer, "start": job.start, "seed": job.seed,
-        "optimizer_settings": _jsonable(job.optimizer_options),
-        "problem_params": _jsonable(job.problem_params),
-        "param_options": _jsonable(job.param_options),
-        "started_at": started.isoformat(),
-        **job.meta,
-    }
+    record: dict[str, Any] = {**identity_columns(job), "started_at": started.isoformat()}
     evaluation = LocalEvaluation() if evaluation is None else evaluation
     try:
         prob, layout, settings = build(job.problem, job.case, job.problem_params, job.param,

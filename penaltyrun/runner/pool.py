@@ -53,6 +53,7 @@ from multiprocessing.connection import Connection, wait
 from typing import Any
 
 from penaltyrun.runner import interrupts
+from penaltyrun.runner.job import identity_columns
 from penaltyrun.runner.plan import Job
 
 logger = logging.getLogger(__name__)
@@ -202,9 +203,7 @@ def ended_itself(exitcode: int | None) -> bool:
 def failure_record(job: Job, error: str, status: str = "failed") -> dict[str, Any]:
     """Record of a job that could not produce one itself (its worker died, or was killed
     at ``runner.job_timeout``: ``status="timeout"``)."""
-    return {"job_id": job.job_id, "problem": job.problem, "case": job.case,
-            "param": job.param, "optimizer": job.optimizer, "start": job.start,
-            "seed": job.seed, "status": status, "error": error, **job.meta}
+    return {**identity_columns(job), "status": status, "error": error}
 
 
 @contextlib.contextmanager

@@ -40,6 +40,13 @@ def test_a_hanging_job_costs_that_job_only_and_is_retried_on_resume(tmp_path):
     assert hung["error"].startswith("JobTimeout: ") and np.isnan(hung["best_cost"])
     assert res.best.cost == pytest.approx(float(df["best_cost"].min()))
 
+    report = res.report(tmp_path / "report") / "report.md"
+    text = report.read_text(encoding="utf-8")
+    assert f"- {hung['job_id']} (timeout): JobTimeout: " in text.split("## Failed jobs")[1]
+    summary = res.summary()
+    assert summary["n_starts"].tolist() == [3]
+    assert summary["converged"].tolist() == [pytest.approx(2 / 3)]
+
     planned = [SimpleNamespace(job_id=job_id) for job_id in df["job_id"]]
     assert pending_jobs(planned, res.run_dir, resume=True) == []
     again = pending_jobs(planned, res.run_dir, resume=True, retry_failed=True)

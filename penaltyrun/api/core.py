@@ -177,7 +177,7 @@ def run_cell(spec: CellSpec, run_dir: Path, progress: ProgressFactory | None = N
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 spec.param, spec.optimizer, run_dir)
     expected = runner.log_forecast(jobs, int(rc.get("forecast_samples", 8)), int(rc["seed"]),
-                                   local_workers(rc))
+                                   local_workers(rc), rc.get("job_timeout"))
     bar = progress(jobs) if progress is not None else contextlib.nullcontext(None)
     try:
         with bar as on_record:

@@ -116,7 +116,8 @@ def plan_cell(spec: CellSpec, case: str, meta: Mapping[str, Any] | None = None) 
         spec.problem_params, spec.param_options, spec.optimizer_options, dict(meta or {}),
         holdout=bool(rc.get("holdout", True)),
         warm_start_share=warm_start_share(rc, spec.optimizer, spec.optimizer_options),
-        problem_module=spec.problem_module, cutoff=bool(rc.get("cutoff", True)))
+        problem_module=spec.problem_module, cutoff=bool(rc.get("cutoff", True)),
+        module_hash=runner.module_source_hash(spec.problem_module))
 
 
 def local_workers(runner: Mapping[str, Any]) -> int | None:

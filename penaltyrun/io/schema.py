@@ -172,8 +172,9 @@ def collect(run_dir: Path, job_ids: Iterable[str] | None = None) -> Path:
         kept = [f for f in files if f.stem in wanted]
         if len(kept) < len(files):
             logger.warning("left out %d job records of another configuration (other "
-                           "settings, runner.seed or runner.holdout) found in %s; they stay "
-                           "on disk", len(files) - len(kept), run_dir / "jobs")
+                           "settings, runner.seed, runner.holdout or an edited problem "
+                           "module) found in %s; they stay on disk", len(files) - len(kept),
+                           run_dir / "jobs")
         files = kept
     records = []
     for f in files:

@@ -120,7 +120,8 @@ def identity_columns(job: Job) -> dict[str, Any]:
             "param": job.param, "optimizer": job.optimizer, "start": job.start,
             "seed": job.seed, "optimizer_settings": _jsonable(job.optimizer_options),
             "problem_params": _jsonable(job.problem_params),
-            "param_options": _jsonable(job.param_options), **job.meta}
+            "param_options": _jsonable(job.param_options),
+            **({"module_hash": job.module_hash} if job.module_hash else {}), **job.meta}
 
 
 def numba_cache_dir() -> str:

@@ -40,7 +40,8 @@ REQUIRED_FINISHED: dict[str, str] = {"best_cost": _NUMBER}
 #: Optional fields and their kind when present and not null.
 OPTIONAL: dict[str, str] = {
     "error": _TEXT, "best_status": _TEXT, "stop_reason": _TEXT, "run_id": _TEXT,
-    "config_hash": _TEXT, "config": _TEXT, "package_version": _TEXT, "git_commit": _TEXT,
+    "config_hash": _TEXT, "config": _TEXT, "module_hash": _TEXT, "package_version": _TEXT,
+    "git_commit": _TEXT,
     "n_evals": _INT, "n_iters": _INT, "n_nonfinite": _INT, "max_evals": _INT,
     "schema_version": _INT, "t_final": _NUMBER, "wall_time_s": _NUMBER,
     "best_converged": "true or false", "best_z": "a list of numbers",

@@ -117,7 +117,7 @@ def plan_cell(spec: CellSpec, case: str, meta: Mapping[str, Any] | None = None) 
         holdout=bool(rc.get("holdout", True)),
         warm_start_share=warm_start_share(rc, spec.optimizer, spec.optimizer_options),
         problem_module=spec.problem_module, cutoff=bool(rc.get("cutoff", True)),
-        module_hash=runner.module_source_hash(spec.problem_module))
+        module_hash=runner.user_code_hash(spec.problem_module, spec.problem_params))
 
 
 def local_workers(runner: Mapping[str, Any]) -> int | None:

@@ -54,9 +54,10 @@ class Job:
     root_seed : int or None
         ``runner.seed`` the job's seed derives from (part of :attr:`settings_hash`).
     module_hash : str
-        Hash of the source of ``problem_module`` (:func:`module_source_hash`), or "" (a
-        problem of penaltyrun, an in-memory one). Part of :attr:`settings_hash`: a module
-        edited between an interrupted run and its resume is a new configuration.
+        Hash of the source of ``problem_module`` and of the modules a problem parameter
+        names (:func:`user_code_hash`), or "" (a problem of penaltyrun, an in-memory one).
+        Part of :attr:`settings_hash`: a module edited between an interrupted run and its
+        resume is a new configuration.
     """
 
     problem: str
@@ -150,12 +151,13 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
 
 def module_source_hash(module: str | None) -> str:
     """Short SHA-256 of the source file of the problem module ``module`` (dotted name), or
-    "" for none, an in-memory problem (``object:<name>``) or a module without a source file.
+    "" for none, an in-memory problem (``object:<name>``), a module of penaltyrun itself
+    (its version is recorded with the results) or a module without a source file.
 
     Only the named module's own file is hashed, not the modules it imports. Finding the
     file imports the module's parent packages, as running the problem does.
     """
-    if not module or ":" in module:
+    if not module or ":" in module or module.split(".")[0] == "penaltyrun":
         return ""
     import importlib.util
 
@@ -210,3 +212,20 @@ def order_longest_first(jobs: Iterable[Job], expected_s: Mapping[str, float] | N
     known = [j for j in jobs if expected_s.get(j.job_id) is not None]
     unknown = [j for j in jobs if expected_s.get(j.job_id) is None]
     return sorted(known, key=lambda j: -float(expected_s[j.job_id])) + unknown
+
+
+#: Problem parameters that name user code as ``module:attribute`` (the LQR problem's plant
+#: and nonlinear dynamics); their modules' sources are part of the job identity too.
+CODE_PARAMS = ("plant", "dynamics")
+
+
+def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
+    """:func:`module_source_hash` of the problem module and of the modules that
+    :data:`CODE_PARAMS` name (``module:attribute``), combined; "" when there is none."""
+    names = [problem_module or ""]
+    names += [value.partition(":")[0] for key in CODE_PARAMS
+              if isinstance(value := problem_params.get(key), str) and ":" in value]
+    hashes = [h for h in map(module_source_hash, names) if h]
+    if len(hashes) <= 1:
+        return hashes[0] if hashes else ""
+    return config_hash(hashes)

@@ -10,7 +10,7 @@ import uuid
 import pytest
 
 import penaltyrun
-from penaltyrun.runner import module_source_hash, plan_jobs
+from penaltyrun.runner import module_source_hash, plan_jobs, user_code_hash
 from penaltyrun.runner.records import read_record
 
 SOURCE = textwrap.dedent('''
@@ -69,6 +69,17 @@ def test_the_hash_follows_the_module_s_source(module):
     assert module_source_hash(name) not in ("", before)
     for none in (None, "", "object:mine", "sys", "no_such_module_here.at_all"):
         assert module_source_hash(none) == ""
+
+
+def test_modules_named_by_problem_parameters_count_too(module):
+    name, _ = module
+    own = module_source_hash(name)
+    assert user_code_hash(name, {}) == own
+    assert user_code_hash(None, {"dynamics": f"{name}:f"}) == own
+    assert user_code_hash(None, {"plant": "cw", "dynamics": None}) == ""
+    both = user_code_hash(name, {"plant": f"{name}:P"})
+    assert both not in ("", own)
+    assert module_source_hash("penaltyrun.problems") == ""  # recorded as the version
 
 
 def test_the_job_ids_cover_the_module_s_source_and_only_then():

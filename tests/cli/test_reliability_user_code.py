@@ -187,3 +187,23 @@ def test_ctrl_c_still_stops_a_run_whose_job_hangs(lab, extra):
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "runner.resume=true" in err.strip().splitlines()[-1]
+
+
+@pytest.mark.slow
+def test_a_module_edited_before_resume_is_a_new_configuration(lab):
+    run = lab / "run"
+    args = [*ARGS, "case=interrupt", "runner.workers=2", f"hydra.run.dir={run}"]
+    first = cli(*args, cwd=lab, timeout=120)
+    assert first.returncode == 3, first.stderr
+    old = set(pd.read_parquet(run / RESULTS_FILE)["job_id"])
+    with open(lab / "lab" / "bad.py", "a", encoding="utf-8") as fh:
+        fh.write("\nEDITED = True\n")
+    resumed = cli(*args, "runner.resume=true", cwd=lab, timeout=120)
+    assert resumed.returncode == 0, resumed.stderr  # the flag exists: every job runs well
+    output = resumed.stdout + resumed.stderr
+    assert "0 of 3 jobs already finished" in output
+    warned = [ln for ln in output.splitlines() if "was edited since" in ln]
+    assert len(warned) == 1 and "problem module lab.bad" in warned[0], output
+    new = pd.read_parquet(run / RESULTS_FILE)
+    assert len(new) == 3 and not set(new["job_id"]) & old  # nothing mixed
+    assert len(list((run / "jobs").glob("*.json"))) == 6

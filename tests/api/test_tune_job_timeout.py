@@ -47,7 +47,7 @@ def test_a_hanging_job_costs_that_job_only_and_is_retried_on_resume(tmp_path):
     assert summary["n_starts"].tolist() == [3]
     assert summary["converged"].tolist() == [pytest.approx(2 / 3)]
 
-    planned = [SimpleNamespace(job_id=job_id) for job_id in df["job_id"]]
+    planned = [SimpleNamespace(job_id=job_id, module_hash="") for job_id in df["job_id"]]
     assert pending_jobs(planned, res.run_dir, resume=True) == []
     again = pending_jobs(planned, res.run_dir, resume=True, retry_failed=True)
     assert [job.job_id for job in again] == [hung["job_id"]]

@@ -359,7 +359,7 @@ def log_forecast(jobs: Sequence[Job], samples: int, root_seed: int,
     """
     if samples <= 0 or not jobs:
         return {}
-    from penaltyrun.runner import isolated
+    from penaltyrun.runner import interrupts, isolated
 
     args = (list(jobs), samples, root_seed, workers)
     try:
@@ -367,7 +367,15 @@ def log_forecast(jobs: Sequence[Job], samples: int, root_seed: int,
             lines, expected = isolated.call_isolated(_forecast_lines, args, time_limit_s,
                                                      "runner.job_timeout")
         else:
-            lines, expected = _forecast_lines(*args)
+            with interrupts.sigint_marked():  # told apart while the marking holds
+                try:
+                    lines, expected = _forecast_lines(*args)
+                except (KeyboardInterrupt, SystemExit) as exc:
+                    if not interrupts.raised_by_job(exc):  # a Ctrl-C or SIGTERM of the run
+                        raise
+                    logger.warning("forecast: not available (%s raised by the problem's "
+                                   "code)", type(exc).__name__)
+                    return {}
     except isolated.IsolatedCallError as exc:
         logger.warning("forecast: not available (sample evaluations in a process of their "
                        "own: %s)", exc)

@@ -66,3 +66,19 @@ def test_a_hanging_problem_costs_the_forecast_only(tmp_path, caplog):
     assert time.monotonic() - t0 < 10
     lines = [r.getMessage() for r in caplog.records if "forecast" in r.getMessage()]
     assert len(lines) == 1 and "runner.job_timeout=0.5 s" in lines[0]
+
+
+@pytest.mark.parametrize("exc", [KeyboardInterrupt, SystemExit])
+def test_a_problem_raising_an_interrupt_costs_the_forecast_only(exc, caplog):
+    """Without a limit the forecast runs in this process: the problem's own
+    KeyboardInterrupt / SystemExit is one warning, not a stopped run."""
+    def cost(K):
+        raise exc
+
+    prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="raises_forecast")
+    with problems.hold(prob) as module, caplog.at_level(logging.WARNING):
+        jobs = plan_jobs("raises_forecast", prob.case, "diagonal", "baseline", 2, 0,
+                         problem_module=module)
+        assert forecast.log_forecast(jobs, 2, 0, 1) == {}
+    lines = [r.getMessage() for r in caplog.records if "forecast" in r.getMessage()]
+    assert lines == [f"forecast: not available ({exc.__name__} raised by the problem's code)"]

@@ -320,6 +320,8 @@ class Context:
         """The report's held-out table (``holdout.csv``: one row per cell × full map and
         per best-known pair, paired by scenario) as one Markdown table per problem × case,
         under a heading naming it."""
+        from penaltyrun.report.holdout import SHARE_COLUMNS, counts
+
         if not self.study(name).has_table("holdout"):
             return "*The study's report has no held-out table.*"
         frame = self.study(name).table("holdout")
@@ -327,6 +329,8 @@ class Context:
         for (problem, case, variant), group in frame.groupby(["problem", "case", "variant"],
                                                              sort=True):
             title = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
+            group = group.assign(**{c: counts(group[c], group["scenarios"])
+                                    for c in SHARE_COLUMNS if c in group})
             parts.append(f"**Held-out scenarios, {title}:**\n\n"
                          + "\n\n".join(markdown_table(group[[c for c in cols if c in group]],
                                                        spec)

@@ -295,6 +295,18 @@ class Page:
         values = self.m.cells[column].astype(float)
         return str(len(values)) if agg == "count" else fmt(getattr(values, agg)(), spec)
 
+    def span(self, column: str, spec: str = ".3g") -> str:
+        """``"a to b"``: the smallest and largest value of a column over the cells (one
+        value when they format alike)."""
+        lo, hi = self.value(column, "min", spec), self.value(column, "max", spec)
+        return lo if lo == hi else f"{lo} to {hi}"
+
+    def which(self, column: str, agg: str = "max") -> str:
+        """``problem / case`` of the cell where a column takes its ``agg`` (min or max)."""
+        values = self.m.cells[column].astype(float)
+        row = self.m.cells.loc[values.idxmax() if agg == "max" else values.idxmin()]
+        return f"{row['problem']} / {row['case']}"
+
     def example(self, field: str, spec: str = ".3g") -> str:
         """One field of the example scenario (:func:`example_scenario`), formatted with
         ``spec``."""

@@ -52,14 +52,16 @@ class Figures:
 
     def write(self) -> list[Path]:
         """Draw the figures of every page opened so far into ``docs/explanation/figures``;
-        return the paths written (relative to the root)."""
+        return the paths (relative to the root) whose bytes changed."""
         from penaltyrun.docsgen.fullmatrix import FIGURE_DIR
 
         folder = self.root / DOCS / FIGURE_DIR
+        before = {p: p.read_bytes() for p in folder.glob("*.png")} if folder.is_dir() else {}
         written = []
         for page in self.pages.values():
-            written += [p.relative_to(self.root) for p in page.write_figures(folder)]
-        return written
+            written += [p for p in page.write_figures(folder)
+                        if before.get(p) != p.read_bytes()]
+        return [p.relative_to(self.root) for p in written]
 
 
 def render(env: Any, root: Path, only: str | None = None) -> dict[Path, str]:

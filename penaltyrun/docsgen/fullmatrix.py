@@ -28,6 +28,7 @@ This module gathers, from a study's committed ``results.parquet`` (with its re-j
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -275,7 +276,19 @@ class Page:
         self.example_cell = (str(example[0]), str(example[1]))
         self.df = read(root, name)
         self.m = mechanism(self.df)
-        self.ex = example_scenario(self.df, self.m, *self.example_cell)
+        #: Figure keys the template linked to (:meth:`figure`): the ones drawn.
+        self.requested: set[str] = set()
+
+    def has(self, *cells: tuple[str, str] | list[str]) -> bool:
+        """Whether the data hold a best-known held-out pair for each cell (problem, case)
+        and for the example cell (a template's guard: other data render a note instead)."""
+        have = set(zip(self.m.cells.get("problem", []), self.m.cells.get("case", [])))
+        return all((str(p), str(c)) in have for p, c in (*cells, self.example_cell))
+
+    @cached_property
+    def ex(self) -> dict[str, Any]:
+        """:func:`example_scenario` of the example cell."""
+        return example_scenario(self.df, self.m, *self.example_cell)
 
     def cell(self, problem: str, case: str, column: str, spec: str = ".3g") -> str:
         """One column of a cell's row, formatted with ``spec``."""
@@ -340,14 +353,18 @@ class Page:
         """The path of figure ``key`` relative to the page (:attr:`FIGURES`)."""
         if key not in self.FIGURES:
             raise ValueError(f"no figure {key!r} (there are: {', '.join(self.FIGURES)})")
+        self.requested.add(key)
         return f"{FIGURE_DIR}/{self.FIGURES[key]}"
 
     def write_figures(self, folder: Path) -> list[Path]:
-        """Draw every figure into ``folder`` (the example trajectories are integrated here:
-        seconds)."""
+        """Draw the figures the template linked to into ``folder`` (the example trajectories
+        are integrated here: seconds); return their paths."""
         from penaltyrun.docsgen import fullmatrix_plots as plots
 
-        return plots.write_all(self.df, self.m, self.ex, folder, self.FIGURES)
+        if not self.requested:
+            return []
+        return plots.write_all(self.df, self.m, self.ex, folder,
+                               {k: self.FIGURES[k] for k in sorted(self.requested)})
 
 
 __all__ = ["COUNTED", "FIGURE_DIR", "PAIR_COLUMNS", "Mechanism", "Page", "cell_rows",

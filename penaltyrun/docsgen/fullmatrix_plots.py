@@ -183,20 +183,26 @@ def write_all(df: pd.DataFrame, m: Any, ex: Mapping[str, Any], folder: Path,
     folder : Path
         Where the PNG files go.
     files : mapping
-        ``ratios``, ``modes``, ``trajectory`` → file name.
+        Some of ``ratios``, ``modes``, ``trajectory`` → file name: the figures drawn.
     """
     from penaltyrun.docsgen.fullmatrix import simulate_example
 
-    sims = simulate_example(df, ex)
-    cell = m.cells[(m.cells["problem"] == ex["problem"]) & (m.cells["case"] == ex["case"])]
-    full_map = str(cell["full_map"].iloc[0])
-    sims = {"best diagonal": sims["diagonal"], f"best full ({full_map})": sims["full"]}
-    title = (f"{ex['problem']} / {ex['case']}, held-out start {ex['scenario']} "
-             f"(J_full / J_diag = {ex['ratio']:.3g}, the pair's median scenario)")
-    return [ratio_figure(m.pairs, m.ratios, folder / files["ratios"]),
-            mode_figure(m.modes, folder / files["modes"], m.cells),
-            trajectory_figure(sims, folder / files["trajectory"], title,
-                              ex["training_horizon"])]
+    out = []
+    if "ratios" in files:
+        out.append(ratio_figure(m.pairs, m.ratios, folder / files["ratios"]))
+    if "modes" in files:
+        out.append(mode_figure(m.modes, folder / files["modes"], m.cells))
+    if "trajectory" in files:
+        sims = simulate_example(df, ex)
+        cell = m.cells[(m.cells["problem"] == ex["problem"])
+                       & (m.cells["case"] == ex["case"])]
+        full_map = str(cell["full_map"].iloc[0])
+        sims = {"best diagonal": sims["diagonal"], f"best full ({full_map})": sims["full"]}
+        title = (f"{ex['problem']} / {ex['case']}, held-out start {ex['scenario']} "
+                 f"(J_full / J_diag = {ex['ratio']:.3g}, the pair's median scenario)")
+        out.append(trajectory_figure(sims, folder / files["trajectory"], title,
+                                     ex["training_horizon"]))
+    return out
 
 
 __all__ = ["mode_figure", "ratio_figure", "trajectory_figure", "write_all"]

@@ -288,6 +288,34 @@ class Context:
         lines = [f"- {s}" for s in ([] if sentences is None else sentences.dropna())]
         return "\n\n".join([table, *(["\n".join(lines)] if lines else [])])
 
+    def answers(self, name: str, where: dict | None = None) -> list[str]:
+        """The verdict sentences of the study's rows matching ``where`` (``problem``,
+        ``case``, ...): training result, evidence, held-out result with its statistic, n
+        and horizon, and the equal-budget test, as the report words them."""
+        if not self.study(name).has_table("verdict"):
+            raise ValueError(f"the report of {name!r} has no verdict table")
+        rows = _select(self.study(name).table("verdict"), where)
+        if rows.empty:
+            raise ValueError(f"{name}: no verdict row matches {where}")
+        return [str(s) for s in rows["sentence"]]
+
+    def held_out_words(self, name: str, problem: str, case: str, variant: str = "") -> str:
+        """The held-out answer of one cell's best-known pair in words: scenarios where full
+        is cheaper, median J_full / J_diag with its 5–95 % range, the Wilcoxon signed-rank
+        test of the log ratios (Holm), the arrival shift, the horizon it was judged at and
+        convergence there and by the training deadline."""
+        from penaltyrun.report.holdout import BEST_KNOWN
+        from penaltyrun.report.verdict import horizon_words, ratio_words
+
+        held = _select(self.study(name).table("holdout"),
+                       {"problem": problem, "case": case, "variant": variant,
+                        "optimizer": BEST_KNOWN})
+        if len(held) != 1:
+            raise ValueError(f"{name}: {len(held)} best-known held-out rows for "
+                             f"{problem} / {case} [{variant}]")
+        h = held.iloc[0].to_dict()
+        return f"{ratio_words(h)}; {horizon_words(h)}"
+
     def held_out(self, name: str, spec: str = ".4g") -> str:
         """The report's held-out table (``holdout.csv``: one row per cell × full map and
         per best-known pair, paired by scenario) as one Markdown table per problem × case,
@@ -331,6 +359,16 @@ class Context:
                 f"{len(info.get('git_commits', []))} (`studies/{name}/provenance.json`).")
 
 
+def multi_column(row: dict[str, Any]) -> str:
+    """The multi-scenario prefix of a ``holdout_tuning_modes`` row's columns, e.g.
+    ``"multi (mean of 8)"`` (its number of training scenarios varies by study)."""
+    names = [k[:-len(": scenarios")] for k in row
+             if k.startswith("multi") and k.endswith(": scenarios")]
+    if len(names) != 1:
+        raise ValueError(f"expected one multi-scenario column group, got {names}")
+    return names[0]
+
+
 def paper_claim(problem: str, case: str) -> str:
     """What the paper states for a problem case, as the problem declares it to the report
     (``report_info(case, {}).paper.claim``); empty when it declares none."""
@@ -353,9 +391,11 @@ def environment(root: Path, figures: explanation.Figures | None = None
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
                        held_out=ctx.held_out, table_value=ctx.table_value,
                        table_number=ctx.table_number,
-                       verdict=ctx.verdict,
+                       verdict=ctx.verdict, answers=ctx.answers,
+                       held_out_words=ctx.held_out_words,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        full_matrix=(figures or explanation.Figures(root)).full_matrix,
+                       multi_column=multi_column,
                        **experiments.functions(root))
     env.filters["num"] = fmt
     return env

@@ -26,7 +26,7 @@ from typing import Any
 
 import jinja2
 
-from penaltyrun.docsgen import experiments
+from penaltyrun.docsgen import experiments, explanation
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
 
 TEMPLATES = Path("studies") / "templates"
@@ -382,8 +382,10 @@ def paper_claim(problem: str, case: str) -> str:
     return paper.claim if paper is not None else ""
 
 
-def environment(root: Path) -> jinja2.Environment:
-    """The Jinja environment of ``<root>/studies/templates`` with :class:`Context`."""
+def environment(root: Path, figures: explanation.Figures | None = None
+                ) -> jinja2.Environment:
+    """The Jinja environment of ``<root>/studies/templates`` with :class:`Context` (and
+    ``full_matrix`` of ``figures``, the explanation pages' data, a fresh one by default)."""
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(Path(root) / TEMPLATES)),
                              undefined=jinja2.StrictUndefined, keep_trailing_newline=True,
                              autoescape=False)
@@ -396,28 +398,40 @@ def environment(root: Path) -> jinja2.Environment:
                        verdict=ctx.verdict, answers=ctx.answers,
                        held_out_words=ctx.held_out_words,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
+                       full_matrix=(figures or explanation.Figures(root)).full_matrix,
                        multi_column=multi_column,
                        **experiments.functions(root))
     env.filters["num"] = fmt
     return env
 
 
-def render(root: Path, reference: bool = True) -> dict[Path, str]:
+def _wanted(rel: Path, only: str | None) -> bool:
+    return not only or str(rel).startswith(only)
+
+
+def render(root: Path, reference: bool = True, only: str | None = None,
+           figures: explanation.Figures | None = None) -> dict[Path, str]:
     """Rendered text of every generated file, by path relative to ``root``: the results
-    pages, the README and (``reference``) the reference pages generated from the code."""
+    pages, the README, the explanation pages (:mod:`.explanation`; their data pages are
+    kept in ``figures``) and (``reference``) the reference pages generated from the code.
+    ``only``: just the files whose relative path starts with it (e.g. ``docs/explanation``).
+    """
     root = Path(root)
-    env = environment(root)
+    env = environment(root, figures)
     out: dict[Path, str] = {}
     if reference:
         from penaltyrun.docsgen.reference import pages
-        out.update({Path("docs") / rel: text for rel, text in pages().items()})
+        out.update({Path("docs") / rel: text for rel, text in pages().items()
+                    if _wanted(Path("docs") / rel, only)})
     for path in sorted((root / TEMPLATES).glob("*.md")):
-        text = env.get_template(path.name).render()
         if path.name == ANSWERS_TEMPLATE:
-            for page in (README, DOCS_HOME):
+            wanted = [page for page in (README, DOCS_HOME) if _wanted(page, only)]
+            text = env.get_template(path.name).render() if wanted else ""
+            for page in wanted:
                 out[page] = splice_readme((root / page).read_text(), text, page)
-        else:
-            out[RESULTS_DOCS / path.name] = text
+        elif _wanted(RESULTS_DOCS / path.name, only):
+            out[RESULTS_DOCS / path.name] = env.get_template(path.name).render()
+    out.update(explanation.render(env, root, only))
     return out
 
 
@@ -431,27 +445,33 @@ def splice_readme(readme: str, block: str, page: Path = README) -> str:
     return f"{head}{README_START}\n{block.strip()}\n{README_END}{tail}"
 
 
-def render_all(root: Path, reference: bool = True) -> list[Path]:
-    """Write every generated file; return the paths written."""
+def render_all(root: Path, reference: bool = True, only: str | None = None) -> list[Path]:
+    """Write every generated file (``only``: see :func:`render`) and the explanation pages'
+    figures; return the paths written."""
     written = []
-    for rel, text in render(root, reference=reference).items():
+    figures = explanation.Figures(root)
+    for rel, text in render(root, reference=reference, only=only, figures=figures).items():
         path = Path(root) / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         if not path.is_file() or path.read_text() != text:
             path.write_text(text)
             written.append(rel)
-    return written
+    return written + figures.write()
 
 
-def check(root: Path, reference: bool = True, tables: bool = True) -> list[str]:
+def check(root: Path, reference: bool = True, tables: bool = True,
+          only: str | None = None) -> list[str]:
     """Differences between the committed generated files and a fresh rendering (rendered
-    into a temporary folder), and (``tables``) between each study's committed tables and
-    tables rebuilt from its committed data (:mod:`penaltyrun.docsgen.tablecheck`); empty
-    when they agree."""
+    into a temporary folder; ``only``: see :func:`render`), figures the explanation pages
+    link to that are missing (:func:`.explanation.missing_images`; their pixels are not
+    compared), and (``tables``) between each study's committed tables and tables rebuilt
+    from its committed data (:mod:`penaltyrun.docsgen.tablecheck`); empty when they
+    agree."""
     from penaltyrun.docsgen.tablecheck import check_all
 
     problems: list[str] = check_all(root) if tables else []
-    rendered = render(root, reference=reference)
+    rendered = render(root, reference=reference, only=only)
+    problems += explanation.missing_images(root, rendered)
     with tempfile.TemporaryDirectory(prefix="check-docs-") as tmp:
         for rel, text in rendered.items():
             fresh = Path(tmp) / rel
@@ -467,7 +487,8 @@ def check(root: Path, reference: bool = True, tables: bool = True) -> list[str]:
                                             f"{rel} (from the data)", lineterm="", n=0)
                 problems.append("\n".join(diff))
         expected = {rel for rel in rendered if rel.parent == RESULTS_DOCS}
-        for page in sorted((Path(root) / RESULTS_DOCS).glob("*.md")):
+        pages = [] if not _wanted(RESULTS_DOCS, only) else (Path(root) / RESULTS_DOCS).glob("*.md")
+        for page in sorted(pages):
             rel = page.relative_to(root)
             if rel not in expected:
                 problems.append(f"{rel}: not generated from a template (studies/templates)")

@@ -58,6 +58,11 @@ class StudyData:
         report writes only for some problems, e.g. ``paper``)."""
         return (self.folder / TABLES / f"{report_table(stem)}.csv").is_file()
 
+    def has_row(self, stem: str, where: dict[str, Any] | None = None) -> bool:
+        """Whether table ``stem`` exists and has a row matching ``where`` (a template's
+        guard for a row that names cells of one problem)."""
+        return self.has_table(stem) and not _select(self.table(stem), where).empty
+
     @property
     def make(self) -> str:
         """The make target that regenerates the study."""
@@ -181,8 +186,12 @@ class Context:
 
     def pending(self, name: str, short: bool = False) -> str:
         """The sentence that stands where a study's numbers will go (``short``: for a table
-        cell)."""
+        cell); for a committed study whose data lacks the cells a place reads, a note
+        saying so."""
         data = self.study(name)
+        if data.available:  # committed, but without the cells the place reads
+            return (f"*the committed data of `{name}` has no cell this place reads; "
+                    f"regenerate it with `{data.make}`*")
         if short:
             return f"*not yet regenerated: `{data.make}`*"
         return (f"*Not yet regenerated: this place is filled from the committed data of the "

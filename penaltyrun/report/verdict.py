@@ -74,29 +74,31 @@ def _count(rate: float, n: int) -> int:
     return int(round(rate * n)) if np.isfinite(rate) else 0
 
 
-def _horizon_words(h: dict) -> str:
+def horizon_words(h: dict) -> str:
     """Where a held-out pairing was judged, and convergence by the training deadline."""
     n = int(h["scenarios"])
-    deadline = (f"converged by the training deadline: diagonal "
-                f"{_count(h['diag_conv_deadline'], n)}/{n}, full "
-                f"{_count(h['full_conv_deadline'], n)}/{n}")
+
+    def conv(diag: float, full: float) -> str:
+        return f"diagonal {_count(diag, n)}/{n}, full {_count(full, n)}/{n}"
+
     if not np.isfinite(h["horizon"]):
-        return f"judged at the training deadline (record older than the held-out horizon); " \
-            f"converged: diagonal {_count(h['diag_conv'], n)}/{n}, full " \
-            f"{_count(h['full_conv'], n)}/{n}"
-    reach = (f"converged by {fmt(h['horizon'], 4)}: diagonal {_count(h['diag_conv'], n)}/{n}, "
-             f"full {_count(h['full_conv'], n)}/{n}")
+        return ("judged at the training deadline (record older than the held-out horizon); "
+                f"converged: {conv(h['diag_conv'], h['full_conv'])}")
+    reach = (f"judged at horizon T = {fmt(h['horizon'], 4)}; converged by T: "
+             f"{conv(h['diag_conv'], h['full_conv'])}")
     if h["horizon"] == h["training_horizon"]:  # free final time: no earlier deadline
-        return reach + " (the training horizon)"
-    return f"{reach}; {deadline}"
+        return reach + " (T is the training horizon)"
+    return (f"{reach}; by the training deadline {fmt(h['training_horizon'], 4)}: "
+            f"{conv(h['diag_conv_deadline'], h['full_conv_deadline'])}")
 
 
-def _ratio_words(h: dict) -> str:
+def ratio_words(h: dict) -> str:
     """The cost-ratio answer of a held-out pairing, e.g. "full cheaper on 9/216, median
     J_full/J_diag 4.1 (5–95 %: 0.9–30), Holm p < 0.0001"."""
     text = (f"full cheaper on {int(h['full_cheaper'])}/{int(h['scenarios'])}, median "
             f"J_full/J_diag {fmt(h['ratio_median'], 3)} (5–95 %: {fmt(h['ratio_q05'], 2)}–"
-            f"{fmt(h['ratio_q95'], 2)}), Holm p {_p(h['ratio_p_holm'])}")
+            f"{fmt(h['ratio_q95'], 2)}), Wilcoxon signed-rank of the log ratios, Holm p "
+            f"{_p(h['ratio_p_holm'])}")
     if np.isfinite(h.get("arrival_shift_median", np.nan)):
         text += f", median arrival shift {fmt(h['arrival_shift_median'], 3)}"
     return text
@@ -105,7 +107,7 @@ def _ratio_words(h: dict) -> str:
 def _held_text(h: dict | None) -> str:
     if h is None or not h["scenarios"]:
         return "—"
-    return f"{_ratio_words(h)}; {_horizon_words(h)}"
+    return f"{ratio_words(h)}; {horizon_words(h)}"
 
 
 def verdict_rows(df: pd.DataFrame, bk: pd.DataFrame, comp: pd.DataFrame,
@@ -180,7 +182,9 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         head = (f"full and diagonal reach the same best-known cost within {CERTIFY_RTOL:g} "
                 f"({evidence})")
     elif gain > 0:
-        head = f"full is {fmt(gain, 3)} % better on the training scenario ({evidence})"
+        head = (f"on the training scenario the best-known full cost is {fmt(gain, 3)} % below "
+                f"the diagonal's ({with_unit(d['best_known'], row['unit'])} → "
+                f"{with_unit(f['best_known'], row['unit'])}; {evidence})")
     else:
         head = (f"full is {fmt(-gain, 3)} % worse on the training scenario ({evidence}); the "
                 "diagonal set lies inside the full set, so this is an optimizer shortfall, "
@@ -190,19 +194,19 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         p = h["ratio_p_holm"]
         if np.isfinite(p) and p < ALPHA and h["ratio_median"] > 1.0:
             parts.append(("but " if gain > 0 else "and ") + "from the held-out scenarios full "
-                         f"costs more ({_ratio_words(h)})" +
+                         f"costs more ({ratio_words(h)})" +
                          (": the gain is specific to the training scenario" if gain > 0
                           else ""))
         elif np.isfinite(p) and p < ALPHA:
             parts.append(f"and from the held-out scenarios full costs less "
-                         f"({_ratio_words(h)}): the gain holds off the training scenario")
+                         f"({ratio_words(h)}): the gain holds off the training scenario")
         else:
             parts.append("on the held-out scenarios there is no evidence of a difference "
-                         f"({_ratio_words(h)})")
-        parts.append(_horizon_words(h))
+                         f"({ratio_words(h)})")
+        parts.append(horizon_words(h))
     elif h is not None and h["scenarios"]:
         parts.append(f"no held-out scenario has a positive finite cost under both matrices "
-                     f"({_horizon_words(h)})")
+                     f"({horizon_words(h)})")
     else:
         parts.append("no held-out result")
     tested = [r for r in budgets if r["equal_budget"] and np.isfinite(r["p_mwu"])]

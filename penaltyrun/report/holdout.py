@@ -50,6 +50,7 @@ from penaltyrun.report.tables import (  # noqa: E402
     md_text,
     save_figure,
 )
+from penaltyrun.runner.validate import NO_RESULT_STATUSES  # noqa: E402
 
 #: Fewer pairs than this: the Wilcoxon test is reported as underpowered.
 MIN_PAIRS = 10
@@ -100,7 +101,7 @@ def scenario_table(holdout: Any, drop_kinds: tuple[str, ...] = ()) -> pd.DataFra
 
 def best_start(g: pd.DataFrame) -> pd.Series | None:
     """Best non-failed start with a held-out result (converged starts first)."""
-    ok = g[(g["status"] != "failed") & g["holdout"].notna()]
+    ok = g[~g["status"].isin(NO_RESULT_STATUSES) & g["holdout"].notna()]
     if ok.empty:
         return None
     conv = ok[ok["best_converged"].astype(bool)]

@@ -12,9 +12,10 @@ from typing import Any
 _NAMES = {
     "BACKENDS": "executor", "check_settings": "executor", "execute": "executor",
     "forecast_cell": "forecast", "log_forecast": "forecast",
-    "JOB_STATUSES": "validate", "run_job": "job",
+    "JOB_STATUSES": "validate", "NO_RESULT_STATUSES": "validate", "run_job": "job",
     "check_runner_options": "options",
     "Job": "plan", "config_hash": "plan", "job_seed": "plan", "plan_jobs": "plan",
+    "module_source_hash": "plan", "user_code_hash": "plan",
     "job_path": "records", "pending_jobs": "records", "read_record": "records",
     "build": "setup", "build_layout": "setup",
 }

@@ -172,6 +172,6 @@ def test_an_interrupted_tune_keeps_its_jobs_and_resumes(tmp_path):
     with pytest.raises(RunInterruptedError):
         penaltyrun.tune(prob, **kwargs)
     assert len(list((tmp_path / "jobs").glob("*.json"))) == 1
-    assert not lock._HELD  # the folder is free for the next run of this process
+    assert lock._key(tmp_path) not in lock._HELD  # free for the next run of this process
     res = penaltyrun.tune(prob, resume=True, **kwargs)
     assert len(res.records) == 2 and set(res.records["status"]) == {"ok"}

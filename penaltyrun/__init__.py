@@ -13,8 +13,7 @@ starts fast:
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from penaltyrun import lazy
 
 __version__ = "0.1.0"
 
@@ -23,15 +22,4 @@ _NAMES = {name: "api" for name in ("Best", "TuneResult", "compare", "evaluate",
 
 __all__ = ["__version__", *sorted(_NAMES)]
 
-
-def __getattr__(name: str) -> Any:
-    module = _NAMES.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_NAMES))
+__getattr__, __dir__ = lazy.exports(__name__, _NAMES, globals())

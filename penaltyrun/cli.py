@@ -68,7 +68,8 @@ EXIT_CODES = {
     1: "internal error (a bug: please report the traceback)",
     EXIT_USAGE: "bad command line or config, a run directory in use by another run, or no "
                 "readable results (one line on stderr)",
-    EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed`",
+    EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed` or "
+                      "`timeout`",
     EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
                   "runner.worker_timeout s); finished jobs are kept",
     EXIT_ENVIRONMENT: "the machine refused a file operation (disk full, no permission, "
@@ -109,20 +110,24 @@ def _progress(cfg: DictConfig, jobs: list[Any], run_dir: Path) -> Any:
 
 
 def summarize(path: Path, run_dir: Path) -> dict[str, int]:
-    """Print the run's summary line (ok / diverged / failed counts, where the errors are);
-    a run with failed jobs is remembered in :data:`FAILED_RUNS` (exit code 3)."""
+    """Print the run's summary line (ok / diverged / failed / timeout counts, where the
+    errors are); a run with failed or timed-out jobs is remembered in :data:`FAILED_RUNS`
+    (exit code 3)."""
     from penaltyrun import io
+    from penaltyrun.runner.validate import JOB_STATUSES, NO_RESULT_STATUSES
 
     df = io.read_results(path)
-    counts = {status: int((df["status"] == status).sum()) for status in ("ok", "diverged",
-                                                                          "failed")}
+    counts = {status: int((df["status"] == status).sum()) for status in JOB_STATUSES}
     line = (f"penaltyrun: {len(df)} jobs: {counts['ok']} ok, {counts['diverged']} diverged, "
             f"{counts['failed']} failed")
-    if counts["failed"]:
-        first = df[df["status"] == "failed"].iloc[0]
+    if counts["timeout"]:
+        line += f", {counts['timeout']} timeout"
+    if any(counts[status] for status in NO_RESULT_STATUSES):
+        first = df[df["status"].isin(NO_RESULT_STATUSES)].iloc[0]
         cause = str(first["error"] or "").strip().splitlines()[:1] or ["no error text"]
         line += (f"; errors in {run_dir}/jobs/<job_id>.json and {path} (column error), "
-                 f"e.g. {first['job_id']}: {cause[0]}; rerun failed jobs with "
+                 f"e.g. {first['job_id']}: {cause[0]}; rerun "
+                 f"{'failed and timed-out' if counts['timeout'] else 'failed'} jobs with "
                  f"runner.resume=true runner.retry_failed=true")
         FAILED_RUNS.append(str(run_dir))
     print(line, file=sys.stderr, flush=True)

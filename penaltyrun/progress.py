@@ -46,6 +46,7 @@ def finished_before(jobs: Sequence[Any], run_dir: Path, resume: bool,
     """Jobs a resumed run will skip: their record is readable and not a failure to retry
     (an unreadable record is moved aside and its job run again by the runner)."""
     from penaltyrun.runner.records import job_path, read_record
+    from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
     if not resume:
         return 0
@@ -53,7 +54,8 @@ def finished_before(jobs: Sequence[Any], run_dir: Path, resume: bool,
     for job in jobs:
         path = job_path(run_dir, job)
         record = read_record(path) if path.exists() else None
-        if record is not None and not (retry_failed and record["status"] == "failed"):
+        if record is not None and not (retry_failed
+                                       and record["status"] in NO_RESULT_STATUSES):
             done += 1
     return done
 

@@ -63,7 +63,7 @@ def test_top_level_api_has_the_documented_signatures():
         "from_cost": "(cost, matrices, *, scalars=None, batched=False, name='user')",
         "tune": "(problem, *, param='full', optimizer='cmaes', n_starts=10, seed=None, "
                 "optimizer_options=None, case=None, params=None, run_dir=None, workers=None, "
-                "resume=False)",
+                "resume=False, job_timeout=None)",
         "load": "(path, *, problem=None)",
         "compare": "(result_a, result_b)",
     }

@@ -10,8 +10,7 @@ The names are imported on first use, so ``import penaltyrun`` stays light.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from penaltyrun import lazy
 
 _NAMES = {
     "from_cost": "tuning", "tune": "tuning",
@@ -22,15 +21,4 @@ _NAMES = {
 
 __all__ = sorted(_NAMES)
 
-
-def __getattr__(name: str) -> Any:
-    module = _NAMES.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_NAMES))
+__getattr__, __dir__ = lazy.exports(__name__, _NAMES, globals())

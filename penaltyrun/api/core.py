@@ -116,7 +116,8 @@ def plan_cell(spec: CellSpec, case: str, meta: Mapping[str, Any] | None = None) 
         spec.problem_params, spec.param_options, spec.optimizer_options, dict(meta or {}),
         holdout=bool(rc.get("holdout", True)),
         warm_start_share=warm_start_share(rc, spec.optimizer, spec.optimizer_options),
-        problem_module=spec.problem_module, cutoff=bool(rc.get("cutoff", True)))
+        problem_module=spec.problem_module, cutoff=bool(rc.get("cutoff", True)),
+        module_hash=runner.user_code_hash(spec.problem_module, spec.problem_params))
 
 
 def local_workers(runner: Mapping[str, Any]) -> int | None:
@@ -177,7 +178,7 @@ def run_cell(spec: CellSpec, run_dir: Path, progress: ProgressFactory | None = N
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
                 spec.param, spec.optimizer, run_dir)
     expected = runner.log_forecast(jobs, int(rc.get("forecast_samples", 8)), int(rc["seed"]),
-                                   local_workers(rc))
+                                   local_workers(rc), rc.get("job_timeout"))
     bar = progress(jobs) if progress is not None else contextlib.nullcontext(None)
     try:
         with bar as on_record:
@@ -230,7 +231,8 @@ def _execute(jobs: list[Any], run_dir: Path, rc: Mapping[str, Any],
                    worker_timeout=float(rc.get("worker_timeout", 60)), expected_s=expected,
                    evaluate_on=rc.get("evaluate_on", "local"),
                    chunks=rc.get("chunks", "auto"),
-                   stall_timeout=float(rc.get("stall_timeout", 600)))
+                   stall_timeout=float(rc.get("stall_timeout", 600)),
+                   job_timeout=rc.get("job_timeout"))
 
 
 __all__ = ["CellSpec", "local_workers", "plan_cell", "run_cell", "run_meta",

@@ -74,7 +74,7 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
          seed: int | None = None, optimizer_options: Mapping[str, Any] | None = None,
          case: str | None = None, params: Mapping[str, Any] | None = None,
          run_dir: str | Path | None = None, workers: int | str | None = None,
-         resume: bool = False) -> TuneResult:
+         resume: bool = False, job_timeout: float | None = None) -> TuneResult:
     """Tune the penalty matrices of ``problem``: ``n_starts`` seeded optimizer starts.
 
     Parameters
@@ -109,6 +109,10 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
         one per core, as the command line. Results do not depend on it.
     resume : bool
         Skip the jobs already recorded in ``run_dir`` (a run stopped part-way).
+    job_timeout : float, optional
+        Wall-clock seconds a job may run before its worker process is killed and the job
+        recorded ``timeout`` (s; ``runner.job_timeout``); with it even ``workers=1`` runs
+        the jobs in a worker process. ``None``: no limit.
 
     Returns
     -------
@@ -125,7 +129,8 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
     name, module, obj = resolve_problem(problem)
     root_seed = default_seed() if seed is None else seed
     runner = {**API_RUNNER, "n_starts": n_starts, "seed": root_seed,
-              "workers": "auto" if workers is None else workers, "resume": resume}
+              "workers": "auto" if workers is None else workers, "resume": resume,
+              "job_timeout": job_timeout}
     config = compose(name, module, case=case, param=param, optimizer=optimizer,
                      optimizer_options=optimizer_options, params=params, runner=runner)
     spec = cell_spec(config)

@@ -8,6 +8,9 @@ README's answer table rendered from committed study data, and the study runner.
 * :mod:`.results` renders ``studies/templates/*.md`` (Jinja) against
   ``studies/*/results.parquet`` and the tables written beside it, and checks that the
   committed pages equal a fresh rendering (``make check-docs``).
+* :mod:`.explanation` renders ``studies/templates/explanation/*.md`` into
+  ``docs/explanation`` and draws their figures (:mod:`.fullmatrix`, :mod:`.fullmatrix_plots`:
+  what a full matrix does, from the attitude study's data).
 * :mod:`.studies` runs a study's commands (resumable), merges its Parquet and writes its
   tables (``make study-<name>``).
 

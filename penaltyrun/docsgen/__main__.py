@@ -4,9 +4,13 @@ Commands (every one takes ``--root``, the repository root, default the current f
 
 * ``reference OUT``: write the generated reference pages into folder ``OUT`` (MkDocs gets
   them from :mod:`penaltyrun.docsgen.mkdocs_hook` at build time);
-* ``results``: regenerate ``docs/results/*.md`` and the README's answer table;
+* ``results``: regenerate ``docs/results/*.md``, the README's answer table, the explanation
+  pages rendered from data and their figures (:mod:`penaltyrun.docsgen.explanation`);
 * ``check``: exit 1, listing the differing lines, if those files differ from a fresh
-  rendering (``make check-docs``);
+  rendering or a figure they link to is missing (``make check-docs``);
+  ``results --only PREFIX`` / ``check --only PREFIX`` handle only the generated files whose
+  path starts with ``PREFIX`` (e.g. ``docs/explanation``; ``check`` then leaves the study
+  tables out);
 * ``study list`` / ``study run NAME`` / ``study merge NAME``: run a study (resumable) and
   merge its data and tables into ``studies/NAME`` (``make study-NAME``);
 * ``study rejudge NAME``: re-evaluate the study's stored best matrices on the held-out set at
@@ -39,6 +43,9 @@ def main(argv: list[str] | None = None) -> int:
         command = sub.add_parser(name, help=text)
         command.add_argument("--no-reference", action="store_true",
                              help="leave out the reference pages generated from the code")
+        command.add_argument("--only", metavar="PREFIX",
+                             help="only the generated files whose path starts with PREFIX "
+                             "(e.g. docs/explanation); check then skips the study tables")
     study = sub.add_parser("study", help="run or merge a study")
     study.add_argument("action", choices=("list", "run", "merge", "rejudge", "tables"))
     study.add_argument("name", nargs="?")
@@ -67,11 +74,13 @@ def main(argv: list[str] | None = None) -> int:
             path.write_text(text)
         return 0
     if args.command == "results":
-        for rel in results.render_all(root, reference=not args.no_reference):
+        for rel in results.render_all(root, reference=not args.no_reference,
+                                      only=args.only):
             print(f"wrote {rel}")
         return 0
     if args.command == "check":
-        problems = results.check(root, reference=not args.no_reference)
+        problems = results.check(root, reference=not args.no_reference,
+                                 tables=not args.only, only=args.only)
         for problem in problems:
             print(problem, file=sys.stderr)
         if problems:

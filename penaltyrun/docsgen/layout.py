@@ -16,9 +16,10 @@ from typing import Any
 
 #: Widest table a results page shows outside a fold.
 MAX_COLUMNS = 10
-#: Columns of the report's tables holding a share (0–1), shown as a percentage.
+#: Columns of the report's tables holding a share (0–1), shown as a percentage. The
+#: held-out convergence at the horizon and by the deadline are shown as counts ``k/n``
+#: (:func:`penaltyrun.report.holdout.counts`), not here.
 PERCENT_COLUMNS = frozenset({
-    "diag_conv", "full_conv", "diag_conv_deadline", "full_conv_deadline",
     "diag_conv_all_starts", "full_conv_all_starts", "success_a", "success_b",
     "full_cheaper_share", "full_better_share"})
 #: Suffixes of shares in the tuning-modes table (``"single: full cheaper"``, ...).

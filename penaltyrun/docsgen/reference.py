@@ -32,7 +32,7 @@ CONF = Path(__file__).resolve().parents[1] / "conf"
 _KINDS = {"pos_int": "int", "nonneg_int": "int", "bool": "bool", "pos_float": "float",
           "unit_open": "float", "workers": "int or auto", "chunks": "int or auto",
           "choice": "str", "evaluate_on": "str", "progress": "bool or auto",
-          "address": "str or null"}
+          "address": "str or null", "opt_pos_float": "float or null"}
 _PROBE = {int: (-(10 ** 12), 0, 10 ** 12), float: (-1e300, 1e300),
           str: ("\x00not-a-choice",)}
 

@@ -25,7 +25,7 @@ from typing import Any
 
 import jinja2
 
-from penaltyrun.docsgen import experiments
+from penaltyrun.docsgen import experiments, explanation
 from penaltyrun.docsgen.layout import (
     MAX_COLUMNS,
     fmt,
@@ -63,6 +63,11 @@ class StudyData:
         """Whether the study's report wrote table ``stem`` (a template's guard for tables a
         report writes only for some problems, e.g. ``paper``)."""
         return (self.folder / TABLES / f"{report_table(stem)}.csv").is_file()
+
+    def has_row(self, stem: str, where: dict[str, Any] | None = None) -> bool:
+        """Whether table ``stem`` exists and has a row matching ``where`` (a template's
+        guard for a row that names cells of one problem)."""
+        return self.has_table(stem) and not _select(self.table(stem), where).empty
 
     @property
     def make(self) -> str:
@@ -189,8 +194,12 @@ class Context:
 
     def pending(self, name: str, short: bool = False) -> str:
         """The sentence that stands where a study's numbers will go (``short``: for a table
-        cell)."""
+        cell); for a committed study whose data lacks the cells a place reads, a note
+        saying so."""
         data = self.study(name)
+        if data.available:  # committed, but without the cells the place reads
+            return (f"*the committed data of `{name}` has no cell this place reads; "
+                    f"regenerate it with `{data.make}`*")
         if short:
             return f"*not yet regenerated: `{data.make}`*"
         return (f"*Not yet regenerated: this place is filled from the committed data of the "
@@ -351,6 +360,8 @@ class Context:
         """The report's held-out table (``holdout.csv``: one row per cell × full map and
         per best-known pair, paired by scenario) as one Markdown table per problem × case,
         under a heading naming it, with its convergence table behind a fold."""
+        from penaltyrun.report.holdout import SHARE_COLUMNS, counts
+
         if not self.study(name).has_table("holdout"):
             return "*The study's report has no held-out table.*"
         frame = self.study(name).table("holdout")
@@ -358,6 +369,8 @@ class Context:
         for (problem, case, variant), group in frame.groupby(["problem", "case", "variant"],
                                                              sort=True):
             title = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
+            group = group.assign(**{c: counts(group[c], group["scenarios"])
+                                    for c in SHARE_COLUMNS if c in group})
             answer, conv = (markdown_table(group[[c for c in cols if c in group]], spec)
                             for cols in (HELD_OUT_COLUMNS, HELD_OUT_CONV_COLUMNS))
             parts.append(f"**Held-out scenarios, {title}:**\n\n{answer}\n\n"
@@ -410,9 +423,11 @@ def paper_claim(problem: str, case: str) -> str:
     return paper.claim if paper is not None else ""
 
 
-def environment(root: Path, ctx: Context | None = None) -> jinja2.Environment:
+def environment(root: Path, figures: explanation.Figures | None = None,
+                ctx: Context | None = None) -> jinja2.Environment:
     """The Jinja environment of ``<root>/studies/templates`` with ``ctx`` (default a new
-    :class:`Context`)."""
+    :class:`Context`) and ``full_matrix`` of ``figures``, the explanation pages' data (a
+    fresh one by default)."""
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(Path(root) / TEMPLATES)),
                              undefined=jinja2.StrictUndefined, keep_trailing_newline=True,
                              autoescape=False)
@@ -426,31 +441,43 @@ def environment(root: Path, ctx: Context | None = None) -> jinja2.Environment:
                        verdict=ctx.verdict, answers=ctx.answers,
                        held_out_words=ctx.held_out_words,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
+                       full_matrix=(figures or explanation.Figures(root)).full_matrix,
                        multi_column=multi_column,
                        **experiments.functions(root))
     env.filters["num"] = fmt
     return env
 
 
-def render(root: Path, reference: bool = True) -> dict[Path, str]:
+def _wanted(rel: Path, only: str | None) -> bool:
+    return not only or str(rel).startswith(only)
+
+
+def render(root: Path, reference: bool = True, only: str | None = None,
+           figures: explanation.Figures | None = None) -> dict[Path, str]:
     """Rendered text of every generated file, by path relative to ``root``: the results
-    pages, the numbers of their figures (``docs/results/figures/*.csv``), the README and
-    (``reference``) the reference pages generated from the code."""
+    pages, the numbers of their figures (``docs/results/figures/*.csv``), the README, the
+    explanation pages (:mod:`.explanation`; their data pages are kept in ``figures``) and
+    (``reference``) the reference pages generated from the code. ``only``: just the files
+    whose relative path starts with it (e.g. ``docs/explanation``).
+    """
     root = Path(root)
     ctx = Context(root)
-    env = environment(root, ctx)
+    env = environment(root, figures, ctx)
     out: dict[Path, str] = {}
     if reference:
         from penaltyrun.docsgen.reference import pages
-        out.update({Path("docs") / rel: text for rel, text in pages().items()})
+        out.update({Path("docs") / rel: text for rel, text in pages().items()
+                    if _wanted(Path("docs") / rel, only)})
     for path in sorted((root / TEMPLATES).glob("*.md")):
-        text = env.get_template(path.name).render()
         if path.name == ANSWERS_TEMPLATE:
-            for page in (README, DOCS_HOME):
+            wanted = [page for page in (README, DOCS_HOME) if _wanted(page, only)]
+            text = env.get_template(path.name).render() if wanted else ""
+            for page in wanted:
                 out[page] = splice_readme((root / page).read_text(), text, page)
-        else:
-            out[RESULTS_DOCS / path.name] = text
+        elif _wanted(RESULTS_DOCS / path.name, only):
+            out[RESULTS_DOCS / path.name] = env.get_template(path.name).render()
     out.update(ctx.figures)
+    out.update(explanation.render(env, root, only))
     return out
 
 
@@ -464,12 +491,14 @@ def splice_readme(readme: str, block: str, page: Path = README) -> str:
     return f"{head}{README_START}\n{block.strip()}\n{README_END}{tail}"
 
 
-def render_all(root: Path, reference: bool = True) -> list[Path]:
-    """Write every generated file and draw each figure whose numbers changed or whose
-    PNG is missing; return the paths written."""
+def render_all(root: Path, reference: bool = True, only: str | None = None) -> list[Path]:
+    """Write every generated file (``only``: see :func:`render`), the explanation pages'
+    figures and each results figure whose numbers changed or whose PNG is missing; return
+    the paths written."""
     from penaltyrun.docsgen.comparefig import FIGURES, draw
     written = []
-    for rel, text in render(root, reference=reference).items():
+    figures = explanation.Figures(root)
+    for rel, text in render(root, reference=reference, only=only, figures=figures).items():
         path = Path(root) / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         changed = not path.is_file() or path.read_text() != text
@@ -481,18 +510,22 @@ def render_all(root: Path, reference: bool = True) -> list[Path]:
             draw(text, png, f"{rel.stem.removesuffix('_a12')}: full vs diagonal at equal "
                             "budget")
             written.append(rel.with_suffix(".png"))
-    return written
+    return written + figures.write()
 
 
-def check(root: Path, reference: bool = True, tables: bool = True) -> list[str]:
+def check(root: Path, reference: bool = True, tables: bool = True,
+          only: str | None = None) -> list[str]:
     """Differences between the committed generated files and a fresh rendering (rendered
-    into a temporary folder), and (``tables``) between each study's committed tables and
-    tables rebuilt from its committed data (:mod:`penaltyrun.docsgen.tablecheck`); empty
-    when they agree."""
+    into a temporary folder; ``only``: see :func:`render`), figures the explanation pages
+    link to that are missing (:func:`.explanation.missing_images`; their pixels are not
+    compared), and (``tables``) between each study's committed tables and tables rebuilt
+    from its committed data (:mod:`penaltyrun.docsgen.tablecheck`); empty when they
+    agree."""
     from penaltyrun.docsgen.tablecheck import check_all
 
     problems: list[str] = check_all(root) if tables else []
-    rendered = render(root, reference=reference)
+    rendered = render(root, reference=reference, only=only)
+    problems += explanation.missing_images(root, rendered)
     with tempfile.TemporaryDirectory(prefix="check-docs-") as tmp:
         for rel, text in rendered.items():
             fresh = Path(tmp) / rel
@@ -508,7 +541,8 @@ def check(root: Path, reference: bool = True, tables: bool = True) -> list[str]:
                                             f"{rel} (from the data)", lineterm="", n=0)
                 problems.append("\n".join(diff))
         expected = {rel for rel in rendered if rel.parent == RESULTS_DOCS}
-        for page in sorted((Path(root) / RESULTS_DOCS).glob("*.md")):
+        pages = [] if not _wanted(RESULTS_DOCS, only) else (Path(root) / RESULTS_DOCS).glob("*.md")
+        for page in sorted(pages):
             rel = page.relative_to(root)
             if rel not in expected:
                 problems.append(f"{rel}: not generated from a template (studies/templates)")

@@ -13,7 +13,7 @@ of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLU
   and the reason;
 * the same job (same ``job_id`` and ``config_hash``) found in several files, e.g. a run
   folder beside a copy of it, is kept once, with one warning naming the duplicate files;
-* a status other than ok / diverged / failed is kept but marked: ``status_known`` is False
+* a status other than ok / diverged / failed / timeout is kept but marked: ``status_known`` is False
   for its rows and ``df.attrs["unknown_statuses"]`` maps each such status to its count, so
   a report can say so instead of counting it;
 * a run directory with finished job records (``jobs/*.json``) but no ``results.parquet``
@@ -56,7 +56,8 @@ logger = logging.getLogger(__name__)
 
 #: Columns without which a Parquet file is not penaltyrun results.
 IDENTITY_COLUMNS = ("job_id", "problem", "case", "param", "optimizer", "status")
-#: Column added on reading: False for rows whose status is not one of ok/diverged/failed.
+#: Column added on reading: False for rows whose status is not one of
+#: ok/diverged/failed/timeout.
 STATUS_KNOWN = "status_known"
 #: Files above which reading shows progress.
 PROGRESS_MIN_FILES = 50
@@ -265,7 +266,7 @@ def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
         dropna=False).items()}
     if unknown:
         logger.warning("%d rows with a status other than %s (%s): reported as unknown, not "
-                       "counted as ok, diverged or failed", int((~known).sum()),
+                       "counted as ok, diverged, failed or timeout", int((~known).sum()),
                        "/".join(JOB_STATUSES),
                        ", ".join(f"{k!r}: {v}" for k, v in sorted(unknown.items())))
     df.attrs["unknown_statuses"] = unknown

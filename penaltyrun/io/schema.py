@@ -48,8 +48,8 @@ COLUMNS: dict[str, tuple[pa.DataType, str]] = {
     "optimizer": (pa.string(), "optimizer name (pso, de, cmaes, grid, baseline)"),
     "start": (pa.int64(), "start index within the cell"),
     "seed": (pa.int64(), "job seed derived from runner.seed"),
-    "status": (pa.string(), "ok | diverged | failed"),
-    "error": (pa.string(), "error text (failed) or why the best did not converge"),
+    "status": (pa.string(), "ok | diverged | failed | timeout"),
+    "error": (pa.string(), "error text (failed, timeout) or why the best did not converge"),
     "best_cost": (pa.float64(), "best objective value"),
     "best_converged": (pa.bool_(), "whether the best candidate met the terminal condition"),
     "best_status": (pa.string(), "problem status of the best candidate"),
@@ -172,8 +172,9 @@ def collect(run_dir: Path, job_ids: Iterable[str] | None = None) -> Path:
         kept = [f for f in files if f.stem in wanted]
         if len(kept) < len(files):
             logger.warning("left out %d job records of another configuration (other "
-                           "settings, runner.seed or runner.holdout) found in %s; they stay "
-                           "on disk", len(files) - len(kept), run_dir / "jobs")
+                           "settings, runner.seed, runner.holdout or an edited problem "
+                           "module) found in %s; they stay on disk", len(files) - len(kept),
+                           run_dir / "jobs")
         files = kept
     records = []
     for f in files:

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from penaltyrun.report.bestknown import family, reference, with_problem_variant
+from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
 EPSILONS = (1e-2, 1e-3)
 CELL = ["problem", "case", "problem_variant", "variant", "optimizer", "param"]
@@ -70,7 +71,7 @@ def ert(hits: np.ndarray, spent: np.ndarray) -> float:
 def cell_traces(g: pd.DataFrame) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """(evals, best, evaluations spent) of each non-failed start of a cell with a trace."""
     out = []
-    for _, row in g[g["status"] != "failed"].iterrows():
+    for _, row in g[~g["status"].isin(NO_RESULT_STATUSES)].iterrows():
         tr = trace_of(row)
         if tr is not None:
             spent = row.get("n_evals")

@@ -42,10 +42,11 @@ from penaltyrun.report.tables import (
 )
 from penaltyrun.report.verdict import COLUMNS as VERDICT_COLUMNS
 from penaltyrun.report.verdict import verdict_rows
+from penaltyrun.runner.validate import JOB_STATUSES, NO_RESULT_STATUSES
 
 logger = logging.getLogger(__name__)
 
-KNOWN_STATUSES = ("ok", "diverged", "failed")
+KNOWN_STATUSES = JOB_STATUSES
 #: Columns of ``summary.md`` / ``comparison.md`` (every column is in the CSV files).
 SUMMARY_MD = ["problem", "case", "variant", "optimizer", "param", "max_evals", "mean_evals",
               "n_jobs", "n_converged", "best", "median", "mean", "worst", "std", "ci_note"]
@@ -334,10 +335,10 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
         logger.warning("tuning-mode section failed: %s", exc)
         lines += [f"(tuning-mode section failed: {exc!r})", ""]
     lines += _statistics(df, bk, out)
-    failed = df[df["status"] == "failed"]
+    failed = df[df["status"].isin(NO_RESULT_STATUSES)]
     if not failed.empty:
         lines += ["## Failed jobs", ""]
-        lines += [f"- {md_text(r.job_id)}: "
+        lines += [f"- {md_text(r.job_id)} ({md_text(r.status)}): "
                   f"{md_text(str(r.error).splitlines()[0]) if r.error else ''}"
                   for r in failed.itertuples()]
         lines.append("")

@@ -18,6 +18,7 @@ import pandas as pd
 from scipy import stats
 
 from penaltyrun.report.stats import MIN_N_TEST, a12, a12_magnitude, converged, holm
+from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
 GROUP = ["problem", "case", "variant", "optimizer"]
 #: Display order of the maps (others follow alphabetically).
@@ -38,7 +39,7 @@ def budget(sel: pd.DataFrame) -> tuple[float, float]:
     if "max_evals" in sel:
         values = pd.to_numeric(sel["max_evals"], errors="coerce").dropna().unique()
         cap = float(values[0]) if values.size == 1 else np.nan
-    ran = sel[sel["status"] != "failed"]
+    ran = sel[~sel["status"].isin(NO_RESULT_STATUSES)]
     spent = float(pd.to_numeric(ran["n_evals"], errors="coerce").mean()) \
         if "n_evals" in ran and len(ran) else np.nan
     return cap, spent

@@ -31,6 +31,7 @@ from penaltyrun.problems import trust
 from penaltyrun.report import outdir
 from penaltyrun.report.stats import CELL, add_variant
 from penaltyrun.report.tables import StemBook
+from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
 logger = logging.getLogger(__name__)
 
@@ -52,7 +53,8 @@ def cell_stem(row: pd.Series, book: StemBook | None = None) -> str:
 
 def best_per_cell(df: pd.DataFrame) -> pd.DataFrame:
     """The best non-failed job of every cell (``df`` must have the ``variant`` column)."""
-    ok = df[(df["status"] != "failed") & df["best_cost"].notna() & df["matrices"].notna()]
+    ok = df[~df["status"].isin(NO_RESULT_STATUSES) & df["best_cost"].notna()
+            & df["matrices"].notna()]
     if ok.empty:
         return ok
     idx = ok.groupby(CELL, sort=True)["best_cost"].idxmin()

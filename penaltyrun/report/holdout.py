@@ -50,6 +50,7 @@ from penaltyrun.report.tables import (  # noqa: E402
     md_text,
     save_figure,
 )
+from penaltyrun.runner.validate import NO_RESULT_STATUSES  # noqa: E402
 
 #: Fewer pairs than this: the Wilcoxon test is reported as underpowered.
 MIN_PAIRS = 10
@@ -100,7 +101,7 @@ def scenario_table(holdout: Any, drop_kinds: tuple[str, ...] = ()) -> pd.DataFra
 
 def best_start(g: pd.DataFrame) -> pd.Series | None:
     """Best non-failed start with a held-out result (converged starts first)."""
-    ok = g[(g["status"] != "failed") & g["holdout"].notna()]
+    ok = g[~g["status"].isin(NO_RESULT_STATUSES) & g["holdout"].notna()]
     if ok.empty:
         return None
     conv = ok[ok["best_converged"].astype(bool)]
@@ -365,6 +366,21 @@ CONV_HEADERS = ["optimizer", "full map", "diag conv.", "full conv.", "diag conv.
                 "Holm p (pairs)"]
 
 
+#: Columns of the held-out table holding a share of the scenarios (shown as k/n).
+SHARE_COLUMNS = ("diag_conv", "full_conv", "diag_conv_deadline", "full_conv_deadline")
+
+
+def counts(shares: Any, totals: Any) -> list[str]:
+    """Shares of scenarios as counts ``k/n`` (``—`` where unknown): a share printed as a
+    number (``1``) reads like a count."""
+    out = []
+    for share, total in zip(shares, totals):
+        share, total = float(share), float(total)
+        ok = np.isfinite(share) and np.isfinite(total) and total > 0
+        out.append(f"{int(round(share * total))}/{int(total)}" if ok else "—")
+    return out
+
+
 def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.ndarray],
                     out: Path) -> list[str]:
     """Markdown lines of one problem case's held-out section (empty without data)."""
@@ -391,7 +407,8 @@ def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.nd
     shown = sel.assign(full_cheaper_share=[
         "—" if not n else f"{int(c)}/{n}"
         for c, n in zip(sel["full_cheaper"], sel["scenarios"])],
-        ratio_range=[f"{a:.3g}–{b:.3g}" for a, b in zip(sel["ratio_q05"], sel["ratio_q95"])])
+        ratio_range=[f"{a:.3g}–{b:.3g}" for a, b in zip(sel["ratio_q05"], sel["ratio_q95"])],
+        **{c: counts(sel[c], sel["scenarios"]) for c in SHARE_COLUMNS})
     for variant, g in shown.groupby("variant", sort=True):
         if variant:
             lines += [f"Variant {md_text(variant)}:", ""]
@@ -417,6 +434,7 @@ def problem_section(df: pd.DataFrame, table: pd.DataFrame, imps: dict[str, np.nd
     return lines
 
 
-__all__ = ["BEST_KNOWN", "FAMILY", "best_start", "discretization_check",
+__all__ = ["BEST_KNOWN", "FAMILY", "SHARE_COLUMNS", "best_start", "counts",
+           "discretization_check",
            "discretization_rows", "holdout_rows", "paired", "problem_section",
            "scenario_table"]

@@ -18,6 +18,7 @@ import pandas as pd
 from scipy import stats
 
 from penaltyrun.io import decode_json
+from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
 CELL = ["problem", "case", "variant", "optimizer", "param"]
 #: Per-group size below which a rank test is reported as underpowered.
@@ -219,7 +220,8 @@ def cell_summary(df: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     ``n_jobs`` counts every start, ``n_converged`` the converged ones, ``success_rate`` is
     their share. best / median / mean / worst / std and the BCa 95 % intervals of the
     median and the mean use converged starts only; ``ci_note`` says why an interval is
-    missing. Evaluations and wall time are means over all non-failed starts.
+    missing. Evaluations and wall time are means over all starts that produced a result;
+    ``n_failed`` counts those that did not (``failed`` and ``timeout``).
     """
     if "variant" not in df:
         df = df.assign(variant="")
@@ -229,12 +231,12 @@ def cell_summary(df: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
         cost = g.loc[ok_mask[g.index], "best_cost"].astype(float).to_numpy()
         mlo, mhi, note = bca_ci(cost, "median", seed=seed)
         alo, ahi, _ = bca_ci(cost, "mean", seed=seed)
-        ran = g[g["status"] != "failed"]
+        ran = g[~g["status"].isin(NO_RESULT_STATUSES)]
         rows.append({
             **dict(zip(CELL, key)),
             "n_jobs": len(g), "n_converged": int(cost.size),
             "n_diverged": int((g["status"] == "diverged").sum()),
-            "n_failed": int((g["status"] == "failed").sum()),
+            "n_failed": int(g["status"].isin(NO_RESULT_STATUSES).sum()),
             "success_rate": cost.size / len(g),
             "best": float(np.min(cost)) if cost.size else np.nan,
             "median": float(np.median(cost)) if cost.size else np.nan,

@@ -6,30 +6,19 @@ checks, the run lock) can be used without importing the optimizers and problems.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from penaltyrun import lazy
 
 _NAMES = {
     "BACKENDS": "executor", "check_settings": "executor", "execute": "executor",
     "forecast_cell": "forecast", "log_forecast": "forecast",
-    "JOB_STATUSES": "validate", "run_job": "job",
+    "JOB_STATUSES": "validate", "NO_RESULT_STATUSES": "validate", "run_job": "job",
     "check_runner_options": "options",
     "Job": "plan", "config_hash": "plan", "job_seed": "plan", "plan_jobs": "plan",
+    "module_source_hash": "plan", "user_code_hash": "plan",
     "job_path": "records", "pending_jobs": "records", "read_record": "records",
     "build": "setup", "build_layout": "setup",
 }
 
 __all__ = sorted(_NAMES)
 
-
-def __getattr__(name: str) -> Any:
-    module = _NAMES.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_NAMES))
+__getattr__, __dir__ = lazy.exports(__name__, _NAMES, globals())

@@ -4,9 +4,11 @@ Every finished job is written at once to ``<run_dir>/jobs/<job_id>.json`` (atomi
 temporary file + rename), so a killed run loses at most the jobs in flight, and
 ``resume=True`` skips the jobs whose record exists (see :mod:`penaltyrun.runner.records`).
 A worker that dies or stalls fails only the job it was running, which is run again up to
-``max_retries`` times (see :mod:`penaltyrun.runner.pool`). Before the first job the run
-directory is locked for this process (:mod:`penaltyrun.runner.lock`): a second run into it
-is refused.
+``max_retries`` times, and a job running past ``job_timeout`` is killed and recorded
+``timeout`` (see :mod:`penaltyrun.runner.pool`). With ``job_timeout`` even one worker is a
+process of its own (a job running in this process could not be stopped). Before the first
+job the run directory is locked for this process (:mod:`penaltyrun.runner.lock`): a second
+run into it is refused.
 """
 
 from __future__ import annotations
@@ -20,12 +22,18 @@ from pathlib import Path
 from typing import Any
 
 from penaltyrun.errors import ConfigError, RunInterruptedError
-from penaltyrun.runner import lock
+from penaltyrun.runner import interrupts, lock
 from penaltyrun.runner.dask_backend import import_distributed, run_dask
 from penaltyrun.runner.eta import DispatchEta
 from penaltyrun.runner.job import run_job
 from penaltyrun.runner.objects import object_paths, pickled, run_job_shipped
-from penaltyrun.runner.options import BACKENDS, RUNNER_OPTIONS, check_value, resolve_workers
+from penaltyrun.runner.options import (
+    BACKENDS,
+    RUNNER_OPTIONS,
+    check_job_timeout,
+    check_value,
+    resolve_workers,
+)
 from penaltyrun.runner.plan import Job, order_longest_first
 from penaltyrun.runner.pool import STALL_TIMEOUT_S, run_pool
 from penaltyrun.runner.records import JOBS_DIR, pending_jobs, remove_leftovers, write_record
@@ -59,9 +67,9 @@ def dispatch_slots(workers: int, n_todo: int, backend: str = "local",
 
 
 def check_settings(workers: Any, backend: Any, evaluate_on: Any = "local",
-                   chunks: Any = "auto") -> None:
+                   chunks: Any = "auto", job_timeout: Any = None) -> None:
     """Validate ``runner.workers`` (an integer ≥ 1 or ``auto``), ``runner.backend``,
-    ``runner.evaluate_on`` and ``runner.chunks``.
+    ``runner.evaluate_on``, ``runner.chunks`` and ``runner.job_timeout``.
 
     Raises
     ------
@@ -75,6 +83,7 @@ def check_settings(workers: Any, backend: Any, evaluate_on: Any = "local",
         check_value(key, RUNNER_OPTIONS[key][0], value, RUNNER_OPTIONS[key][1])
     if evaluate_on == "dask" and backend != "dask":
         raise ConfigError("runner.evaluate_on", "dask needs runner.backend=dask")
+    check_job_timeout(job_timeout, backend)
 
 
 def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
@@ -82,7 +91,8 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
             retry_failed: bool = False, on_record: Callable[[dict[str, Any]], None] | None = None,
             max_retries: int = 1, worker_timeout: float = 60.0,
             expected_s: Mapping[str, float] | None = None, evaluate_on: str = "local",
-            chunks: int | str = "auto", stall_timeout: float = STALL_TIMEOUT_S) -> list[Path]:
+            chunks: int | str = "auto", stall_timeout: float = STALL_TIMEOUT_S,
+            job_timeout: float | None = None) -> list[Path]:
     """Run ``jobs`` and write one record file per finished job.
 
     Parameters
@@ -114,6 +124,9 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
     stall_timeout : float
         Seconds a worker may go without a heartbeat (local pool) or without answering the
         scheduler (dask LocalCluster) before it is killed and its job retried (s).
+    job_timeout : float, optional
+        Wall-clock seconds a job may run before its worker process is killed and the job
+        recorded ``timeout`` (s; local backend); ``None``: no limit.
 
     Returns
     -------
@@ -132,7 +145,7 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
     EnvironmentProblemError
         A record could not be written (e.g. a full disk); records written before stay.
     """
-    check_settings(workers, backend, evaluate_on, chunks)
+    check_settings(workers, backend, evaluate_on, chunks, job_timeout)
     workers = resolve_workers(workers)
     lock.acquire(run_dir)  # held until the results are collected (or the process ends)
     jobs_dir = Path(run_dir, JOBS_DIR)
@@ -152,26 +165,28 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
         func = partial(run_job_shipped, blobs=pickled(todo)) if shipped else run_job
         stream = run_dask(todo, workers, scheduler, max_retries, worker_timeout,
                           stall_timeout, func)
-    elif workers == 1 or len(todo) <= 1:
+    elif job_timeout is None and (workers == 1 or len(todo) <= 1):
         stream = _serial(todo)
     else:
-        stream = run_pool(todo, workers, max_retries, stall_timeout=stall_timeout)
+        stream = run_pool(todo, min(workers, max(1, len(todo))), max_retries,
+                          stall_timeout=stall_timeout, job_timeout=job_timeout)
     written = []
     eta = DispatchEta(len(todo), dispatch_slots(workers, len(todo), backend, scheduler,
                                                 evaluate_on))
     t0 = time.perf_counter()
     try:
-        for i, (job, record) in enumerate(stream, start=1):
-            written.append(write_record(run_dir, job, record))
-            elapsed = time.perf_counter() - t0
-            left = eta.finished(elapsed, record.get("wall_time_s"))
-            cost = record.get("best_cost")
-            logger.info("[%d/%d] %s: %s%s (%.1f s; elapsed %.0f s, ETA %.0f s)", i, len(todo),
-                        job.job_id, record.get("status"),
-                        f", cost {cost:.6g}" if isinstance(cost, float) else "",
-                        record.get("wall_time_s", float("nan")), elapsed, left)
-            if on_record is not None:
-                on_record(record)
+        with interrupts.sigint_marked():  # a KeyboardInterrupt of a job's code ends the job
+            for i, (job, record) in enumerate(stream, start=1):
+                written.append(write_record(run_dir, job, record))
+                elapsed = time.perf_counter() - t0
+                left = eta.finished(elapsed, record.get("wall_time_s"))
+                cost = record.get("best_cost")
+                logger.info("[%d/%d] %s: %s%s (%.1f s; elapsed %.0f s, ETA %.0f s)", i,
+                            len(todo), job.job_id, record.get("status"),
+                            f", cost {cost:.6g}" if isinstance(cost, float) else "",
+                            record.get("wall_time_s", float("nan")), elapsed, left)
+                if on_record is not None:
+                    on_record(record)
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", int(signal.SIGINT))
         raise RunInterruptedError(str(run_dir), len(written), len(todo), signum) from None

@@ -325,22 +325,64 @@ def local_slots(workers: int) -> int:
     return max(1, min(int(workers), available_cores()))
 
 
+def _forecast_lines(jobs: Sequence[Job], samples: int, root_seed: int,
+                    workers: int | None) -> tuple[list[str], dict[str, float]]:
+    """The forecast's log lines and the jobs' expected CPU times (s)."""
+    cell = forecast_cell(jobs, samples, root_seed)
+    return list(summary_lines(cell, workers)), cell.expected_s()
+
+
 def log_forecast(jobs: Sequence[Job], samples: int, root_seed: int,
-                 workers: int | None) -> dict[str, float]:
+                 workers: int | None, time_limit_s: float | None = None) -> dict[str, float]:
     """Log the forecast of a run's jobs (one cell) and return their expected CPU times.
+
+    The forecast is advice: when it fails, one warning says why and the run goes on.
+
+    Parameters
+    ----------
+    jobs : sequence of Job
+    samples : int
+        Random candidates to time (0: no forecast).
+    root_seed : int
+    workers : int, optional
+        Cores of the wall-time line (``None``: unknown).
+    time_limit_s : float, optional
+        ``runner.job_timeout`` (s): the sample evaluations then run in a process of their
+        own, killed after this many seconds (a problem that hangs, or ends its process,
+        costs the forecast only). ``None``: in this process, without a limit.
 
     Returns
     -------
     dict
-        ``job_id`` → expected CPU time (s); empty when ``samples`` is 0 or jobs is empty.
+        ``job_id`` → expected CPU time (s); empty when ``samples`` is 0, jobs is empty or
+        the forecast failed.
     """
     if samples <= 0 or not jobs:
         return {}
+    from penaltyrun.runner import interrupts, isolated
+
+    args = (list(jobs), samples, root_seed, workers)
     try:
-        cell = forecast_cell(jobs, samples, root_seed)
+        if time_limit_s is not None and isolated.can_isolate():
+            lines, expected = isolated.call_isolated(_forecast_lines, args, time_limit_s,
+                                                     "runner.job_timeout")
+        else:
+            with interrupts.sigint_marked():  # told apart while the marking holds
+                try:
+                    lines, expected = _forecast_lines(*args)
+                except (KeyboardInterrupt, SystemExit) as exc:
+                    if not interrupts.raised_by_job(exc):  # a Ctrl-C or SIGTERM of the run
+                        raise
+                    logger.warning("forecast: not available (%s raised by the problem's "
+                                   "code)", type(exc).__name__)
+                    return {}
+    except isolated.IsolatedCallError as exc:
+        logger.warning("forecast: not available (sample evaluations in a process of their "
+                       "own: %s)", exc)
+        return {}
     except Exception as exc:  # the forecast is advice: it never stops a run
         logger.warning("forecast: not available (%s: %s)", type(exc).__name__, exc)
         return {}
-    for line in summary_lines(cell, workers):
+    for line in lines:
         logger.info("%s", line)
-    return cell.expected_s()
+    return expected

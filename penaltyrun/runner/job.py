@@ -14,6 +14,7 @@ import numpy as np
 from penaltyrun import optim
 from penaltyrun.problems import diagnostics
 from penaltyrun.problems.base import CUTOFF_STATUS
+from penaltyrun.runner import interrupts
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
 from penaltyrun.runner.swarm import LocalEvaluation
@@ -108,6 +109,19 @@ class Heartbeat:
         left = max(0, self.total - self.n_evals) * elapsed_s / max(1, self.n_evals)
         return (f"{self.n_evals} of {self.total} evaluations "
                 f"({100.0 * self.n_evals / self.total:.1f} %, ≤ {left:.0f} s left at this pace)")
+
+
+def identity_columns(job: Job) -> dict[str, Any]:
+    """Columns every record of ``job`` has, whatever became of the job (also a record
+    written for it when its worker died or was killed at ``runner.job_timeout``): its key,
+    seed and settings, and the run's metadata. A report groups jobs into cells and
+    variants by these."""
+    return {"job_id": job.job_id, "problem": job.problem, "case": job.case,
+            "param": job.param, "optimizer": job.optimizer, "start": job.start,
+            "seed": job.seed, "optimizer_settings": _jsonable(job.optimizer_options),
+            "problem_params": _jsonable(job.problem_params),
+            "param_options": _jsonable(job.param_options),
+            **({"module_hash": job.module_hash} if job.module_hash else {}), **job.meta}
 
 
 def numba_cache_dir() -> str:
@@ -219,19 +233,13 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
     -------
     dict
         One flat record (see :mod:`penaltyrun.io.schema` for the columns). A job that
-        raises is returned with ``status="failed"`` and the error text.
+        raises is returned with ``status="failed"`` and the error text; so is one whose
+        code raises ``KeyboardInterrupt`` or ``SystemExit`` (a Ctrl-C or SIGTERM of the run
+        is raised on, see :mod:`penaltyrun.runner.interrupts`).
     """
     started = datetime.now(timezone.utc)
     t0 = time.perf_counter()
-    record: dict[str, Any] = {
-        "job_id": job.job_id, "problem": job.problem, "case": job.case, "param": job.param,
-        "optimizer": job.optimizer, "start": job.start, "seed": job.seed,
-        "optimizer_settings": _jsonable(job.optimizer_options),
-        "problem_params": _jsonable(job.problem_params),
-        "param_options": _jsonable(job.param_options),
-        "started_at": started.isoformat(),
-        **job.meta,
-    }
+    record: dict[str, Any] = {**identity_columns(job), "started_at": started.isoformat()}
     evaluation = LocalEvaluation() if evaluation is None else evaluation
     try:
         prob, layout, settings = build(job.problem, job.case, job.problem_params, job.param,
@@ -282,6 +290,12 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
         text = describe_job_error(exc)
         logger.error("job %s failed: %s", job.job_id, text)
         record.update({"status": "failed", "error": f"{text}\n{traceback.format_exc()}"})
+    except (KeyboardInterrupt, SystemExit) as exc:
+        if not interrupts.raised_by_job(exc):  # a Ctrl-C / SIGTERM of the run stops it
+            raise
+        text = interrupts.describe_exit_exception(exc)
+        logger.error("job %s failed: %s", job.job_id, text)
+        record.update({"status": "failed", "error": text})
     record["wall_time_s"] = time.perf_counter() - t0
     record["finished_at"] = datetime.now(timezone.utc).isoformat()
     return record

@@ -26,6 +26,7 @@ RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "max_retries": ("nonneg_int", "a non-negative integer"),
     "worker_timeout": ("pos_float", "a positive number of seconds"),
     "stall_timeout": ("pos_float", "a positive number of seconds"),
+    "job_timeout": ("opt_pos_float", "null (no limit) or a positive number of seconds"),
     "warm_start": ("bool", "true or false"),
     "warm_start_share": ("unit_open", "a number in (0, 1)"),
     "progress": ("progress", "auto, true or false"),
@@ -51,7 +52,7 @@ def _is_int(value: Any) -> bool:
 
 def check_value(key: str, kind: str, value: Any, what: str) -> None:
     """Check one option ``value`` of ``kind`` (pos_int, nonneg_int, bool, pos_float,
-    unit_open, choice, evaluate_on, chunks, progress, address)."""
+    opt_pos_float, unit_open, choice, evaluate_on, chunks, progress, address)."""
     ok = {
         "pos_int": lambda v: _is_int(v) and v >= 1,
         "workers": lambda v: v == "auto" or (_is_int(v) and v >= 1),
@@ -59,6 +60,9 @@ def check_value(key: str, kind: str, value: Any, what: str) -> None:
         "bool": lambda v: isinstance(v, bool),
         "pos_float": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
         and math.isfinite(v) and v > 0,
+        "opt_pos_float": lambda v: v is None or (
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            and v > 0),
         "unit_open": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
         and 0 < v < 1,
         "choice": lambda v: v in BACKENDS,
@@ -129,6 +133,24 @@ def check_scheduler(address: str, timeout_s: float = 5.0) -> None:
                           "runner.scheduler=null for a local cluster") from None
 
 
+def check_job_timeout(job_timeout: Any, backend: Any) -> None:
+    """``runner.job_timeout``: null or a positive number of seconds, with the local backend.
+
+    Raises
+    ------
+    ConfigError
+        A value out of range, or a limit with ``runner.backend=dask`` (a dask worker runs
+        several jobs in threads of one process: one of them cannot be stopped alone).
+    """
+    if job_timeout is None:
+        return
+    check_value("job_timeout", RUNNER_OPTIONS["job_timeout"][0], job_timeout,
+                RUNNER_OPTIONS["job_timeout"][1])
+    if backend == "dask":
+        raise ConfigError("runner.job_timeout", "is enforced by the local process pool only "
+                          "(runner.backend=local); with dask leave it null")
+
+
 def check_runner_options(options: Mapping[str, Any], connect: bool = True) -> None:
     """Check every ``runner.*`` option: known key, type and range, and (with ``connect``
     and the dask backend) that the scheduler can be reached.
@@ -150,6 +172,7 @@ def check_runner_options(options: Mapping[str, Any], connect: bool = True) -> No
     if options.get("evaluate_on", "local") == "dask" and options.get("backend", "local") != "dask":
         raise ConfigError("runner.evaluate_on", "dask needs runner.backend=dask (a LocalCluster "
                           "of runner.workers processes, or runner.scheduler=tcp://host:port)")
+    check_job_timeout(options.get("job_timeout"), options.get("backend", "local"))
     scheduler = options.get("scheduler")
     if scheduler is not None:
         if options.get("backend", "local") != "dask":

@@ -53,6 +53,11 @@ class Job:
         them. Not part of :attr:`settings_hash`: the result is the same either way.
     root_seed : int or None
         ``runner.seed`` the job's seed derives from (part of :attr:`settings_hash`).
+    module_hash : str
+        Hash of the source of ``problem_module`` and of the modules a problem parameter
+        names (:func:`user_code_hash`), or "" (a problem of penaltyrun, an in-memory one).
+        Part of :attr:`settings_hash`: a module edited between an interrupted run and its
+        resume is a new configuration.
     """
 
     problem: str
@@ -70,11 +75,13 @@ class Job:
     problem_module: str = ""
     cutoff: bool = True
     root_seed: int | None = None
+    module_hash: str = ""
 
     @property
     def settings_hash(self) -> str:
         """Hash of everything that changes the result: problem, map and optimizer options,
-        the root seed (``runner.seed``), the held-out setting and the warm start.
+        the root seed (``runner.seed``), the held-out setting, the warm start and the
+        source of a problem module outside penaltyrun.
 
         Part of :attr:`job_id`, so a resumed run never mistakes a job finished with other
         settings (another seed, without held-out data, ...) for one of its own.
@@ -84,6 +91,8 @@ class Job:
                               "problem_module": self.problem_module}]
         if self.warm_start_share:
             hashed.append({"warm_start_share": self.warm_start_share})
+        if self.module_hash:
+            hashed.append({"module_source": self.module_hash})
         return config_hash(hashed)[:8]
 
     @property
@@ -115,10 +124,12 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
               optimizer_options: dict[str, Any] | None = None,
               meta: dict[str, Any] | None = None, holdout: bool = True,
               warm_start_share: float = 0.0,
-              problem_module: str | None = None, cutoff: bool = True) -> list[Job]:
+              problem_module: str | None = None, cutoff: bool = True,
+              module_hash: str = "") -> list[Job]:
     """One job per start of a single (problem, case, param, optimizer) cell.
 
     ``warm_start_share`` applies to full maps only (a diagonal job has nothing to warm).
+    ``module_hash``: :func:`module_source_hash` of ``problem_module`` (part of the job ids).
 
     Raises
     ------
@@ -133,8 +144,35 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int
                         dict(problem_params or {}), dict(param_options or {}),
                         dict(optimizer_options or {}), dict(meta or {}), bool(holdout),
                         0.0 if param == "diagonal" else float(warm_start_share),
-                        str(problem_module or ""), bool(cutoff), int(root_seed)))
+                        str(problem_module or ""), bool(cutoff), int(root_seed),
+                        str(module_hash or "")))
     return jobs
+
+
+def module_source_hash(module: str | None) -> str:
+    """Short SHA-256 of the source file of the problem module ``module`` (dotted name), or
+    "" for none, an in-memory problem (``object:<name>``), a module of penaltyrun itself
+    (its version is recorded with the results) or a module without a source file.
+
+    Only the named module's own file is hashed, not the modules it imports. Finding the
+    file imports the module's parent packages, as running the problem does.
+    """
+    if not module or ":" in module or module.split(".")[0] == "penaltyrun":
+        return ""
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec(module)
+    except (ImportError, ValueError):  # the run reports an unimportable module itself
+        return ""
+    origin = getattr(spec, "origin", None) if spec is not None else None
+    if not origin or not getattr(spec, "has_location", False):
+        return ""
+    try:
+        with open(origin, "rb") as fh:
+            return hashlib.sha256(fh.read()).hexdigest()[:16]
+    except OSError:
+        return ""
 
 
 def check_n_starts(n_starts: Any) -> None:
@@ -174,3 +212,20 @@ def order_longest_first(jobs: Iterable[Job], expected_s: Mapping[str, float] | N
     known = [j for j in jobs if expected_s.get(j.job_id) is not None]
     unknown = [j for j in jobs if expected_s.get(j.job_id) is None]
     return sorted(known, key=lambda j: -float(expected_s[j.job_id])) + unknown
+
+
+#: Problem parameters that name user code as ``module:attribute`` (the LQR problem's plant
+#: and nonlinear dynamics); their modules' sources are part of the job identity too.
+CODE_PARAMS = ("plant", "dynamics")
+
+
+def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
+    """:func:`module_source_hash` of the problem module and of the modules that
+    :data:`CODE_PARAMS` name (``module:attribute``), combined; "" when there is none."""
+    names = [problem_module or ""]
+    names += [value.partition(":")[0] for key in CODE_PARAMS
+              if isinstance(value := problem_params.get(key), str) and ":" in value]
+    hashes = [h for h in map(module_source_hash, names) if h]
+    if len(hashes) <= 1:
+        return hashes[0] if hashes else ""
+    return config_hash(hashes)

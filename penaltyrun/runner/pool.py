@@ -5,7 +5,18 @@ out-of-memory killer, a segfault in a compiled kernel, ``kill -9``): every job i
 every queued job then fails with ``BrokenProcessPool``. Here each worker runs one job at a
 time over its own pipe, so the main process knows which job a dead worker was running:
 only that job is affected, the worker is replaced, and the job is run again up to
-``max_retries`` times before it is recorded ``failed`` with the cause.
+``max_retries`` times before it is recorded ``failed`` with the cause. A job is run again
+only when its worker was killed from outside (SIGKILL of the out-of-memory killer or of a
+user, SIGTERM): a worker that ended itself (``os._exit``, ``exit()`` in a C library, a
+segmentation fault or another crash signal of its own code) would end the same way again,
+jobs being deterministic, so its job is recorded ``failed`` at once. ``KeyboardInterrupt``
+and ``SystemExit`` raised by a job's code end that job only (see
+:mod:`penaltyrun.runner.interrupts`).
+
+A job running longer than ``job_timeout`` seconds (``runner.job_timeout``, wall clock) has
+its worker killed and replaced, and is recorded ``timeout`` (not retried: it would most
+likely run as long again); this holds for a job that sleeps or loops forever while its
+worker's heartbeat thread keeps answering.
 
 A worker that stops answering (``kill -STOP``, a deadlock) is found too: each worker sends a
 heartbeat over its pipe every few seconds from a thread of its own, and the main process
@@ -41,6 +52,8 @@ from collections.abc import Callable, Iterator
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
+from penaltyrun.runner import interrupts
+from penaltyrun.runner.job import identity_columns
 from penaltyrun.runner.plan import Job
 
 logger = logging.getLogger(__name__)
@@ -57,6 +70,11 @@ _PR_SET_PDEATHSIG = 1
 #: and could raise in the child before multiprocessing's guard that ends it, so that the
 #: child went on running the parent's code (a second runner, a second pytest).
 FORK_BLOCKED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: Signals a process raises on itself when its own code crashes: a job whose worker died of
+#: one of them is not run again (it would crash again).
+CRASH_SIGNALS = tuple(getattr(signal, name) for name in
+                      ("SIGSEGV", "SIGBUS", "SIGFPE", "SIGILL", "SIGABRT", "SIGSYS", "SIGTRAP")
+                      if hasattr(signal, name))
 
 JobFunc = Callable[[Job], dict[str, Any]]
 
@@ -119,6 +137,7 @@ def _worker_main(conn: Connection, parent_pid: int, func: JobFunc,
     the loop. A thread sends heartbeats meanwhile."""
     own_fault_handler()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the main process stops us
+    interrupts.mark_worker()  # so a KeyboardInterrupt here comes from a job's code
     for signum in (signal.SIGTERM, signal.SIGHUP):  # not the main process's handlers
         signal.signal(signum, signal.SIG_DFL)
     if hasattr(signal, "pthread_sigmask"):  # blocked by the parent around the fork
@@ -133,7 +152,14 @@ def _worker_main(conn: Connection, parent_pid: int, func: JobFunc,
             return
         if job is None:
             return
-        record = func(job)
+        try:
+            record = func(job)
+        except BaseException as exc:  # a job's code must not end the worker
+            text = (interrupts.describe_exit_exception(exc)
+                    if isinstance(exc, (KeyboardInterrupt, SystemExit))
+                    else f"{type(exc).__name__}: {exc}")
+            logger.error("job %s failed: %s", job.job_id, text)
+            record = failure_record(job, text)
         with lock:
             conn.send(("record", record))
 
@@ -164,14 +190,20 @@ def describe_exit(exitcode: int | None) -> str:
         hint = " (killed: out of memory or kill -9?)" if -exitcode == signal.SIGKILL else \
             " (segmentation fault in a compiled kernel?)" if -exitcode == signal.SIGSEGV else ""
         return f"worker process died of {name}{hint}"
-    return f"worker process exited with code {exitcode}"
+    return (f"worker process exited with code {exitcode} (os._exit or exit() in the job's "
+            "code?)")
 
 
-def failure_record(job: Job, error: str) -> dict[str, Any]:
-    """Record of a job that could not produce one itself (its worker died)."""
-    return {"job_id": job.job_id, "problem": job.problem, "case": job.case,
-            "param": job.param, "optimizer": job.optimizer, "start": job.start,
-            "seed": job.seed, "status": "failed", "error": error, **job.meta}
+def ended_itself(exitcode: int | None) -> bool:
+    """Whether a worker's exit code says its own code ended it: an exit status (``os._exit``,
+    ``exit()``) or a crash signal (:data:`CRASH_SIGNALS`), not a kill from outside."""
+    return exitcode is not None and (exitcode >= 0 or -exitcode in CRASH_SIGNALS)
+
+
+def failure_record(job: Job, error: str, status: str = "failed") -> dict[str, Any]:
+    """Record of a job that could not produce one itself (its worker died, or was killed
+    at ``runner.job_timeout``: ``status="timeout"``)."""
+    return {**identity_columns(job), "status": status, "error": error}
 
 
 @contextlib.contextmanager
@@ -201,13 +233,13 @@ class _Worker:
             self.proc.start()
         child.close()
         self.job: Job | None = None
-        self.seen = time.monotonic()
+        self.seen = self.started = time.monotonic()
         self.ticks = cpu_ticks(self.proc.pid)
 
     def assign(self, job: Job) -> None:
         """Send ``job`` to the worker."""
         self.job = job
-        self.seen = time.monotonic()
+        self.seen = self.started = time.monotonic()
         self.conn.send(job)
 
     def silent_for(self) -> float:
@@ -231,8 +263,8 @@ class _Worker:
 
 
 def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
-             func: JobFunc | None = None, stall_timeout: float = STALL_TIMEOUT_S
-             ) -> Iterator[tuple[Job, dict[str, Any]]]:
+             func: JobFunc | None = None, stall_timeout: float = STALL_TIMEOUT_S,
+             job_timeout: float | None = None) -> Iterator[tuple[Job, dict[str, Any]]]:
     """Run ``jobs`` on ``workers`` processes; yield ``(job, record)`` as each finishes.
 
     Parameters
@@ -241,12 +273,15 @@ def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
     workers : int
         Worker processes, ≥ 1.
     max_retries : int
-        Times a job whose worker died or stalled is run again before it is recorded
-        ``failed``.
+        Times a job whose worker was killed from outside or stalled is run again before it
+        is recorded ``failed`` (a worker that ended itself: no retry).
     func : callable, optional
         Job function (default :func:`penaltyrun.runner.job.run_job`); it must not raise.
     stall_timeout : float
         Seconds without a heartbeat or CPU progress after which a worker is killed (s).
+    job_timeout : float, optional
+        Wall-clock seconds a job may run before its worker is killed and the job recorded
+        ``timeout`` (s); ``None``: no limit.
 
     Yields
     ------
@@ -265,13 +300,20 @@ def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
     attempts: dict[str, int] = {}
     pool: list[_Worker] = []
 
-    def lost(i: int, cause: str, kill: bool = False) -> Iterator[tuple[Job, dict[str, Any]]]:
+    def lost(i: int, cause: str, kill: bool = False, retry: bool = True
+             ) -> Iterator[tuple[Job, dict[str, Any]]]:
         """Replace worker ``i`` whose job ended without a record; retry or record it."""
         w = pool[i]
         job = w.job
         w.stop(kill)
         pool[i] = _Worker(ctx, func, beat_s)
         attempts[job.job_id] = attempts.get(job.job_id, 0) + 1
+        if not retry:
+            logger.error("job %s: %s; recorded failed (not run again: it would end the same "
+                         "way)", job.job_id, cause)
+            yield job, failure_record(job, f"WorkerDied: {cause} while running the job; not "
+                                           "run again (it would end the same way)")
+            return
         if attempts[job.job_id] <= max_retries:
             logger.warning("job %s: %s; pool rebuilt, running it again (retry %d of %d)",
                            job.job_id, cause, attempts[job.job_id], max_retries)
@@ -283,6 +325,25 @@ def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
         yield job, failure_record(job, f"{kind}: {cause} on each of {attempts[job.job_id]} "
                                        f"attempts (runner.max_retries={max_retries})")
 
+    def timed_out(i: int) -> Iterator[tuple[Job, dict[str, Any]]]:
+        """Kill worker ``i`` whose job ran past ``job_timeout``; record the job ``timeout``."""
+        w = pool[i]
+        job, elapsed = w.job, time.monotonic() - w.started
+        cause = (f"JobTimeout: the job ran longer than runner.job_timeout={job_timeout:g} s; "
+                 f"its worker process (pid {w.proc.pid}) was killed")
+        logger.error("job %s: %s; recorded timeout", job.job_id, cause[len("JobTimeout: "):])
+        w.stop(kill=True)
+        pool[i] = _Worker(ctx, func, beat_s)
+        yield job, {**failure_record(job, cause, status="timeout"), "wall_time_s": elapsed}
+
+    def wait_s(busy: list[_Worker]) -> float:
+        """Seconds to wait for messages: a heartbeat interval, less up to the next
+        deadline of ``job_timeout``."""
+        if job_timeout is None or not busy:
+            return beat_s
+        left = min(w.started + job_timeout for w in busy) - time.monotonic()
+        return min(beat_s, max(0.01, left))
+
     try:
         pool = [_Worker(ctx, func, beat_s) for _ in range(min(workers, len(queue)))]
         while queue or any(w.job is not None for w in pool):
@@ -291,7 +352,7 @@ def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
                     w.assign(queue.popleft())
             busy = [w for w in pool if w.job is not None]
             ready = wait([w.conn for w in busy] + [w.proc.sentinel for w in busy],
-                         timeout=beat_s)
+                         timeout=wait_s(busy))
             for i, w in enumerate(pool):
                 if w.job is None:
                     _receive(w)  # an idle worker's heartbeats must not fill its pipe
@@ -304,7 +365,10 @@ def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
                         continue
                 if w.proc.sentinel in ready or not w.proc.is_alive():
                     w.proc.join(timeout=5)
-                    yield from lost(i, describe_exit(w.proc.exitcode))
+                    yield from lost(i, describe_exit(w.proc.exitcode),
+                                    retry=not ended_itself(w.proc.exitcode))
+                elif job_timeout is not None and time.monotonic() - w.started > job_timeout:
+                    yield from timed_out(i)
                 elif w.silent_for() > stall_timeout:
                     yield from lost(i, f"worker process (pid {w.proc.pid}) gave no heartbeat "
                                        f"and used no CPU for {stall_timeout:g} s "

@@ -26,7 +26,7 @@ from typing import Any
 from penaltyrun.errors import EnvironmentProblemError, describe_os_error
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.provenance import packages_json
-from penaltyrun.runner.validate import SCHEMA_VERSION, record_problem
+from penaltyrun.runner.validate import NO_RESULT_STATUSES, SCHEMA_VERSION, record_problem
 
 logger = logging.getLogger(__name__)
 
@@ -160,10 +160,39 @@ def pending_jobs(jobs: Iterable[Job], run_dir: Path, resume: bool,
         if record is None:
             quarantine_with_warning(path, reason)
             todo.append(job)
-        elif retry_failed and record["status"] == "failed":
+        elif retry_failed and record["status"] in NO_RESULT_STATUSES:
             todo.append(job)
     logger.info("resume: %d of %d jobs already finished", len(jobs) - len(todo), len(jobs))
+    warn_edited_module(jobs, run_dir)
     return todo
+
+
+def warn_edited_module(jobs: list[Job], run_dir: Path) -> int:
+    """Say (one warning) when records in ``run_dir`` ran the same problem module with
+    another source: the module was edited since, and the planned jobs, a new configuration
+    (:attr:`~penaltyrun.runner.plan.Job.module_hash` is part of the job id), run again.
+    Returns how many such records there are."""
+    current = {job.module_hash for job in jobs if job.module_hash}
+    if not current:
+        return 0
+    planned = {job.job_id for job in jobs}
+    problem, module = jobs[0].problem, jobs[0].problem_module
+    before: dict[str, int] = {}
+    for path in Path(run_dir, JOBS_DIR).glob(f"{problem}-*.json"):
+        if path.stem in planned:
+            continue
+        record = read_record(path)
+        old = record.get("module_hash") if record is not None else None
+        if record is not None and record["problem"] == problem and old and old not in current:
+            before[old] = before.get(old, 0) + 1
+    if before:
+        logger.warning("resume: the problem module %s was edited since %d finished job(s) in "
+                       "%s ran (source hash %s then, %s now): an edited module is a new "
+                       "configuration, so its jobs run again; the old records stay on disk, "
+                       "left out of results.parquet", module, sum(before.values()),
+                       Path(run_dir, JOBS_DIR), ", ".join(sorted(before)),
+                       ", ".join(sorted(current)))
+    return sum(before.values())
 
 
 def remove_leftovers(folder: Path) -> int:

@@ -15,8 +15,13 @@ from collections.abc import Mapping
 from typing import Any
 
 #: Job-level statuses: ``ok`` (best candidate converged), ``diverged`` (the optimizer's
-#: best candidate did not meet the terminal condition), ``failed`` (the job raised).
-JOB_STATUSES = ("ok", "diverged", "failed")
+#: best candidate did not meet the terminal condition), ``failed`` (the job raised, or its
+#: worker process died), ``timeout`` (the job ran longer than ``runner.job_timeout`` and
+#: its worker process was killed).
+JOB_STATUSES = ("ok", "diverged", "failed", "timeout")
+#: Statuses of a job that produced no result (no best cost): a resumed run with
+#: ``runner.retry_failed=true`` runs these again, and no statistic counts their costs.
+NO_RESULT_STATUSES = ("failed", "timeout")
 #: Version of the record / results schema this code writes (see :mod:`penaltyrun.io.schema`
 #: for the history). Records of a newer version are refused: their meaning is unknown here.
 SCHEMA_VERSION = 6
@@ -25,7 +30,7 @@ _INT = "an integer"
 _NUMBER = "a number"
 _TEXT = "text"
 
-#: Fields every record has (also a ``failed`` one), with their kind.
+#: Fields every record has (also a ``failed`` or ``timeout`` one), with their kind.
 REQUIRED: dict[str, str] = {
     "job_id": _TEXT, "problem": _TEXT, "case": _TEXT, "param": _TEXT, "optimizer": _TEXT,
     "start": _INT, "seed": _INT, "status": _TEXT,
@@ -35,7 +40,8 @@ REQUIRED_FINISHED: dict[str, str] = {"best_cost": _NUMBER}
 #: Optional fields and their kind when present and not null.
 OPTIONAL: dict[str, str] = {
     "error": _TEXT, "best_status": _TEXT, "stop_reason": _TEXT, "run_id": _TEXT,
-    "config_hash": _TEXT, "config": _TEXT, "package_version": _TEXT, "git_commit": _TEXT,
+    "config_hash": _TEXT, "config": _TEXT, "module_hash": _TEXT, "package_version": _TEXT,
+    "git_commit": _TEXT,
     "n_evals": _INT, "n_iters": _INT, "n_nonfinite": _INT, "max_evals": _INT,
     "schema_version": _INT, "t_final": _NUMBER, "wall_time_s": _NUMBER,
     "best_converged": "true or false", "best_z": "a list of numbers",
@@ -91,7 +97,7 @@ def record_problem(record: Any, job_id: str | None = None) -> str | None:
     if status not in JOB_STATUSES:
         return f"status {status!r} is not one of {', '.join(JOB_STATUSES)}"
     required = dict(REQUIRED)
-    if status != "failed":
+    if status not in NO_RESULT_STATUSES:
         required.update(REQUIRED_FINISHED)
     for name, kind in required.items():
         if record.get(name) is None:
@@ -105,7 +111,7 @@ def record_problem(record: Any, job_id: str | None = None) -> str | None:
     if job_id is not None and record["job_id"] != job_id:
         return f"job_id {record['job_id']!r} is not the file's job {job_id!r}"
     cost = record.get("best_cost")
-    if status != "failed" and math.isnan(cost):
+    if status not in NO_RESULT_STATUSES and math.isnan(cost):
         return "best_cost is NaN"
     if status == "ok" and not math.isfinite(cost):
         return f"best_cost is {cost} in an ok record (a converged cost is finite)"

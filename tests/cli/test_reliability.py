@@ -181,6 +181,7 @@ def test_run_dir_under_a_file_is_one_line(tmp_path):
     assert "is a file" in one_error_line(proc)
 
 
+@pytest.mark.slow  # about 10 s: a local dask cluster starts and stops
 def test_dask_local_cluster_logs_only_warnings(tmp_path):
     """Row 13 (and item 8): a LocalCluster run; dask's INFO lines are gone."""
     run = tmp_path / "run"

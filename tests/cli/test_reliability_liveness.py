@@ -18,6 +18,7 @@ from cli_subprocess import FAST_JOBS, SLOW_JOBS, cli, one_error_line, popen, wai
 from penaltyrun.io import RESULTS_FILE
 
 
+@pytest.mark.slow  # about 10 s: waits out the stall timeout
 def test_stopped_pool_worker_is_killed_and_its_job_retried(tmp_path):
     run = tmp_path / "run"
     proc = popen(*SLOW_JOBS, "runner.n_starts=4", "runner.workers=2",

@@ -99,6 +99,7 @@ def _fill(folder: Path, leave: int) -> Path:
     return filler
 
 
+@pytest.mark.slow  # about 13 s: a tmpfs, a bind mount and two runs
 def test_disk_full_while_writing_records_is_one_line_and_resume_finishes(tmp_path, small_tmpfs):
     run = tmp_path / "run"
     (run / "jobs").mkdir(parents=True)

@@ -60,6 +60,7 @@ def test_resume_with_another_seed_or_holdout_never_mixes(tmp_path):
     assert (mine["holdout"].isna()).all()  # the last run was without held-out data
 
 
+@pytest.mark.slow  # about 11 s: several resumed runs
 def test_records_are_checked_on_resume(tmp_path):
     run = tmp_path / "run"
     args = [*FAST_JOBS, "runner.n_starts=4", f"hydra.run.dir={run}"]

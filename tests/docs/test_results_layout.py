@@ -70,11 +70,12 @@ def test_the_fold_renders_as_a_table_with_the_site_markdown_extensions():
 
 
 def test_shares_print_as_percentages_and_counts_do_not():
-    frame = pd.DataFrame({"optimizer": ["pso"], "diag_conv": [1.0],
-                          "full_conv_deadline": [1 / 3], "full_cheaper": [34],
-                          "single: full cheaper": [0.009259], "success_a": [np.nan]})
+    frame = pd.DataFrame({"optimizer": ["pso"], "success_b": [1.0],
+                          "full_better_share": [1 / 3], "full_cheaper": [34],
+                          "single: full cheaper": [0.009259], "success_a": [np.nan],
+                          "diag_conv": ["24/24"]})
     row = layout.markdown_table(frame).splitlines()[2]
-    assert row == "| pso | 100 % | 33.3 % | 34 | 0.926 % | — |"
+    assert row == "| pso | 100 % | 33.3 % | 34 | 0.926 % | — | 24/24 |"
 
 
 def _records() -> pd.DataFrame:

@@ -99,7 +99,7 @@ def render_pages_with(name: str | list[str], dest: Path, root: Path) -> str:
     shutil.copy2(ROOT / "docs" / "index.md", root / "docs")
     text = "\n".join(results.render(root, reference=False).values())
     for other in names:
-        assert f"study-{other}`" not in text
+        assert f"study-{other}`" not in text.replace(f"regenerate it with `make study-{other}`", "")
         assert f"`{other}` | " in text
     return text
 

@@ -152,3 +152,8 @@ def test_holm_over_the_ratio_family():
     assert np.allclose(table["ratio_p_holm"], holm(table["ratio_p"].to_numpy(float)),
                        equal_nan=True)
     assert all(np.all(r > 1.0) for r in ratios.values())
+
+
+def test_convergence_shares_are_shown_as_counts():
+    assert rh.counts([1.0, 0.5, np.nan, 0.25], [24, 216, 10, 0]) == ["24/24", "108/216", "—",
+                                                                    "—"]

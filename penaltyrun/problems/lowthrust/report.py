@@ -122,7 +122,7 @@ def transfer_table(law: str, jobs: Sequence[Mapping[str, Any]]) -> ReportSection
     variant, optimizer and map (K = I baseline included), with the end statuses."""
     cells: dict[tuple[str, str, str, str], list[Mapping[str, Any]]] = {}
     for j in jobs:
-        if j["status"] != "failed":
+        if j["status"] not in ("failed", "timeout"):
             cells.setdefault((j["case"], j["variant"], j["optimizer"], j["param"]), []).append(j)
     rows = []
     for (case, variant, optimizer, param), group in sorted(cells.items()):

@@ -98,6 +98,7 @@ def test_bad_event_settings(key, value):
         make("attitude_lyapunov", "schaub_detumble", {key: value})
 
 
+@pytest.mark.slow  # about 11 s: held-out runs of the companion case
 def test_holdout_perturbs_the_companion_state():
     mats, _, _ = CAYLEY_RUN
     prob = make("attitude_lyapunov", "schaub_detumble", {"holdout_n_perturbed": 6})

@@ -97,7 +97,7 @@ def check(case: str, eta_cut: float, mode: str = "eta_a") -> None:
     assert res["propellant_kg"] < always["propellant_kg"]  # coasting did happen
 
 
-@pytest.mark.parametrize("eta_cut", [0.3, 0.6])
+@pytest.mark.parametrize("eta_cut", [0.3, pytest.param(0.6, marks=pytest.mark.slow)])
 def test_case_c_min_fuel_matches_reference(eta_cut):
     check("C", eta_cut)
 
@@ -108,6 +108,6 @@ def test_case_c_relative_effectivity_matches_reference():
 
 
 @pytest.mark.reference
-@pytest.mark.parametrize("eta_cut", [0.3, 0.6])
+@pytest.mark.parametrize("eta_cut", [0.3, pytest.param(0.6, marks=pytest.mark.slow)])
 def test_case_a_min_fuel_matches_reference(eta_cut):
     check("A", eta_cut)

@@ -1,0 +1,77 @@
+"""A KeyboardInterrupt or SystemExit raised by a job's code ends that job (recorded
+``failed``, one line); a Ctrl-C of the run (SIGINT) still stops the run."""
+
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+import penaltyrun
+from penaltyrun.errors import RunInterruptedError, SignalInterrupt
+from penaltyrun.runner import interrupts
+
+
+def test_who_raised_it():
+    assert interrupts.raised_by_job(SystemExit(3))
+    assert not interrupts.raised_by_job(SignalInterrupt(signal.SIGTERM))
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        assert not interrupts.raised_by_job(KeyboardInterrupt())  # could be a Ctrl-C
+        with interrupts.sigint_marked():
+            assert interrupts.raised_by_job(KeyboardInterrupt())  # a Ctrl-C is marked
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    seen = []
+    thread = threading.Thread(target=lambda: seen.append(
+        interrupts.raised_by_job(KeyboardInterrupt())))
+    thread.start()
+    thread.join()
+    assert seen == [True]  # signals reach the main thread only
+
+
+@pytest.mark.skipif(signal.getsignal(signal.SIGINT) is not signal.default_int_handler,
+                    reason="SIGINT has a handler of the test runner's own")
+def test_a_ctrl_c_inside_the_block_is_marked():
+    with pytest.raises(SignalInterrupt) as info, interrupts.sigint_marked():
+        os.kill(os.getpid(), signal.SIGINT)
+    assert info.value.signum == signal.SIGINT and not interrupts.raised_by_job(info.value)
+
+
+def test_one_line_texts():
+    assert interrupts.describe_exit_exception(SystemExit(3)).startswith(
+        "SystemExit: the job's code called sys.exit(3)")
+    text = interrupts.describe_exit_exception(KeyboardInterrupt())
+    assert text.startswith("KeyboardInterrupt: raised by the job's code") and "\n" not in text
+
+
+@pytest.mark.parametrize("exc", [KeyboardInterrupt, SystemExit])
+def test_in_process_jobs_record_the_job_s_own_interrupt(tmp_path, exc, caplog):
+    """workers=1: the jobs run in this process; the first one raises, the second runs."""
+    calls = []
+
+    def cost(K):
+        calls.append(1)
+        if len(calls) == 1:
+            raise exc
+        return float(np.trace(K))
+
+    prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="raises")
+    res = penaltyrun.tune(prob, n_starts=2, optimizer="baseline", workers=1,
+                          run_dir=tmp_path)
+    df = res.records.sort_values("start")
+    assert list(df["status"]) == ["failed", "ok"]
+    assert df["error"].iloc[0].startswith(exc.__name__) and "\n" not in df["error"].iloc[0]
+    lines = [r for r in caplog.records if df["job_id"].iloc[0] in r.getMessage()]
+    assert len(lines) == 1
+
+
+def test_a_ctrl_c_during_an_in_process_job_still_stops_the_run(tmp_path):
+    def cost(K):
+        os.kill(os.getpid(), signal.SIGINT)  # as a terminal's Ctrl-C
+        return float(np.trace(K))
+
+    prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="ctrlc")
+    with pytest.raises(RunInterruptedError) as info:
+        penaltyrun.tune(prob, n_starts=2, optimizer="baseline", workers=1, run_dir=tmp_path)
+    assert info.value.signum == signal.SIGINT
+    assert not list((tmp_path / "jobs").glob("*.json"))

@@ -74,7 +74,7 @@ def functions(root: Path) -> dict[str, Any]:
 
     def exp_value(folder: str, file: str, column: str, where: dict | None = None,
                   agg: str | None = None, spec: str = ".4g") -> str:
-        from penaltyrun.docsgen.results import fmt
+        from penaltyrun.docsgen.layout import fmt
         return fmt(exp_number(folder, file, column, where, agg), spec)
 
     def exp_table(folder: str, file: str, columns: list[str] | None = None,
@@ -86,17 +86,17 @@ def functions(root: Path) -> dict[str, Any]:
         missing = [c for c in columns or [] if c not in rows]
         if missing:
             raise ExperimentError(f"{folder}/{file}: no column(s) {missing}")
-        from penaltyrun.docsgen.results import markdown_table
+        from penaltyrun.docsgen.layout import narrow_table
         shown = rows[columns] if columns else rows
         if headers:
             shown = shown.set_axis(headers, axis=1)
-        return markdown_table(shown, spec)
+        return narrow_table(shown, spec)
 
     def exp_mwu(folder: str, file: str, column: str, by: str, a: Any, b: Any,
                 spec: str = ".2g") -> str:
         from scipy import stats
 
-        from penaltyrun.docsgen.results import fmt
+        from penaltyrun.docsgen.layout import fmt
         x = select(folder, file, {by: a})[column].astype(float).dropna()
         y = select(folder, file, {by: b})[column].astype(float).dropna()
         if x.empty or y.empty:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import difflib
 import json
-import math
 import tempfile
 from functools import cached_property
 from pathlib import Path
@@ -27,6 +26,13 @@ from typing import Any
 import jinja2
 
 from penaltyrun.docsgen import experiments, explanation
+from penaltyrun.docsgen.layout import (
+    MAX_COLUMNS,
+    fmt,
+    fold,
+    markdown_table,
+    narrow_table,
+)
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
 
 TEMPLATES = Path("studies") / "templates"
@@ -108,6 +114,8 @@ class StudyData:
 #: Text columns of the report's tables where an empty value is a label (the default
 #: variant, no note), not a missing number.
 LABEL_COLUMNS = ("variant", "problem_variant", "note", "ci_note", "label")
+#: Columns of the verdict table shown outside its fold (one result per cell).
+VERDICT_MAIN = ("question", "diagonal best-known", "full best-known", "gain")
 #: Columns of ``holdout.csv`` the results pages show.
 HELD_OUT_COLUMNS = ["optimizer", "full_map", "judged_at", "scenarios", "full_cheaper",
                     "ratio_median", "ratio_q05", "ratio_q95", "ratio_p_holm",
@@ -143,32 +151,29 @@ def default_columns(stem: str) -> list[str]:
             "verdict": build.VERDICT_COLUMNS}.get(stem, [])
 
 
+def main_columns(stem: str, frame: Any) -> list[str] | None:
+    """The answer columns a results page shows of a report table wider than
+    :data:`~penaltyrun.docsgen.layout.MAX_COLUMNS` (the others go behind a fold); None for
+    a narrow table or one without a choice here (its first columns are shown)."""
+    if len(frame.columns) <= MAX_COLUMNS:
+        return None
+    if stem == "paper":
+        return [c for c in ["problem", "case", "variant", "optimizer", "map", "converged",
+                            "ours median / mean", "paper median / mean", "Holm p"]
+                if c in frame]
+    if stem == "holdout_tuning_modes":
+        answer = ["full cheaper", "median J_full/J_diag", "Wilcoxon p (log ratio)"]
+        modes = ["single", multi_column(dict.fromkeys(frame.columns))]
+        return ["case", "optimizer", "full_map",
+                *[f"{m}: {a}" for m in modes for a in answer if f"{m}: {a}" in frame]]
+    return None
+
+
 def _select(frame: Any, where: dict | None) -> Any:
     """Rows of ``frame`` matching ``where`` (column → value or list of values)."""
     for key, value in (where or {}).items():
         frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
     return frame
-
-
-def fmt(value: Any, spec: str = ".4g") -> str:
-    """A number formatted with ``spec`` (``—`` for missing / NaN)."""
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "—"
-    try:
-        return format(value, spec)
-    except (TypeError, ValueError):
-        return str(value)
-
-
-def markdown_table(frame: Any, spec: str = ".4g") -> str:
-    """A DataFrame as a Markdown table, numbers formatted with ``spec``."""
-    header = "| " + " | ".join(str(c) for c in frame.columns) + " |"
-    lines = [header, "|" + "---|" * len(frame.columns)]
-    for _, row in frame.iterrows():
-        cells = [fmt(v, spec) if isinstance(v, (int, float)) and not isinstance(v, bool)
-                 else str(v) for v in row]
-        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
-    return "\n".join(lines)
 
 
 class Context:
@@ -177,6 +182,9 @@ class Context:
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
         self._studies: dict[str, StudyData] = {}
+        #: Text files rendered beside the pages (the numbers of each figure), by path
+        #: relative to the root.
+        self.figures: dict[Path, str] = {}
 
     def study(self, name: str) -> StudyData:
         """The data of study ``name``."""
@@ -216,10 +224,11 @@ class Context:
 
     def summary(self, name: str, by: list[str], where: dict | None = None,
                 cost: str = "best_cost", spec: str = ".4g") -> str:
-        """Per group: starts, converged, best / median / mean / worst of ``cost`` over the
-        converged starts and the median evaluations, as a Markdown table. Starts with other
-        optimizer settings (another budget, swarm or stall rule) are never pooled: each
-        settings variant is its own row, with its ``max_evals`` budget."""
+        """Per group: its budget, converged starts (``k of n``), best / median / worst /
+        mean of ``cost`` over the converged starts and the median evaluations, as Markdown
+        (columns beyond the width behind a fold). Starts with other optimizer settings
+        (another budget, swarm or stall rule) are never pooled: each settings variant is
+        its own row, with its ``max_evals`` budget."""
         import pandas as pd
         frame = self.study(name).rows(where).copy()
         ok = (frame["status"] == "ok") & frame["best_converged"].astype(bool)
@@ -234,11 +243,10 @@ class Context:
             cap = budget.loc[group.index].dropna()
             rows.append({**dict(zip(by, key[:len(by)])),
                          "budget (max_evals)": f"{int(cap.iloc[0])}" if len(cap) else "—",
-                         "starts": len(group),
-                         "converged": int(len(good)), "best": good.min(),
-                         "median": good.median(), "mean": good.mean(), "worst": good.max(),
+                         "converged": f"{len(good)} of {len(group)}", "best": good.min(),
+                         "median": good.median(), "worst": good.max(), "mean": good.mean(),
                          "evaluations (median)": f"{group['n_evals'].median():.0f}"})
-        return markdown_table(pd.DataFrame(rows), spec)
+        return narrow_table(pd.DataFrame(rows), spec, keys=by)
 
     def csv(self, name: str, stem: str, columns: list[str] | None = None,
             where: dict | None = None, spec: str = ".4g") -> str:
@@ -257,7 +265,21 @@ class Context:
         if frame.empty:
             return f"*The `{stem}` table of `{name}` has no row for {where}.*"
         columns = columns or [c for c in default_columns(stem) if c in frame]
-        return markdown_table(frame[columns] if columns else frame, spec)
+        shown = frame[columns] if columns else frame
+        keys = ["problem", "case", "setting", "optimizer", "full_map"] \
+            if stem == "holdout_tuning_modes" else None
+        return narrow_table(shown, spec, main=main_columns(stem, shown), keys=keys)
+
+    def comparison(self, name: str) -> str:
+        """The study's equal-budget map-vs-map tests: the A12 figure (diagonal vs each full
+        map, by optimizer, with 95 % Brunner–Munzel intervals) and the comparison table
+        behind a fold (:func:`penaltyrun.docsgen.comparefig.section`); a note when the
+        report wrote no comparison."""
+        from penaltyrun.docsgen.comparefig import section
+        if not self.study(name).has_table("comparison"):
+            return f"*The report of `{name}` has no `comparison` table.*"
+        return section(name, self.study(name).df, self.study(name).table("comparison"),
+                       self.figures)
 
     def table_value(self, name: str, stem: str, column: str, where: dict | None = None,
                     spec: str = ".4g") -> str:
@@ -288,11 +310,20 @@ class Context:
         return frame[column].iloc[0]
 
     def verdict(self, name: str, spec: str = ".4g") -> str:
-        """The report's verdict table of the study and, under it, its generated sentence per
-        row (a note when the report wrote no verdict)."""
-        table = self.csv(name, "verdict", spec=spec)
+        """The report's verdict of the study: a table of one result per cell (the
+        best-known values with their evidence and the gain), the equal-budget tests and
+        the held-out answer behind a fold, and under it the generated sentence per row (a
+        note when the report wrote no verdict)."""
         if not self.study(name).has_table("verdict"):
-            return table
+            return self.csv(name, "verdict", spec=spec)
+        frame = self.study(name).table("verdict")
+        columns = [c for c in default_columns("verdict") if c in frame]
+        main = [c for c in columns if c in VERDICT_MAIN]
+        rest = [c for c in columns if c not in main]
+        table = markdown_table(frame[main], spec)
+        if rest:
+            table += "\n\n" + fold("Per cell: " + ", ".join(rest),
+                                    markdown_table(frame[[main[0], *rest]], spec))
         sentences = self.study(name).table("verdict").get("sentence")
         lines = [f"- {s}" for s in ([] if sentences is None else sentences.dropna())]
         return "\n\n".join([table, *(["\n".join(lines)] if lines else [])])
@@ -328,7 +359,7 @@ class Context:
     def held_out(self, name: str, spec: str = ".4g") -> str:
         """The report's held-out table (``holdout.csv``: one row per cell × full map and
         per best-known pair, paired by scenario) as one Markdown table per problem × case,
-        under a heading naming it."""
+        under a heading naming it, with its convergence table behind a fold."""
         from penaltyrun.report.holdout import SHARE_COLUMNS, counts
 
         if not self.study(name).has_table("holdout"):
@@ -340,10 +371,11 @@ class Context:
             title = f"{problem} / {case}" + (f" [{variant}]" if variant else "")
             group = group.assign(**{c: counts(group[c], group["scenarios"])
                                     for c in SHARE_COLUMNS if c in group})
-            parts.append(f"**Held-out scenarios, {title}:**\n\n"
-                         + "\n\n".join(markdown_table(group[[c for c in cols if c in group]],
-                                                       spec)
-                                        for cols in (HELD_OUT_COLUMNS, HELD_OUT_CONV_COLUMNS)))
+            answer, conv = (markdown_table(group[[c for c in cols if c in group]], spec)
+                            for cols in (HELD_OUT_COLUMNS, HELD_OUT_CONV_COLUMNS))
+            parts.append(f"**Held-out scenarios, {title}:**\n\n{answer}\n\n"
+                         + fold(f"Convergence, {title}: at the horizon, by the training "
+                                "deadline, and the pairs both converge", conv))
         return "\n\n".join(parts)
 
     def provenance(self, name: str) -> str:
@@ -391,15 +423,17 @@ def paper_claim(problem: str, case: str) -> str:
     return paper.claim if paper is not None else ""
 
 
-def environment(root: Path, figures: explanation.Figures | None = None
-                ) -> jinja2.Environment:
-    """The Jinja environment of ``<root>/studies/templates`` with :class:`Context` (and
-    ``full_matrix`` of ``figures``, the explanation pages' data, a fresh one by default)."""
+def environment(root: Path, figures: explanation.Figures | None = None,
+                ctx: Context | None = None) -> jinja2.Environment:
+    """The Jinja environment of ``<root>/studies/templates`` with ``ctx`` (default a new
+    :class:`Context`) and ``full_matrix`` of ``figures``, the explanation pages' data (a
+    fresh one by default)."""
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(Path(root) / TEMPLATES)),
                              undefined=jinja2.StrictUndefined, keep_trailing_newline=True,
                              autoescape=False)
-    ctx = Context(root)
-    env.globals.update(study=ctx.study, pending=ctx.pending, value=ctx.value,
+    ctx = ctx or Context(root)
+    env.globals.update(comparison=ctx.comparison, study=ctx.study, pending=ctx.pending,
+                       value=ctx.value,
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
                        held_out=ctx.held_out, table_value=ctx.table_value,
@@ -421,12 +455,14 @@ def _wanted(rel: Path, only: str | None) -> bool:
 def render(root: Path, reference: bool = True, only: str | None = None,
            figures: explanation.Figures | None = None) -> dict[Path, str]:
     """Rendered text of every generated file, by path relative to ``root``: the results
-    pages, the README, the explanation pages (:mod:`.explanation`; their data pages are
-    kept in ``figures``) and (``reference``) the reference pages generated from the code.
-    ``only``: just the files whose relative path starts with it (e.g. ``docs/explanation``).
+    pages, the numbers of their figures (``docs/results/figures/*.csv``), the README, the
+    explanation pages (:mod:`.explanation`; their data pages are kept in ``figures``) and
+    (``reference``) the reference pages generated from the code. ``only``: just the files
+    whose relative path starts with it (e.g. ``docs/explanation``).
     """
     root = Path(root)
-    env = environment(root, figures)
+    ctx = Context(root)
+    env = environment(root, figures, ctx)
     out: dict[Path, str] = {}
     if reference:
         from penaltyrun.docsgen.reference import pages
@@ -440,6 +476,7 @@ def render(root: Path, reference: bool = True, only: str | None = None,
                 out[page] = splice_readme((root / page).read_text(), text, page)
         elif _wanted(RESULTS_DOCS / path.name, only):
             out[RESULTS_DOCS / path.name] = env.get_template(path.name).render()
+    out.update(ctx.figures)
     out.update(explanation.render(env, root, only))
     return out
 
@@ -455,16 +492,24 @@ def splice_readme(readme: str, block: str, page: Path = README) -> str:
 
 
 def render_all(root: Path, reference: bool = True, only: str | None = None) -> list[Path]:
-    """Write every generated file (``only``: see :func:`render`) and the explanation pages'
-    figures; return the paths written."""
+    """Write every generated file (``only``: see :func:`render`), the explanation pages'
+    figures and each results figure whose numbers changed or whose PNG is missing; return
+    the paths written."""
+    from penaltyrun.docsgen.comparefig import FIGURES, draw
     written = []
     figures = explanation.Figures(root)
     for rel, text in render(root, reference=reference, only=only, figures=figures).items():
         path = Path(root) / rel
         path.parent.mkdir(parents=True, exist_ok=True)
-        if not path.is_file() or path.read_text() != text:
+        changed = not path.is_file() or path.read_text() != text
+        if changed:
             path.write_text(text)
             written.append(rel)
+        png = path.with_suffix(".png")
+        if rel.parent == FIGURES and (changed or not png.is_file()):
+            draw(text, png, f"{rel.stem.removesuffix('_a12')}: full vs diagonal at equal "
+                            "budget")
+            written.append(rel.with_suffix(".png"))
     return written + figures.write()
 
 
@@ -501,4 +546,21 @@ def check(root: Path, reference: bool = True, tables: bool = True,
             rel = page.relative_to(root)
             if rel not in expected:
                 problems.append(f"{rel}: not generated from a template (studies/templates)")
+        problems += _check_figures(Path(root), set(rendered))
+    return problems
+
+
+def _check_figures(root: Path, rendered: set[Path]) -> list[str]:
+    """A PNG for every figure's numbers and no figure file without them. The PNG's bytes
+    are not compared (they depend on the matplotlib version); its numbers are, as text."""
+    from penaltyrun.docsgen.comparefig import FIGURES
+    problems = []
+    numbers = {rel for rel in rendered if rel.parent == FIGURES}
+    for rel in sorted(numbers):
+        if not (root / rel.with_suffix(".png")).is_file():
+            problems.append(f"{rel.with_suffix('.png')}: missing (run `make docs-results`)")
+    for path in sorted((root / FIGURES).glob("*")) if (root / FIGURES).is_dir() else []:
+        rel = path.relative_to(root)
+        if rel.with_suffix(".csv") not in numbers:
+            problems.append(f"{rel}: no results page draws it (delete it)")
     return problems

@@ -1,5 +1,9 @@
 """Map-vs-map comparisons at equal budget: two-sided Mann–Whitney U, A12, Holm.
 
+The confidence interval of A12 (:func:`a12_interval`) is the Brunner–Munzel (2000)
+interval of the relative effect: its rank-based variance estimate with a Welch–
+Satterthwaite t quantile, the interval behind :func:`scipy.stats.brunnermunzel`.
+
 Every comparison is between two maps of one cell group — the same problem, case, variant
 (problem parameters, warm start, optimizer settings and so the budget) and optimizer. No
 comparison pools optimizers, budgets or variants. Costs are those of converged starts only.
@@ -115,6 +119,72 @@ def pairwise(df: pd.DataFrame) -> pd.DataFrame:
     if not out.empty:
         out.insert(out.columns.get_loc("p_mwu") + 1, "p_holm", holm(out["p_mwu"].to_numpy()))
     return out
+
+
+def a12_interval(cost_a: np.ndarray, cost_b: np.ndarray,
+                 level: float = 0.95) -> tuple[float, float, float, str]:
+    """A12 = P(a start of b beats a start of a) + ½ P(tie) with its Brunner–Munzel interval.
+
+    Brunner & Munzel (2000, Biometrical Journal 42, 17–25): with combined midranks R and
+    midranks R⁽ⁱ⁾ within each sample, S_i² = Σ_k (R_ik − R⁽ⁱ⁾_ik − R̄_i + (n_i + 1)/2)² /
+    (n_i − 1), the standard error of the relative effect is √(n_a S_a² + n_b S_b²) /
+    (n_a n_b) and the interval is A12 ± t_{df, (1+level)/2} · SE with the Welch–
+    Satterthwaite df = (n_a S_a² + n_b S_b²)² / ((n_a S_a²)²/(n_a − 1) + (n_b S_b²)²/
+    (n_b − 1)), clipped to [0, 1]. ``(A12 − ½)/SE`` and df are the statistic and degrees
+    of freedom of ``scipy.stats.brunnermunzel(cost_b, cost_a)``.
+
+    Parameters
+    ----------
+    cost_a, cost_b : ndarray, shape (n_a,), (n_b,)
+        Costs of the converged starts of maps a and b (lower is better).
+    level : float
+        Confidence level.
+
+    Returns
+    -------
+    a12, lo, hi : float
+        The effect and its interval (lo, hi NaN when no interval is defined).
+    note : str
+        Why there is no interval (``n < 2``; every start of one map beats every start of
+        the other, where the variance estimate is zero), else ``""``.
+    """
+    x, y = np.asarray(cost_b, float), np.asarray(cost_a, float)
+    effect = a12(y, x)
+    if min(x.size, y.size) < 2:
+        return effect, np.nan, np.nan, "fewer than 2 converged starts: no interval"
+    ranks = stats.rankdata(np.concatenate([x, y]))
+    rx, ry = ranks[:x.size], ranks[x.size:]
+    sx = np.var(rx - stats.rankdata(x), ddof=1)
+    sy = np.var(ry - stats.rankdata(y), ddof=1)
+    spread = x.size * sx + y.size * sy
+    if spread <= 0.0:
+        return effect, np.nan, np.nan, "complete separation: no interval"
+    se = np.sqrt(spread) / (x.size * y.size)
+    df = spread ** 2 / ((x.size * sx) ** 2 / (x.size - 1) + (y.size * sy) ** 2 / (y.size - 1))
+    half = float(stats.t.ppf(0.5 + level / 2.0, df)) * se
+    return effect, max(0.0, effect - half), min(1.0, effect + half), ""
+
+
+def a12_intervals(df: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:
+    """:func:`a12_interval` for every equal-budget pair of :func:`pairwise` (same groups,
+    same converged costs): columns of :data:`GROUP`, ``map_a``, ``map_b``, ``n_a``,
+    ``n_b``, ``a12_b_beats_a``, ``a12_lo``, ``a12_hi``, ``ci_note``. Pairs whose budgets
+    differ have no row."""
+    if "variant" not in df:
+        df = df.assign(variant="")
+    rows = []
+    for key, g in df[df["optimizer"] != "baseline"].groupby(GROUP, sort=True):
+        for a, b in itertools.combinations(map_order(g["param"].unique()), 2):
+            if not equal_budget(budget(g[g["param"] == a]), budget(g[g["param"] == b])):
+                continue
+            xa, _ = _costs(g, a)
+            xb, _ = _costs(g, b)
+            effect, lo, hi, note = a12_interval(xa, xb, level)
+            rows.append({**dict(zip(GROUP, key)), "map_a": a, "map_b": b,
+                         "n_a": int(xa.size), "n_b": int(xb.size), "a12_b_beats_a": effect,
+                         "a12_lo": lo, "a12_hi": hi, "ci_note": note})
+    return pd.DataFrame(rows, columns=[*GROUP, "map_a", "map_b", "n_a", "n_b",
+                                       "a12_b_beats_a", "a12_lo", "a12_hi", "ci_note"])
 
 
 def full_worse_rows(comp: pd.DataFrame) -> pd.DataFrame:

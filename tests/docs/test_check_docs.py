@@ -82,7 +82,7 @@ def test_numbers_come_from_the_data(repo):
     results.render_all(repo, reference=False)
     page = (repo / "docs" / "results" / "demo.md").read_text()
     assert "Best diagonal: 26.5218." in page
-    assert "| full | — | 2 | 2 | 24.83 |" in page
+    assert "| full | — | 2 of 2 | 24.83 |" in page
     readme = (repo / "README.md").read_text()
     assert "| demo | 24.91 |" in readme and readme.endswith("end\n")
     home = (repo / "docs" / "index.md").read_text()

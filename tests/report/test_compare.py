@@ -10,7 +10,13 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from penaltyrun.report.compare import full_worse_rows, map_order, pairwise
+from penaltyrun.report.compare import (
+    a12_interval,
+    a12_intervals,
+    full_worse_rows,
+    map_order,
+    pairwise,
+)
 from penaltyrun.report.stats import a12, holm
 
 PENALTY = 1000.0
@@ -102,3 +108,57 @@ def test_full_worse_rows_name_the_full_map(frame):
     # best givens 5.0 > best diagonal 4.0; best geagsp 1.0 and cayley 2.0 are lower
     assert worse["full_map"].tolist() == ["givens"]
     assert (worse["full_best"].iloc[0], worse["diag_best"].iloc[0]) == (5.0, 4.0)
+
+
+def _brunner_munzel_direct(x, y, level):
+    """The Brunner–Munzel interval of P(X < Y) + ½ P(X = Y) written out from its
+    placements: each x against every y and back (no ranks), for :func:`a12_interval`."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    place = (x[:, None] < y[None, :]) + 0.5 * (x[:, None] == y[None, :])
+    p_hat = place.mean()
+    vx = np.var(place.mean(axis=1), ddof=1)  # placements of x (Brunner & Munzel, eq. 3)
+    vy = np.var(place.mean(axis=0), ddof=1)
+    se = math.sqrt(vx / x.size + vy / y.size)
+    df = (vx / x.size + vy / y.size) ** 2 / ((vx / x.size) ** 2 / (x.size - 1)
+                                             + (vy / y.size) ** 2 / (y.size - 1))
+    half = sps.t.ppf(0.5 + level / 2, df) * se
+    return p_hat, se, df, max(0.0, p_hat - half), min(1.0, p_hat + half)
+
+
+@pytest.mark.parametrize("cost_a, cost_b", [
+    ([4.0, 5.0, 6.0, 9.0, 5.0], [1.0, 2.0, 5.0, 6.0, 7.5, 3.0]),  # with a tie across maps
+    ([0.3, 0.1, 0.7, 0.2], [0.5, 0.4, 0.6, 0.05, 0.55]),
+])
+def test_a12_interval_matches_scipy_brunnermunzel_and_a_direct_computation(cost_a, cost_b):
+    effect, lo, hi, note = a12_interval(cost_a, cost_b, level=0.9)
+    assert note == ""
+    assert effect == pytest.approx(a12(cost_a, cost_b))
+    p_hat, se, df, lo_ref, hi_ref = _brunner_munzel_direct(cost_b, cost_a, 0.9)
+    assert effect == pytest.approx(p_hat)
+    assert (lo, hi) == pytest.approx((lo_ref, hi_ref), rel=1e-12)
+    # scipy's statistic is (A12 − ½)/SE with the same Welch–Satterthwaite df
+    ref = sps.brunnermunzel(cost_b, cost_a, alternative="two-sided", distribution="t")
+    assert (effect - 0.5) / se == pytest.approx(ref.statistic, rel=1e-12)
+    assert 2 * sps.t.sf(abs(ref.statistic), df) == pytest.approx(ref.pvalue, rel=1e-10)
+    assert lo <= effect <= hi
+
+
+def test_a12_interval_says_why_there_is_none():
+    assert a12_interval([1.0, 2.0], [3.0, 4.0])[3] == "complete separation: no interval"
+    effect, lo, hi, note = a12_interval([1.0], [3.0, 4.0])
+    assert effect == 0.0 and math.isnan(lo) and math.isnan(hi) and "fewer than 2" in note
+
+
+def test_a12_intervals_follow_the_equal_budget_pairs(frame):
+    ci = a12_intervals(frame)
+    comp = pairwise(frame)
+    merged = comp.merge(ci, on=["problem", "case", "variant", "optimizer", "map_a", "map_b"],
+                        suffixes=("", "_ci"))
+    assert len(merged) == len(comp) == len(ci)
+    assert np.allclose(merged["a12_b_beats_a"], merged["a12_b_beats_a_ci"])
+    row = ci[(ci["optimizer"] == "pso") & (ci["map_a"] == "diagonal")
+             & (ci["map_b"] == "geagsp")].iloc[0]
+    assert (row["a12_lo"], row["a12_hi"]) == pytest.approx(
+        a12_interval(COSTS["diagonal"], COSTS["geagsp"])[1:3])
+    unequal = frame.assign(n_evals=np.where(frame["param"] == "geagsp", 50, 100))
+    assert not (a12_intervals(unequal)["map_b"] == "geagsp").any()

@@ -229,8 +229,7 @@ def test_first_study_runs_as_written(tmp_path):
     found = headings(report / "report.md")
     names = bullets(FIRST, "Open `outputs/first/report/report.md`")
     for name in names:
-        assert any(h == name or h.startswith(name + ",") or h.startswith(name + " ")
-                   for h in found), (name, found)
+        assert any(titled(name, [h]) for h in found), (name, found)
     assert "evidence" in pd.read_csv(report / "best_known.csv").columns
     # 6. equal budgets, three optimizers, the grid; the report over everything
     for line in commands(bash[5]):

@@ -51,8 +51,10 @@ def wants_help(argv: list[str]) -> bool:
 def _read_yaml(path: Path) -> dict:
     import yaml
 
+    from penaltyrun import yamlsafe
+
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yamlsafe.load_file(path)
     except (OSError, UnicodeDecodeError, yaml.YAMLError):
         return {}
     return data if isinstance(data, dict) else {}

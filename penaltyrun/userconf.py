@@ -22,6 +22,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from penaltyrun import yamlsafe
 from penaltyrun.errors import ConfigError
 
 CONF_DIR = Path(__file__).resolve().parent / "conf"
@@ -183,7 +184,7 @@ def _check_primary(path: Path) -> None:
     import yaml
 
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yamlsafe.load_file(path)
     except (OSError, UnicodeDecodeError, yaml.YAMLError):
         return  # check_yaml names the problem
     if not isinstance(data, dict) or "defaults" in data or "name" not in data:
@@ -312,20 +313,22 @@ def misplaced(group: str, value: str, source: ConfigSource, searchpath: list[str
 
 
 def check_yaml(path: Path, key: str) -> None:
-    """Parse one config file; a syntax error is one :class:`ConfigError` naming file and line.
+    """Parse one config file as Hydra will, within the limits of :mod:`penaltyrun.yamlsafe`
+    (size, nesting, aliases); a syntax error is one :class:`ConfigError` naming file and line.
 
     Raises
     ------
     ConfigError
-        ``<key>: <file>:<line>: malformed YAML: <problem>``, or if the top level is not a
-        mapping.
+        ``<key>: <file>:<line>: malformed YAML: <problem>``, ``<key>: <file>: <limit>``
+        for a file beyond a limit, or if the top level is not a mapping.
     """
     import yaml
     from omegaconf._utils import get_yaml_loader
 
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = yaml.load(fh, Loader=get_yaml_loader())
+        data = yamlsafe.load_file(path, loader=get_yaml_loader())
+    except yamlsafe.YamlLimitError as exc:
+        raise ConfigError(key, str(exc)) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""

@@ -16,6 +16,7 @@ from typing import Any
 
 import yaml
 
+from penaltyrun import yamlsafe
 from penaltyrun.api.core import CellSpec
 from penaltyrun.errors import ConfigError
 
@@ -45,8 +46,7 @@ _Loader.yaml_implicit_resolvers = {
 
 def read_yaml(path: Path) -> dict[str, Any]:
     """One config file as a dict (empty file: ``{}``)."""
-    with open(path, encoding="utf-8") as fh:
-        return yaml.load(fh, Loader=_Loader) or {}  # noqa: S506  (a SafeLoader subclass)
+    return yamlsafe.load_file(path, loader=_Loader) or {}
 
 
 def choices(group: str) -> tuple[str, ...]:

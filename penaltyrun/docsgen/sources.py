@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-import yaml
+from penaltyrun import yamlsafe
 
 _KEY_LINE = re.compile(r"^(?P<indent> *)(?P<key>[A-Za-z_][\w]*):(?P<value>[^#]*?)"
                        r"\s*(?:#\s?(?P<comment>.*))?$")
@@ -108,7 +108,7 @@ def yaml_entries(path: Path) -> list[dict[str, Any]]:
         ``{"key": dotted path, "value": parsed value or None for a mapping,
         "comment": str}`` in file order.
     """
-    data = yaml.safe_load(path.read_text()) or {}
+    data = yamlsafe.load_file(path) or {}
     entries: list[dict[str, Any]] = []
     stack: list[tuple[int, str]] = []
     last: dict[str, Any] | None = None

@@ -38,8 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from penaltyrun import yamlsafe
 from penaltyrun.io.longholdout import LONG_FILE, LONG_PROVENANCE
 
 logger = logging.getLogger(__name__)
@@ -97,7 +96,10 @@ def load_study(root: Path, name: str) -> Study:
     if not path.is_file():
         known = ", ".join(list_studies(root)) or "none"
         raise StudyError(f"no study {name!r} ({path} missing; studies: {known})")
-    data = yaml.safe_load(path.read_text()) or {}
+    try:
+        data = yamlsafe.load_file(path) or {}
+    except yamlsafe.YamlLimitError as exc:
+        raise StudyError(str(exc)) from None
     try:
         commands = [Command(subdir=str(c["subdir"]), args=[str(a) for a in c["args"]],
                             reduced=[str(a) for a in c.get("reduced", [])],

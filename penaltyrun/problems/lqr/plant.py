@@ -192,11 +192,13 @@ def resolve(spec: Any, key: str) -> Any:
 def _from_yaml(file: Path, key: str) -> dict[str, Any]:
     """A YAML plant file: ``A``, ``B``, optional ``dt`` and ``constants``; numbers may be
     expressions over the constants (:mod:`~penaltyrun.problems.lqr.expr`)."""
-    import yaml
-
+    from penaltyrun import yamlsafe
     from penaltyrun.problems.lqr import expr
 
-    data = yaml.safe_load(file.read_text())
+    try:
+        data = yamlsafe.load_file(file)
+    except yamlsafe.YamlLimitError as exc:
+        raise ConfigError(key, str(exc)) from None
     if not isinstance(data, Mapping):
         raise ConfigError(key, f"{file.name} must be a mapping with A and B")
     unknown = sorted(set(data) - {"A", "B", "dt", "constants"})

@@ -32,7 +32,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import parse_each, split_argv
+from penaltyrun.overrides import check_size, parse_each, split_argv
 
 KEEP_FLAG = "--keep"
 #: What an evaluation that kept no run directory says on stderr.
@@ -102,6 +102,7 @@ def check_sweeps(overrides: list[str], multirun: bool) -> list[Any]:
     """
     parsed = []
     for arg in overrides:
+        check_size(arg)
         _check_matlab(arg)
         try:
             parsed += parse_each([arg], _one_line)

@@ -40,6 +40,75 @@ def split_argv(argv: list[str]) -> tuple[list[str], list[str]]:
     return options, overrides
 
 
+#: Most comma-separated values in one override (sweep values and list or matrix entries
+#: together): Hydra's parser takes time quadratic in a list's length.
+MAX_VALUES = 1000
+#: Longest override (characters).
+MAX_CHARS = 65_536
+
+
+def count_values(arg: str) -> int:
+    """Comma-separated values of an override: commas outside quotes, plus one."""
+    commas = 0
+    quote = ""
+    escaped = False
+    for char in arg:
+        if escaped:
+            escaped = False
+        elif char == "\\":
+            escaped = True
+        elif quote:
+            quote = "" if char == quote else quote
+        elif char in "'\"":
+            quote = char
+        elif char == ",":
+            commas += 1
+    return commas + 1
+
+
+def check_size(arg: str, key: str | None = None) -> None:
+    """Refuse an override longer than :data:`MAX_CHARS` characters or with more than
+    :data:`MAX_VALUES` comma-separated values, before any parser sees it.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key, the size and the limit, and where larger data belongs.
+    """
+    key = key or arg.split("=", 1)[0].lstrip("+~")[:80]
+    fix = ("put larger data in a file (an LQR plant: problem.params.plant_file=plant.yaml) "
+           "or split the sweep over several commands")
+    if len(arg) > MAX_CHARS:
+        raise ConfigError(key, f"override of {len(arg)} characters (the limit is "
+                          f"{MAX_CHARS}): {fix}")
+    values = count_values(arg)
+    if values > MAX_VALUES:
+        raise ConfigError(key, f"override of {values} comma-separated values (the limit is "
+                          f"{MAX_VALUES} per override): {fix}")
+
+
+def check_sweep_size(override: Any) -> None:
+    """Refuse a parsed ``range(...)`` sweep of more than :data:`MAX_VALUES` values (a
+    short text for a huge sweep: ``range(0,1000000)``).
+
+    Raises
+    ------
+    ConfigError
+        Naming the key, the number of values and the limit.
+    """
+    import math
+
+    from hydra.core.override_parser.types import RangeSweep
+
+    value = override.value() if override.is_sweep_override() else None
+    if not isinstance(value, RangeSweep) or not value.step:
+        return
+    count = max(0, math.ceil((value.stop - value.start) / value.step))
+    if count > MAX_VALUES:
+        raise ConfigError(override.key_or_group, f"sweep of {count} values (the limit is "
+                          f"{MAX_VALUES} per override): split it over several commands")
+
+
 def parse_each(args: Iterable[str], describe: Callable[[BaseException], str],
                parser: Any = None) -> list[Any]:
     """Parse each override of ``args`` alone with Hydra's override parser.
@@ -62,7 +131,9 @@ def parse_each(args: Iterable[str], describe: Callable[[BaseException], str],
     ------
     ConfigError
         ``<key>: malformed override '<arg>': <describe(error)>`` for the first override
-        that does not parse; the key is the override's without ``+``/``~`` prefixes.
+        that does not parse; the key is the override's without ``+``/``~`` prefixes; or
+        an override beyond the size limits (:func:`check_size`, before parsing, and
+        :func:`check_sweep_size`).
     """
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
@@ -71,9 +142,11 @@ def parse_each(args: Iterable[str], describe: Callable[[BaseException], str],
         parser = OverridesParser.create()
     parsed = []
     for arg in args:
+        check_size(arg)
         try:
             parsed.extend(parser.parse_overrides([arg]))
         except HydraException as exc:
             key = arg.split("=", 1)[0].lstrip("+~")
             raise ConfigError(key, f"malformed override {arg!r}: {describe(exc)}") from None
+        check_sweep_size(parsed[-1])
     return parsed

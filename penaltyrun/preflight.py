@@ -13,7 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun import cells, checks, userconf
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import parse_each, split_argv
+from penaltyrun.overrides import check_size, check_sweep_size, parse_each, split_argv
 
 GROUPS = ("problem", "param", "optimizer", "experiment")
 #: Hydra settings the preflight needs to check the run directory.
@@ -122,8 +122,10 @@ def _profile_sweeps(cfg: DictConfig | None, parsed: list[Any], parser: Any) -> l
         if key in given or str(key).startswith("hydra"):
             continue
         line = f"{key}={value}"
+        check_size(line, f"hydra.sweeper.params.{key}")
         try:
             out.extend(parser.parse_overrides([line]))
+            check_sweep_size(out[-1])
         except HydraException as exc:
             raise ConfigError(f"hydra.sweeper.params.{key}", f"malformed sweep {line!r}: "
                               f"{_first_line(exc)}") from None

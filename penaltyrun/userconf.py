@@ -343,7 +343,8 @@ def check_yaml(path: Path, key: str) -> None:
 
 def check_files(source: ConfigSource, searchpath: list[str],
                 choices: list[tuple[str, str]]) -> None:
-    """YAML-check the primary config and every chosen group file found in a user directory.
+    """YAML-check the primary config and every chosen group file found in a user directory;
+    every YAML file of the user's directories against the limits (:func:`check_limits`).
 
     Parameters
     ----------
@@ -353,9 +354,62 @@ def check_files(source: ConfigSource, searchpath: list[str],
     choices : list of (group, name)
         Config-group choices of the command line, e.g. ``("experiment", "mine")``.
     """
+    check_limits(source, searchpath)
     check_yaml(source.primary / f"{source.config_name}.yaml", "--config-name")
     for group, name in choices:
         for folder in search_dirs(source, searchpath):
             path = folder / group / f"{name}.yaml"
             if path.is_file():
                 check_yaml(path, group)
+
+
+#: How deep below a user's config directory its YAML files are checked (``<dir>/a/b/c.yaml``).
+SCAN_DEPTH = 3
+
+
+def _user_yaml_files(folder: Path) -> Iterator[Path]:
+    """YAML files at most :data:`SCAN_DEPTH` levels below ``folder``, hidden folders
+    (``.hydra``, ``.git``) left out, in a stable order."""
+    stack = [(folder, 0)]
+    while stack:
+        here, level = stack.pop()
+        try:
+            entries = sorted(here.iterdir())
+        except OSError:
+            continue
+        for entry in entries:
+            if entry.name.startswith("."):
+                continue
+            if entry.suffix in (".yaml", ".yml") and entry.is_file():
+                yield entry
+            elif level + 1 < SCAN_DEPTH and entry.is_dir() and not entry.is_symlink():
+                stack.append((entry, level + 1))
+
+
+def check_limits(source: ConfigSource, searchpath: list[str]) -> None:
+    """Every YAML file of the user's config directories within the limits of
+    :mod:`penaltyrun.yamlsafe` (size, nesting, aliases), before Hydra reads any of them:
+    Hydra follows defaults lists (an experiment's ``- /problem: mine``) to files the
+    command line does not name, and reads them without bounds. A file's syntax is left to
+    :func:`check_yaml` and Hydra, which name it only when it is used.
+
+    Raises
+    ------
+    ConfigError
+        ``<group>: <file>: <limit>`` for the first file beyond a limit.
+    """
+    import yaml
+    from omegaconf._utils import get_yaml_loader
+
+    for folder in search_dirs(source, searchpath):
+        if not folder.is_dir() or folder.resolve() == CONF_DIR:
+            continue
+        for path in _user_yaml_files(folder):
+            try:
+                yamlsafe.load_file(path, loader=get_yaml_loader())
+            except yamlsafe.YamlLimitError as exc:
+                parts = path.relative_to(folder).parts
+                raise ConfigError(parts[0] if len(parts) > 1 else "--config-dir",
+                                  str(exc)) from None
+            except (OSError, UnicodeDecodeError, yaml.YAMLError):
+                continue

@@ -1,0 +1,77 @@
+"""Hostile inputs on the command line: YAML files beyond the limits (deep, alias bombs,
+oversized) in a user's config directory and oversized command-line lists each end in one
+line on stderr naming the file or key and the limit, and exit code 2, in seconds."""
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from penaltyrun.overrides import MAX_CHARS, MAX_VALUES
+from penaltyrun.yamlsafe import MAX_ALIAS_VALUES, MAX_BYTES, MAX_DEPTH
+
+
+def cli(*args: str, cwd: Path) -> tuple[subprocess.CompletedProcess, float]:
+    start = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.cli", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=120)
+    return proc, time.perf_counter() - start
+
+
+def one_error_line(proc: subprocess.CompletedProcess) -> str:
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr + proc.stdout
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr[-2000:]
+    assert lines[0].startswith("penaltyrun: error: ")
+    return lines[0]
+
+
+def bomb(levels: int = 9) -> str:
+    lines = ["name: zermelo", "params:", f"  l0: &l0 [{', '.join(['lol'] * 10)}]"]
+    lines += [f"  l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 10)}]" for i in range(1, levels)]
+    return "\n".join(lines) + "\n"
+
+
+DEEP = "name: zermelo\nparams: {x: " + "[" * 3000 + "]" * 3000 + "}\n"
+BIG = "name: zermelo\nparams:\n  x: [" + "0," * (MAX_BYTES // 2) + "0]\n"
+LIMITS = {"deep": (DEEP, f"nesting deeper than {MAX_DEPTH} levels"),
+          "bomb": (bomb(), f"aliases expand to more than {MAX_ALIAS_VALUES} values"),
+          "big": (BIG, f"larger than {MAX_BYTES} bytes")}
+
+
+@pytest.mark.parametrize("name", sorted(LIMITS))
+@pytest.mark.parametrize("how", ["chosen", "through an experiment's defaults"])
+def test_a_yaml_file_beyond_a_limit_is_one_line(tmp_path, name, how):
+    text, words = LIMITS[name]
+    (tmp_path / "myconf" / "problem").mkdir(parents=True)
+    (tmp_path / "myconf" / "problem" / f"{name}.yaml").write_text(text)
+    if how == "chosen":
+        args = [f"problem={name}"]
+    else:
+        (tmp_path / "myconf" / "experiment").mkdir()
+        (tmp_path / "myconf" / "experiment" / "x.yaml").write_text(
+            f"# @package _global_\ndefaults:\n  - /problem: {name}\n")
+        args = ["+experiment=x"]
+    proc, seconds = cli("--config-dir", "myconf", *args, "mode=plan", cwd=tmp_path)
+    line = one_error_line(proc)
+    assert f"problem: {tmp_path / 'myconf' / 'problem' / name}.yaml: {words}" in line
+    assert seconds < 60
+
+
+@pytest.mark.parametrize(("arg", "words"), [
+    ("+foo=[" + ",".join(map(str, range(20_000))) + "]",
+     f"characters (the limit is {MAX_CHARS})"),
+    ("+foo=[" + ",".join(["1"] * (MAX_VALUES + 1)) + "]",
+     f"{MAX_VALUES + 1} comma-separated values (the limit is {MAX_VALUES} per override)"),
+    ("runner.seed=" + ",".join(map(str, range(MAX_VALUES + 1))),
+     f"{MAX_VALUES + 1} comma-separated values (the limit is {MAX_VALUES} per override)"),
+    ("runner.seed=range(0,1000000)", f"sweep of 1000000 values (the limit is {MAX_VALUES}"),
+])
+def test_an_oversized_command_line_list_is_one_line(tmp_path, arg, words):
+    proc, seconds = cli("-m", "mode=plan", arg, cwd=tmp_path)
+    line = one_error_line(proc)
+    assert words in line
+    assert seconds < 30

@@ -197,3 +197,12 @@ def test_budget_from_selects_on_a_problem_parameter(tmp_path):
     assert studies.budget_override(command, tmp_path) == ["optimizer.max_evals=110"]
     command.budget_from["where"] = where
     assert studies.budget_override(command, tmp_path) == ["optimizer.max_evals=510"]
+
+
+def test_a_study_file_beyond_the_yaml_limits_is_a_study_error(tmp_path):
+    folder = tmp_path / "studies" / "bomb"
+    folder.mkdir(parents=True)
+    (folder / "study.yaml").write_text("title: &t [a, a, a, a, a, a, a, a, a, a]\n" + "".join(
+        f"c{i}: &c{i} [{', '.join([f'*c{i - 1}' if i else '*t'] * 10)}]\n" for i in range(8)))
+    with pytest.raises(studies.StudyError, match="study.yaml: aliases expand to more than"):
+        studies.load_study(tmp_path, "bomb")

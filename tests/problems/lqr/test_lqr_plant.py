@@ -100,7 +100,25 @@ def test_file_without_a_and_bad_dynamics(tmp_path, plants):
     sys.modules.pop("lqr_bad_dyn", None)
 
 
+BOMB = "A: &a [[0, 1], [0, 0]]\nB: [[0], [1]]\n" + "".join(
+    f"c{i}: &c{i} [{', '.join([f'*c{i - 1}' if i else '*a'] * 10)}]\n" for i in range(8))
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    (BOMB, "aliases expand to more than"),
+    ("A: " + "[" * 500 + "]" * 500 + "\nB: [[1]]\n", "nesting deeper than"),
+    ("A: [" + "0, " * 400_000 + "0]\nB: [[1]]\n", "larger than"),
+])
+def test_a_plant_yaml_beyond_a_limit_names_file_and_limit(tmp_path, text, words):
+    (tmp_path / "plant.yaml").write_text(text)
+    with pytest.raises(ConfigError, match=words) as err:
+        lqr.make_problem("default", {"plant_file": str(tmp_path / "plant.yaml")})
+    assert err.value.key == "problem.params.plant_file"
+    assert str(tmp_path / "plant.yaml") in err.value.message
+
+
 @pytest.mark.parametrize(("override", "key"), [
+    ("problem.params.plant_file=bomb.yaml", "problem.params.plant_file"),
     ("problem.params.A=[[0,1]]", "problem.params.A"),
     ("problem.params.B=[[0],[1],[1]]", "problem.params.B"),
     ("problem.params.A=[[1,0],[0,0]]", "problem.params.B"),
@@ -109,6 +127,7 @@ def test_file_without_a_and_bad_dynamics(tmp_path, plants):
 ])
 def test_bad_plant_on_the_command_line_exits_2(tmp_path, override, key):
     np.savez(tmp_path / "onlyb.npz", B=B)
+    (tmp_path / "bomb.yaml").write_text(BOMB)
     args = ["problem.params.A=[[0,1],[0,0]]", "problem.params.B=[[0],[1]]"]
     name = override.split("=")[0]
     args = [a for a in args if a.split("=")[0] != name]

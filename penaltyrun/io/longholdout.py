@@ -19,6 +19,7 @@ import logging
 from pathlib import Path
 
 import pandas as pd
+import pyarrow as pa
 
 logger = logging.getLogger(__name__)
 
@@ -42,7 +43,13 @@ def apply(frame: pd.DataFrame, results: Path) -> pd.DataFrame:
     path = Path(results).parent / LONG_FILE
     if not path.is_file() or "holdout" not in frame:
         return frame
-    long = pd.read_parquet(path, columns=["job_id", "config_hash", "holdout"])
+    try:
+        long = pd.read_parquet(path, columns=["job_id", "config_hash", "holdout"])
+    except (OSError, pa.ArrowException, ValueError, KeyError, MemoryError) as exc:
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        logger.warning("skipped re-judged held-out file %s: %s (the held-out data stored "
+                       "in %s are reported)", path, text, results)
+        return frame
     table = {(str(j), _key(h)): v for j, h, v in zip(long["job_id"], long["config_hash"],
                                                      long["holdout"])}
     out = frame.copy()

@@ -7,7 +7,10 @@ of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLU
 * a file that is not Parquet (truncated, garbage), is not penaltyrun output (the identity
   columns are missing), declares an Arrow extension type (penaltyrun never writes one; a
   pickled ``arrow.py_extension_type`` runs code in pyarrow before 14.0.1, penaltyrun's
-  floor; such a file is refused from the footer's metadata before the table is read), is
+  floor; such a file is refused from the footer's metadata before the table is read),
+  declares more rows or bytes than a results file may hold (:data:`MAX_FILE_ROWS`,
+  :data:`MAX_FILE_BYTES`, also refused from the footer), expands beyond
+  :data:`MAX_FILE_BYTES` when its text is decoded, is
   of a schema version newer than this code knows, or holds a column whose values do not
   fit the schema's type (e.g. fractional ``n_evals``) is skipped with one warning naming it
   and the reason;
@@ -109,15 +112,30 @@ def conform(table: pa.Table) -> pa.Table:
 
 #: Marker of an Arrow extension type in a Parquet footer's serialized Arrow schema.
 EXTENSION_KEY = b"ARROW:extension:name"
+#: Most rows one results file may hold (declared in its footer; checked before reading).
+MAX_FILE_ROWS = 10_000_000
+#: Most bytes one results file may expand to when read: its declared uncompressed size,
+#: and the decoded size of its dictionary-encoded text (4 GiB).
+MAX_FILE_BYTES = 4 << 30
 
 
 def check_footer(path: Path) -> str | None:
     """Why the Parquet file ``path`` is refused before its table is read (None: it is
-    not): an Arrow extension type in the footer's serialized ``ARROW:schema`` (searched as
-    bytes, not deserialized)."""
+    not): more rows than :data:`MAX_FILE_ROWS` or more uncompressed bytes than
+    :data:`MAX_FILE_BYTES` declared, or an Arrow extension type in the footer's serialized
+    ``ARROW:schema`` (searched as bytes, not deserialized)."""
     import base64
 
-    meta = pq.read_metadata(path).metadata or {}
+    footer = pq.read_metadata(path)
+    groups = [footer.row_group(i) for i in range(footer.num_row_groups)]
+    rows = max(footer.num_rows, sum(g.num_rows for g in groups))
+    if rows > MAX_FILE_ROWS:
+        return f"declares {rows} rows (the limit is {MAX_FILE_ROWS} per file): not read"
+    size = sum(g.total_byte_size for g in groups)
+    if size > MAX_FILE_BYTES:
+        return (f"declares {size} bytes uncompressed (the limit is {MAX_FILE_BYTES} per "
+                f"file): not read")
+    meta = footer.metadata or {}
     raw = meta.get(b"ARROW:schema", b"")
     try:
         raw = base64.b64decode(raw, validate=False)
@@ -142,7 +160,42 @@ def _read_one(path: Path) -> pd.DataFrame:
     refused = check_footer(path)
     if refused:
         raise ValueError(refused)
-    return _frame(pq.read_table(path), path)
+    return _frame(_read_bounded(path), path)
+
+
+def _read_bounded(path: Path) -> pa.Table:
+    """The table of ``path``, its text columns read dictionary-encoded and decoded only
+    when they fit :data:`MAX_FILE_BYTES` (a small file can hold one long text referred to
+    by every row: gigabytes once decoded, invisible in the footer). Columns the file
+    itself declares dictionary-encoded are measured and decoded the same way.
+
+    Raises
+    ------
+    ValueError
+        The decoded size is over the limit.
+    """
+    import pyarrow.compute as pc
+
+    text = [f.name for f in pq.read_schema(path)
+            if pa.types.is_string(f.type) or pa.types.is_binary(f.type)]
+    table = pq.read_table(path, read_dictionary=text)
+    size = 0
+    for column in table.columns:
+        for chunk in column.chunks:
+            if not isinstance(chunk, pa.DictionaryArray) or not len(chunk):
+                size += chunk.nbytes
+            elif pa.types.is_string(chunk.type.value_type) or \
+                    pa.types.is_binary(chunk.type.value_type):
+                lengths = pc.fill_null(pc.binary_length(chunk.dictionary), 0)
+                size += int(pc.sum(pc.take(lengths, chunk.indices)).as_py() or 0)
+            else:  # fixed-width or nested values: each row the dictionary's mean entry
+                size += len(chunk) * chunk.dictionary.nbytes // max(1, len(chunk.dictionary))
+    if size > MAX_FILE_BYTES:
+        raise ValueError(f"expands to {size} bytes when read (the limit is "
+                         f"{MAX_FILE_BYTES} per file): not read")
+    fields = [f.with_type(f.type.value_type) if pa.types.is_dictionary(f.type) else f
+              for f in table.schema]
+    return table.cast(pa.schema(fields, metadata=table.schema.metadata))
 
 
 def _frame(table: pa.Table, path: Path) -> pd.DataFrame:
@@ -313,7 +366,7 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
         for p in paths:
             try:
                 frames.append(_read_one(p))
-            except (OSError, pa.ArrowException, ValueError) as exc:
+            except (OSError, pa.ArrowException, ValueError, MemoryError) as exc:
                 reason = _first_line(exc)
                 logger.warning("skipped results file %s: %s", p, reason)
                 skipped[str(p)] = reason

@@ -1,0 +1,135 @@
+"""Damaged and adversarial Parquet files in a results folder: each is skipped with one
+warning naming it, nothing is decoded beyond the limits, the rest of the folder is read."""
+
+import logging
+import os
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from penaltyrun.io import read
+from penaltyrun.io.longholdout import LONG_FILE
+from penaltyrun.io.schema import RESULTS_FILE, to_table
+
+IDENTITY = read.IDENTITY_COLUMNS
+
+
+def _record(start: int) -> dict:
+    return {"job_id": f"zermelo-default-full-pso-abc-s{start:03d}", "problem": "zermelo",
+            "case": "default", "param": "full", "optimizer": "pso", "start": start,
+            "seed": start, "status": "ok", "best_cost": 1.0 + start, "n_evals": 10,
+            "config_hash": "h1"}
+
+
+def _good(folder):
+    folder.mkdir(parents=True, exist_ok=True)
+    pq.write_table(to_table([_record(0)], "good"), folder / RESULTS_FILE)
+    return folder / RESULTS_FILE
+
+
+def _huge_rows(path):
+    """A 1 MB file declaring more rows than the limit (all-null identity columns)."""
+    n = read.MAX_FILE_ROWS + 1
+    pq.write_table(pa.table({c: pa.nulls(n) for c in IDENTITY}), path)
+
+
+def _dictionary_bomb(path):
+    """A 50 kB file whose ``job_id`` is one 1 MB text referred to by 5 000 rows: 5 GB once
+    decoded, invisible in the footer."""
+    n = 5000
+    text = pa.DictionaryArray.from_arrays(pa.array(np.zeros(n, dtype=np.int32)),
+                                          pa.array(["x" * 1_000_000]))
+    pq.write_table(pa.table({"job_id": text, **{c: pa.array(["a"] * n) for c in IDENTITY
+                                                 if c != "job_id"}}), path)
+
+
+def _truncated(path):
+    good = to_table([_record(1)], "t")
+    pq.write_table(good, path)
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _random_bytes(path):
+    rng = np.random.default_rng(7)
+    path.write_bytes(rng.bytes(4096))
+
+
+def _random_with_magic(path):
+    """Parquet's magic bytes around random ones: the footer length read is garbage."""
+    rng = np.random.default_rng(8)
+    path.write_bytes(b"PAR1" + rng.bytes(4096) + b"PAR1")
+
+
+def _wrong_types(path):
+    """The identity columns present, but ``status`` a list of integers and ``best_cost``
+    text."""
+    pq.write_table(pa.table({**{c: ["a"] for c in IDENTITY if c != "status"},
+                             "status": pa.array([[1, 2]]), "best_cost": ["cheap"]}), path)
+
+
+def _wrong_schema(path):
+    pq.write_table(pa.table({"x": [1.0, 2.0], "y": ["a", "b"]}), path)
+
+
+HOSTILE = {"huge declared row count": (_huge_rows, f"declares {read.MAX_FILE_ROWS + 1} rows"),
+           "dictionary bomb": (_dictionary_bomb, "bytes when read (the limit is"),
+           "truncated": (_truncated, ""),
+           "random bytes": (_random_bytes, ""),
+           "random bytes in Parquet's magic": (_random_with_magic, ""),
+           "wrong column types": (_wrong_types, "column"),
+           "wrong schema": (_wrong_schema, "not penaltyrun results")}
+
+
+@pytest.mark.parametrize("kind", sorted(HOSTILE))
+def test_a_hostile_file_is_skipped_with_one_warning_and_the_rest_read(tmp_path, caplog, kind):
+    make, words = HOSTILE[kind]
+    _good(tmp_path / "good")
+    bad = tmp_path / "bad" / RESULTS_FILE
+    bad.parent.mkdir()
+    make(bad)
+    with caplog.at_level(logging.WARNING):
+        df = read.read_results(tmp_path)
+    assert list(df["start"]) == [0]
+    assert set(df.attrs["skipped_files"]) == {str(bad)}
+    lines = [r.getMessage() for r in caplog.records if str(bad) in r.getMessage()]
+    assert len(lines) == 1 and words in lines[0], lines
+
+
+def test_a_declared_uncompressed_size_over_the_limit_is_refused_from_the_footer(
+        tmp_path, monkeypatch, caplog):
+    _good(tmp_path / "good")
+    bad = tmp_path / "bad" / RESULTS_FILE
+    bad.parent.mkdir()
+    table = to_table([_record(1)], "bad")
+    pq.write_table(table.set_column(table.column_names.index("error"), "error",
+                                    pa.array(["e" * 3_000_000])), bad, compression="zstd")
+    assert os.path.getsize(bad) < 100_000  # compressed: small on disk
+    monkeypatch.setattr(read, "MAX_FILE_BYTES", 2_000_000)
+    original = read._read_bounded
+
+    def never_the_bad_file(path):
+        assert path != bad, "read beyond its footer"
+        return original(path)
+
+    monkeypatch.setattr(read, "_read_bounded", never_the_bad_file)
+    df = read.read_results(tmp_path)
+    assert list(df["start"]) == [0]
+    assert "uncompressed (the limit is 2000000 per file)" in df.attrs["skipped_files"][str(bad)]
+
+
+def test_text_within_the_limit_is_read_as_plain_text(tmp_path):
+    path = _good(tmp_path)
+    table = read._read_bounded(path)
+    assert table.equals(pq.read_table(path))
+    assert not any(pa.types.is_dictionary(f.type) for f in table.schema)
+
+
+def test_a_damaged_rejudged_file_leaves_the_stored_held_out_data(tmp_path, caplog):
+    path = _good(tmp_path)
+    (tmp_path / LONG_FILE).write_bytes(b"PAR1 damaged")
+    with caplog.at_level(logging.WARNING):
+        df = read.read_results(path)
+    assert list(df["start"]) == [0] and not df.attrs["skipped_files"]
+    assert f"skipped re-judged held-out file {tmp_path / LONG_FILE}" in caplog.text

@@ -1,14 +1,20 @@
 """Hostile inputs on the command line: YAML files beyond the limits (deep, alias bombs,
 oversized) in a user's config directory and oversized command-line lists each end in one
-line on stderr naming the file or key and the limit, and exit code 2, in seconds."""
+line on stderr naming the file or key and the limit, and exit code 2, in seconds; a report
+on a folder holding adversarial Parquet files warns once per file and reports the rest."""
 
+import json
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 
+from penaltyrun.io import collect
 from penaltyrun.overrides import MAX_CHARS, MAX_VALUES
 from penaltyrun.yamlsafe import MAX_ALIAS_VALUES, MAX_BYTES, MAX_DEPTH
 
@@ -75,3 +81,33 @@ def test_an_oversized_command_line_list_is_one_line(tmp_path, arg, words):
     line = one_error_line(proc)
     assert words in line
     assert seconds < 30
+
+
+def test_a_report_on_a_folder_with_adversarial_parquet_files_reports_the_rest(tmp_path):
+    run = tmp_path / "good"
+    (run / "jobs").mkdir(parents=True)
+    for i in range(3):
+        (run / "jobs" / f"j{i}.json").write_text(json.dumps({
+            "job_id": f"j{i}", "problem": "zermelo", "case": "default", "param": "diagonal",
+            "optimizer": "pso", "seed": i, "status": "ok", "best_cost": 1.0 + i, "start": i}))
+    collect(run)
+    n = 5000  # one 1 MB text behind every row: 5 GB once decoded
+    bomb = pa.DictionaryArray.from_arrays(pa.array(np.zeros(n, dtype=np.int32)),
+                                          pa.array(["x" * 1_000_000]))
+    (tmp_path / "bomb").mkdir()
+    pq.write_table(pa.table({"job_id": bomb, **{c: pa.array(["a"] * n) for c in
+                                                ("problem", "case", "param", "optimizer",
+                                                 "status")}}),
+                   tmp_path / "bomb" / "results.parquet")
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "results.parquet").write_bytes(
+        b"PAR1" + np.random.default_rng(1).bytes(999) + b"PAR1")
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", "."], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr
+    warnings = [ln for ln in proc.stderr.splitlines() if ln.startswith("WARNING")]
+    assert len(warnings) == 2
+    assert any("bomb/results.parquet" in w and "the limit is" in w for w in warnings)
+    assert any("junk/results.parquet" in w for w in warnings)
+    assert "zermelo" in (tmp_path / "report" / "report.md").read_text()

@@ -1,0 +1,20 @@
+"""The limits stated in docs/explanation/security.md are the code's."""
+
+from pathlib import Path
+
+from penaltyrun import overrides, userconf, yamlsafe
+from penaltyrun.io import read
+
+PAGE = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "security.md"
+
+
+def test_the_page_states_the_limits_of_the_code():
+    text = PAGE.read_text(encoding="utf-8")
+    assert f"1 MiB ({yamlsafe.MAX_BYTES} bytes)" in text and yamlsafe.MAX_BYTES == 1 << 20
+    assert f"| {yamlsafe.MAX_DEPTH} levels |" in text
+    assert f"| {yamlsafe.MAX_ALIAS_VALUES} values added when expanded |" in text
+    assert (f"| {overrides.MAX_CHARS} characters, {overrides.MAX_VALUES} comma-separated "
+            "values |") in text
+    assert f"| {read.MAX_FILE_ROWS} rows, 4 GiB ({read.MAX_FILE_BYTES} bytes) |" in text
+    assert read.MAX_FILE_BYTES == 4 << 30
+    assert userconf.SCAN_DEPTH == 3 and "`DIR/a/b/x.yaml`" in text

@@ -278,7 +278,8 @@ def misplaced(group: str, value: str, source: ConfigSource, searchpath: list[str
     name = Path(value).name.removesuffix(".yaml").removesuffix(".yml")
     if "/" in value or os.sep in value or value.endswith((".yaml", ".yml")):
         given = Path(value).expanduser()
-        found = given if given.is_file() else given.with_name(f"{name}.yaml")
+        found = given if given.is_file() or not given.name else \
+            given.with_name(f"{name}.yaml")
         if not found.is_file():
             return (f"a choice is the name of a file in a config directory's {group}/ "
                     f"folder, not a path: {group}={name} with --config-dir DIR")
@@ -410,6 +411,8 @@ def check_limits(source: ConfigSource, searchpath: list[str]) -> None:
             except yamlsafe.YamlLimitError as exc:
                 parts = path.relative_to(folder).parts
                 raise ConfigError(parts[0] if len(parts) > 1 else "--config-dir",
-                                  str(exc)) from None
+                                  f"{exc} (every YAML file of a config directory is "
+                                  f"checked: move other files out of {_shown(folder)})"
+                                  ) from None
             except (OSError, UnicodeDecodeError, yaml.YAMLError):
                 continue

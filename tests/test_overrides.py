@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import parse_each, split_argv
+from penaltyrun.overrides import MAX_CHARS, MAX_VALUES, count_values, parse_each, split_argv
 from penaltyrun.preflight import preflight
 
 
@@ -29,3 +31,27 @@ def test_preflight_leaves_the_value_of_package_to_hydra():
 def test_parse_each_names_the_bad_override():
     with pytest.raises(ConfigError, match=r"^case: malformed override 'case=\[': oops"):
         parse_each(["mode=plan", "case=["], lambda exc: "oops")
+
+
+_item = st.one_of(st.integers(-10**6, 10**6).map(str),
+                  st.text("abc, =", min_size=1, max_size=6).map(lambda t: f"'{t}'"))
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(_item, min_size=2, max_size=12))
+def test_count_values_counts_what_hydra_parses(items):
+    """Commas inside quotes are no separators: the count is the sweep's length."""
+    (override,) = parse_each([f"k={','.join(items)}"], str)
+    assert count_values(override.input_line) == len(override.value().list)
+    (listed,) = parse_each([f"k=[{','.join(items)}]"], str)
+    assert count_values(listed.input_line) == len(listed.value())
+
+
+def test_the_size_check_comes_before_the_parser(monkeypatch):
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    monkeypatch.setattr(OverridesParser, "parse_overrides", None)  # never reached
+    with pytest.raises(ConfigError, match=f"the limit is {MAX_VALUES} per override"):
+        parse_each(["k=" + ",".join(["1"] * (MAX_VALUES + 1))], str)
+    with pytest.raises(ConfigError, match=f"the limit is {MAX_CHARS}\\)"):
+        parse_each(["k=" + "x" * MAX_CHARS], str)

@@ -100,3 +100,10 @@ def test_yaml_infinity_on_the_command_line_names_the_spelling_that_works():
                                           r"write inf or -inf\)"):
         checks.check_like_defaults({"event_spacing": ".inf"}, {"event_spacing": 0.05}, "p")
     checks.check_like_defaults({"event_spacing": float("inf")}, {"event_spacing": 0.05}, "p")
+
+
+def test_the_root_folder_as_a_choice_is_one_line():
+    from penaltyrun.preflight import preflight
+
+    with pytest.raises(ConfigError, match="not a path"):
+        preflight(["problem=/", "mode=plan"])

@@ -210,9 +210,13 @@ def _frame(table: pa.Table, path: Path) -> pd.DataFrame:
     for name in TIMESTAMP_COLUMNS:  # schema <= 3 stored ISO text
         if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
             frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
-    frame["optimizer_settings"] = [
-        _upgrade_settings(opt, settings)
-        for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
+    try:
+        frame["optimizer_settings"] = [
+            _upgrade_settings(opt, settings)
+            for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
+    except (ValueError, TypeError, RecursionError) as exc:  # damaged or hostile JSON
+        raise ValueError(f"column optimizer_settings holds text that is not usable JSON "
+                         f"({_first_line(exc)[:80]})") from None
     frame = longholdout.apply(frame[list(COLUMNS)], path)
     frame.attrs = {}
     frame["_source"] = str(path)
@@ -366,7 +370,8 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
         for p in paths:
             try:
                 frames.append(_read_one(p))
-            except (OSError, pa.ArrowException, ValueError, MemoryError) as exc:
+            except (OSError, pa.ArrowException, ValueError, MemoryError,
+                    RecursionError) as exc:
                 reason = _first_line(exc)
                 logger.warning("skipped results file %s: %s", p, reason)
                 skipped[str(p)] = reason

@@ -73,7 +73,15 @@ def _wrong_schema(path):
     pq.write_table(pa.table({"x": [1.0, 2.0], "y": ["a", "b"]}), path)
 
 
-HOSTILE = {"huge declared row count": (_huge_rows, f"declares {read.MAX_FILE_ROWS + 1} rows"),
+def _deep_json(path):
+    """Optimizer settings of 100 000 nested lists (JSON the reader must parse)."""
+    record = {**_record(1), "optimizer": "pso_matlab",
+              "optimizer_settings": "[" * 100_000 + "]" * 100_000}
+    pq.write_table(to_table([record], "deep"), path)
+
+
+HOSTILE = {"deep JSON": (_deep_json, "column optimizer_settings holds text that is not"),
+           "huge declared row count": (_huge_rows, f"declares {read.MAX_FILE_ROWS + 1} rows"),
            "dictionary bomb": (_dictionary_bomb, "bytes when read (the limit is"),
            "truncated": (_truncated, ""),
            "random bytes": (_random_bytes, ""),

@@ -410,9 +410,10 @@ def check_limits(source: ConfigSource, searchpath: list[str]) -> None:
                 yamlsafe.load_file(path, loader=get_yaml_loader())
             except yamlsafe.YamlLimitError as exc:
                 parts = path.relative_to(folder).parts
-                raise ConfigError(parts[0] if len(parts) > 1 else "--config-dir",
-                                  f"{exc} (every YAML file of a config directory is "
-                                  f"checked: move other files out of {_shown(folder)})"
-                                  ) from None
+                option = "--config-dir" if folder in source.config_dirs else \
+                    "--config-path" if folder == source.primary else "hydra.searchpath"
+                raise ConfigError(parts[0] if len(parts) > 1 else option,
+                                  f"{exc}; every YAML file in {_shown(folder)} is checked "
+                                  f"before Hydra reads any") from None
             except (OSError, UnicodeDecodeError, yaml.YAMLError):
                 continue

@@ -67,6 +67,19 @@ def test_a_yaml_file_beyond_a_limit_is_one_line(tmp_path, name, how):
     assert seconds < 60
 
 
+def test_a_primary_config_or_a_searchpath_file_beyond_a_limit_is_one_line(tmp_path):
+    (tmp_path / "cfg").mkdir()
+    (tmp_path / "cfg" / "config.yaml").write_text("defaults:\n  - _self_\n" + DEEP)
+    proc, _ = cli("--config-path", "cfg", "mode=plan", cwd=tmp_path)
+    line = one_error_line(proc)
+    assert f"--config-path: {tmp_path / 'cfg' / 'config.yaml'}: nesting deeper" in line
+    (tmp_path / "sp" / "problem").mkdir(parents=True)
+    (tmp_path / "sp" / "problem" / "mine.yaml").write_text(bomb())
+    proc, _ = cli(f"hydra.searchpath=[file://{tmp_path / 'sp'}]", "mode=plan", cwd=tmp_path)
+    line = one_error_line(proc)
+    assert f"problem: {tmp_path / 'sp' / 'problem' / 'mine.yaml'}: aliases expand" in line
+
+
 @pytest.mark.parametrize(("arg", "words"), [
     ("+foo=[" + ",".join(map(str, range(20_000))) + "]",
      f"characters (the limit is {MAX_CHARS})"),

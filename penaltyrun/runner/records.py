@@ -112,7 +112,8 @@ def load_record(path: Path) -> tuple[dict[str, Any] | None, str]:
         record = json.loads(read_regular(path))
     except OSError as exc:
         return None, exc.strerror or type(exc).__name__
-    except ValueError as exc:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
+    except (ValueError, RecursionError) as exc:  # JSONDecodeError and UnicodeDecodeError
+        # are ValueErrors; JSON nested too deep for the parser is a RecursionError
         return None, f"unreadable ({str(exc).splitlines()[0][:80] if str(exc) else 'garbage'})"
     problem = record_problem(record, path.stem)
     if problem:

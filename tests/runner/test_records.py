@@ -47,3 +47,12 @@ def test_unreadable_records_are_moved_aside_and_rerun(tmp_path, caplog):
     assert not truncated.exists()
     # a second resume finds nothing corrupt any more
     assert pending_jobs(jobs, tmp_path, resume=True) == todo
+
+
+def test_a_record_nested_too_deep_for_the_json_parser_is_unreadable(tmp_path):
+    from penaltyrun.runner.records import load_record
+
+    path = tmp_path / "deep.json"
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    record, why = load_record(path)
+    assert record is None and why.startswith("unreadable (maximum recursion depth")

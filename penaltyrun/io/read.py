@@ -48,6 +48,7 @@ from penaltyrun.io.schema import (
     SCHEMA_VERSION,
     TIMESTAMP_COLUMNS,
     _upgrade_settings,
+    decode_json,
     find_results,
     to_table,
     to_timestamp,
@@ -62,6 +63,9 @@ IDENTITY_COLUMNS = ("job_id", "problem", "case", "param", "optimizer", "status")
 #: Column added on reading: False for rows whose status is not one of
 #: ok/diverged/failed/timeout.
 STATUS_KNOWN = "status_known"
+#: JSON columns that name a job's cell (its variant, its parameterization): checked on
+#: reading, so a file holding damaged ones is skipped rather than breaking a report.
+KEY_JSON_COLUMNS = ("problem_params", "param_options")
 #: Files above which reading shows progress.
 PROGRESS_MIN_FILES = 50
 #: Seconds between two progress log lines (not on a terminal).
@@ -78,6 +82,10 @@ def check_table(table: pa.Table) -> str | None:
     missing = [c for c in IDENTITY_COLUMNS if c not in table.column_names]
     if missing:
         return f"not penaltyrun results (no column {', '.join(missing)})"
+    empty = [c for c in IDENTITY_COLUMNS if table.column(c).null_count]
+    if empty:
+        return (f"column {empty[0]} has {table.column(empty[0]).null_count} empty values "
+                f"(every job names its {', '.join(IDENTITY_COLUMNS)})")
     if "schema_version" in table.column_names:
         versions = [v for v in table.column("schema_version").to_pylist() if v is not None]
         newer = sorted({v for v in versions if not isinstance(v, int) or v > SCHEMA_VERSION})
@@ -210,6 +218,13 @@ def _frame(table: pa.Table, path: Path) -> pd.DataFrame:
     for name in TIMESTAMP_COLUMNS:  # schema <= 3 stored ISO text
         if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
             frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
+    for name in KEY_JSON_COLUMNS:  # each distinct value once: a cell's share one
+        for value in frame[name].dropna().unique():
+            try:
+                decode_json(value)
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"column {name} holds text that is not usable JSON "
+                                 f"({_first_line(exc)[:80]})") from None
     try:
         frame["optimizer_settings"] = [
             _upgrade_settings(opt, settings)

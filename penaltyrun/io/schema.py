@@ -253,7 +253,17 @@ def _upgrade_settings(optimizer: Any, settings_json: Any) -> Any:
 
 def decode_json(value: str | float | None) -> Any:
     """Parse one JSON column value; a missing value (None, ``""`` or the NaN pandas puts in
-    a column that some of the concatenated frames lack) is None."""
+    a column that some of the concatenated frames lack) is None.
+
+    Raises
+    ------
+    ValueError
+        Not JSON, or nested too deep for the parser (a ``RecursionError`` turned into a
+        ``ValueError``, so callers handle both as damaged data).
+    """
     if value is None or value == "" or (isinstance(value, float) and value != value):
         return None
-    return json.loads(value)
+    try:
+        return json.loads(value)
+    except RecursionError:
+        raise ValueError("JSON nested too deep to parse") from None

@@ -80,7 +80,25 @@ def _deep_json(path):
     pq.write_table(to_table([record], "deep"), path)
 
 
-HOSTILE = {"deep JSON": (_deep_json, "column optimizer_settings holds text that is not"),
+def _deep_params(path):
+    """Problem parameters of 100 000 nested lists (the report groups cells by them)."""
+    record = {**_record(1), "problem_params": "[" * 100_000 + "]" * 100_000}
+    pq.write_table(to_table([record], "deep"), path)
+
+
+def _bad_options(path):
+    pq.write_table(to_table([{**_record(1), "param_options": "{oops"}], "bad"), path)
+
+
+def _null_problem(path):
+    pq.write_table(to_table([{**_record(1), "problem": None}], "null"), path)
+
+
+HOSTILE = {"null problem": (_null_problem, "column problem has 1 empty values"),
+           "deep JSON": (_deep_json, "column optimizer_settings holds text that is not"),
+           "deep problem parameters": (_deep_params, "column problem_params holds text "
+                                                     "that is not usable JSON (JSON nested"),
+           "damaged parameterization options": (_bad_options, "column param_options"),
            "huge declared row count": (_huge_rows, f"declares {read.MAX_FILE_ROWS + 1} rows"),
            "dictionary bomb": (_dictionary_bomb, "bytes when read (the limit is"),
            "truncated": (_truncated, ""),
@@ -141,3 +159,11 @@ def test_a_damaged_rejudged_file_leaves_the_stored_held_out_data(tmp_path, caplo
         df = read.read_results(path)
     assert list(df["start"]) == [0] and not df.attrs["skipped_files"]
     assert f"skipped re-judged held-out file {tmp_path / LONG_FILE}" in caplog.text
+
+
+def test_decode_json_turns_too_deep_into_a_value_error():
+    from penaltyrun.io.schema import decode_json
+
+    with pytest.raises(ValueError, match="nested too deep"):
+        decode_json("[" * 100_000 + "]" * 100_000)
+    assert decode_json('{"a": [1]}') == {"a": [1]}

@@ -50,7 +50,7 @@ LIMITS = {"deep": (DEEP, f"nesting deeper than {MAX_DEPTH} levels"),
 
 @pytest.mark.parametrize("name", sorted(LIMITS))
 @pytest.mark.parametrize("how", ["chosen", "through an experiment's defaults"])
-def test_a_yaml_file_beyond_a_limit_is_one_line(tmp_path, name, how):
+def test_b3_b4_a_yaml_file_beyond_a_limit_is_one_line(tmp_path, name, how):
     text, words = LIMITS[name]
     (tmp_path / "myconf" / "problem").mkdir(parents=True)
     (tmp_path / "myconf" / "problem" / f"{name}.yaml").write_text(text)
@@ -67,7 +67,7 @@ def test_a_yaml_file_beyond_a_limit_is_one_line(tmp_path, name, how):
     assert seconds < 60
 
 
-def test_a_primary_config_or_a_searchpath_file_beyond_a_limit_is_one_line(tmp_path):
+def test_b3_b4_a_primary_config_or_a_searchpath_file_beyond_a_limit_is_one_line(tmp_path):
     (tmp_path / "cfg").mkdir()
     (tmp_path / "cfg" / "config.yaml").write_text("defaults:\n  - _self_\n" + DEEP)
     proc, _ = cli("--config-path", "cfg", "mode=plan", cwd=tmp_path)
@@ -89,14 +89,14 @@ def test_a_primary_config_or_a_searchpath_file_beyond_a_limit_is_one_line(tmp_pa
      f"{MAX_VALUES + 1} comma-separated values (the limit is {MAX_VALUES} per override)"),
     ("runner.seed=range(0,1000000)", f"sweep of 1000000 values (the limit is {MAX_VALUES}"),
 ])
-def test_an_oversized_command_line_list_is_one_line(tmp_path, arg, words):
+def test_minor_an_oversized_command_line_list_is_one_line(tmp_path, arg, words):
     proc, seconds = cli("-m", "mode=plan", arg, cwd=tmp_path)
     line = one_error_line(proc)
     assert words in line
     assert seconds < 30
 
 
-def test_a_report_on_a_folder_with_adversarial_parquet_files_reports_the_rest(tmp_path):
+def test_b8_a_report_on_a_folder_with_adversarial_parquet_files_reports_the_rest(tmp_path):
     run = tmp_path / "good"
     (run / "jobs").mkdir(parents=True)
     for i in range(3):

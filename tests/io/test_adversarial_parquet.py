@@ -109,7 +109,7 @@ HOSTILE = {"null problem": (_null_problem, "column problem has 1 empty values"),
 
 
 @pytest.mark.parametrize("kind", sorted(HOSTILE))
-def test_a_hostile_file_is_skipped_with_one_warning_and_the_rest_read(tmp_path, caplog, kind):
+def test_b8_a_hostile_file_is_skipped_with_one_warning_and_the_rest_read(tmp_path, caplog, kind):
     make, words = HOSTILE[kind]
     _good(tmp_path / "good")
     bad = tmp_path / "bad" / RESULTS_FILE

@@ -107,3 +107,21 @@ def test_the_root_folder_as_a_choice_is_one_line():
 
     with pytest.raises(ConfigError, match="not a path"):
         preflight(["problem=/", "mode=plan"])
+
+
+def test_an_experiment_profile_sweep_beyond_the_size_limit_is_one_error(tmp_path):
+    from penaltyrun.overrides import MAX_VALUES
+    from penaltyrun.preflight import preflight
+
+    (tmp_path / "experiment").mkdir()
+    values = ",".join(map(str, range(MAX_VALUES + 1)))
+    (tmp_path / "experiment" / "big.yaml").write_text(
+        f"# @package _global_\nhydra:\n  sweeper:\n    params:\n      runner.seed: {values}\n")
+    with pytest.raises(ConfigError, match=f"the limit is {MAX_VALUES} per override") as err:
+        preflight(["--config-dir", str(tmp_path), "+experiment=big", "-m", "mode=plan"])
+    assert err.value.key == "hydra.sweeper.params.runner.seed"
+    (tmp_path / "experiment" / "big.yaml").write_text(
+        "# @package _global_\nhydra:\n  sweeper:\n    params:\n"
+        "      runner.seed: range(0,1000000)\n")
+    with pytest.raises(ConfigError, match="sweep of 1000000 values"):
+        preflight(["--config-dir", str(tmp_path), "+experiment=big", "-m", "mode=plan"])

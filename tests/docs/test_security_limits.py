@@ -18,3 +18,10 @@ def test_the_page_states_the_limits_of_the_code():
     assert f"| {read.MAX_FILE_ROWS} rows, 4 GiB ({read.MAX_FILE_BYTES} bytes) |" in text
     assert read.MAX_FILE_BYTES == 4 << 30
     assert userconf.SCAN_DEPTH == 3 and "`DIR/a/b/x.yaml`" in text
+
+
+def test_the_sweeps_page_states_the_override_limits():
+    text = (PAGE.parents[1] / "how-to" / "sweeps.md").read_text(encoding="utf-8")
+    assert f"at most {overrides.MAX_VALUES} comma-separated values" in text
+    assert f"and {overrides.MAX_CHARS} characters" in text
+    assert "(../explanation/security.md#limits-on-what-is-read)" in text

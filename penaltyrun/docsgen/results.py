@@ -29,6 +29,7 @@ import jinja2
 from penaltyrun.docsgen import experiments, explanation
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
 from penaltyrun.jobrecord import OK
+from penaltyrun.typed import is_number
 
 TEMPLATES = Path("studies") / "templates"
 RESULTS_DOCS = Path("docs") / "results"
@@ -166,8 +167,7 @@ def markdown_table(frame: Any, spec: str = ".4g") -> str:
     header = "| " + " | ".join(str(c) for c in frame.columns) + " |"
     lines = [header, "|" + "---|" * len(frame.columns)]
     for _, row in frame.iterrows():
-        cells = [fmt(v, spec) if isinstance(v, (int, float)) and not isinstance(v, bool)
-                 else str(v) for v in row]
+        cells = [fmt(v, spec) if is_number(v) else str(v) for v in row]
         lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(lines)
 

@@ -20,6 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun import cells
 from penaltyrun.errors import ConfigError
+from penaltyrun.typed import is_number
 
 MODES = ("optimize", "evaluate", "report", "plan")
 #: Modes that plan optimizer jobs (``plan`` forecasts them without running them).
@@ -152,7 +153,7 @@ def check_matrix_entries(values: Mapping[str, Any], prefix: str) -> None:
             item = stack.pop()
             if isinstance(item, list):
                 stack.extend(item)
-            elif not _is_number(item):
+            elif not is_number(item):
                 raise ConfigError(f"{prefix}.{name}", f"entries must be numbers, got "
                                   f"{item!r}")
 
@@ -169,13 +170,12 @@ def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
         if isinstance(default, bool):
             ok, what = isinstance(value, bool), "true or false"
         elif isinstance(default, (int, float)):
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-            what = "a number"
-        elif isinstance(default, list) and not all(_is_number(v) for v in default):
+            ok, what = is_number(value), "a number"
+        elif isinstance(default, list) and not all(is_number(v) for v in default):
             ok, what = isinstance(value, list), "a list"
         elif isinstance(default, list):
             ok = isinstance(value, list) and len(value) == len(default) and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+                is_number(v) for v in value)
             what = f"a list of {len(default)} numbers"
         else:
             continue
@@ -190,22 +190,18 @@ def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
 YAML_INFINITY = (".inf", "+.inf", "-.inf")
 
 
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def check_param_options(options: Mapping[str, Any]) -> None:
     """Check ``param.eig_bounds`` (null or [lower, upper] with 0 <= lower < upper) and
     ``param.cayley_bound`` (positive number)."""
     bounds = options.get("eig_bounds")
     if bounds is not None:
         ok = isinstance(bounds, list) and len(bounds) == 2 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in bounds)
+            is_number(v) for v in bounds)
         if not ok or not 0 <= bounds[0] < bounds[1]:
             raise ConfigError("param.eig_bounds", "must be null or [lower, upper] with "
                               f"0 <= lower < upper, got {bounds!r}")
     bound = options.get("cayley_bound", 1.0)
-    if isinstance(bound, bool) or not isinstance(bound, (int, float)) or not bound > 0:
+    if not is_number(bound) or not bound > 0:
         raise ConfigError("param.cayley_bound", f"must be a positive number, got {bound!r}")
 
 

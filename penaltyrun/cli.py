@@ -114,20 +114,20 @@ def summarize(path: Path, run_dir: Path) -> dict[str, int]:
     errors are); a run with failed or timed-out jobs is remembered in :data:`FAILED_RUNS`
     (exit code 3)."""
     from penaltyrun import io
-    from penaltyrun.runner.validate import JOB_STATUSES, NO_RESULT_STATUSES
+    from penaltyrun.jobrecord import DIVERGED, FAILED, JOB_STATUSES, NO_RESULT_STATUSES, OK, TIMEOUT
 
     df = io.read_results(path)
     counts = {status: int((df["status"] == status).sum()) for status in JOB_STATUSES}
-    line = (f"penaltyrun: {len(df)} jobs: {counts['ok']} ok, {counts['diverged']} diverged, "
-            f"{counts['failed']} failed")
-    if counts["timeout"]:
-        line += f", {counts['timeout']} timeout"
+    line = (f"penaltyrun: {len(df)} jobs: {counts[OK]} ok, {counts[DIVERGED]} diverged, "
+            f"{counts[FAILED]} failed")
+    if counts[TIMEOUT]:
+        line += f", {counts[TIMEOUT]} timeout"
     if any(counts[status] for status in NO_RESULT_STATUSES):
         first = df[df["status"].isin(NO_RESULT_STATUSES)].iloc[0]
         cause = str(first["error"] or "").strip().splitlines()[:1] or ["no error text"]
         line += (f"; errors in {run_dir}/jobs/<job_id>.json and {path} (column error), "
                  f"e.g. {first['job_id']}: {cause[0]}; rerun "
-                 f"{'failed and timed-out' if counts['timeout'] else 'failed'} jobs with "
+                 f"{'failed and timed-out' if counts[TIMEOUT] else 'failed'} jobs with "
                  f"runner.resume=true runner.retry_failed=true")
         FAILED_RUNS.append(str(run_dir))
     print(line, file=sys.stderr, flush=True)

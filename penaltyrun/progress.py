@@ -45,8 +45,8 @@ def finished_before(jobs: Sequence[Any], run_dir: Path, resume: bool,
                     retry_failed: bool) -> int:
     """Jobs a resumed run will skip: their record is readable and not a failure to retry
     (an unreadable record is moved aside and its job run again by the runner)."""
+    from penaltyrun.jobrecord import NO_RESULT_STATUSES
     from penaltyrun.runner.records import job_path, read_record
-    from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
     if not resume:
         return 0

@@ -18,6 +18,7 @@ from typing import Any
 
 from penaltyrun import __version__
 from penaltyrun.errors import ConfigError
+from penaltyrun.typed import is_number
 
 logger = logging.getLogger("penaltyrun")
 
@@ -94,7 +95,7 @@ def warm_start_share(runner: Mapping[str, Any], optimizer: str,
         raise ConfigError("runner.warm_start",
                           f"must be true or false, got {runner['warm_start']!r}")
     share = runner.get("warm_start_share", 0.3)
-    if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0 < share < 1:
+    if not is_number(share) or not 0 < share < 1:
         raise ConfigError("runner.warm_start_share", f"must be in (0, 1), got {share!r}")
     if optimizer_options.get("max_evals") is None:
         raise ConfigError("runner.warm_start", "needs an evaluation budget: set "

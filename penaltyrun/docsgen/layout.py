@@ -14,6 +14,8 @@ import math
 import re
 from typing import Any
 
+from penaltyrun.typed import is_number
+
 #: Widest table a results page shows outside a fold.
 MAX_COLUMNS = 10
 #: Columns of the report's tables holding a share (0–1), shown as a percentage. The
@@ -52,7 +54,7 @@ def is_share(column: Any) -> bool:
 def percent(value: Any) -> str:
     """A share (0–1) as a percentage with three significant digits, e.g. ``"33.3 %"``
     (``—`` for missing / NaN; text is left as it is)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if not is_number(value):
         return str(value)
     return "—" if math.isnan(value) else f"{100.0 * value:.3g} %"
 
@@ -65,7 +67,7 @@ def markdown_table(frame: Any, spec: str = ".4g") -> str:
     shares = [is_share(c) for c in frame.columns]
     for _, row in frame.iterrows():
         cells = [percent(v) if share else
-                 fmt(v, spec) if isinstance(v, (int, float)) and not isinstance(v, bool)
+                 fmt(v, spec) if is_number(v)
                  else str(v) for v, share in zip(row, shares)]
         lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(lines)

@@ -34,6 +34,7 @@ from penaltyrun.docsgen.layout import (
     narrow_table,
 )
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
+from penaltyrun.jobrecord import OK
 
 TEMPLATES = Path("studies") / "templates"
 RESULTS_DOCS = Path("docs") / "results"
@@ -91,7 +92,7 @@ class StudyData:
         for key, value in (where or {}).items():
             frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
         if converged:
-            frame = frame[(frame["status"] == "ok") & frame["best_converged"].astype(bool)]
+            frame = frame[(frame["status"] == OK) & frame["best_converged"].astype(bool)]
         return frame
 
     def table(self, stem: str) -> Any:
@@ -231,7 +232,7 @@ class Context:
         its own row, with its ``max_evals`` budget."""
         import pandas as pd
         frame = self.study(name).rows(where).copy()
-        ok = (frame["status"] == "ok") & frame["best_converged"].astype(bool)
+        ok = (frame["status"] == OK) & frame["best_converged"].astype(bool)
         settings = frame["optimizer_settings"] if "optimizer_settings" in frame else None
         frame["_settings"] = "" if settings is None else \
             [("" if v is None or v != v else str(v)) for v in settings]

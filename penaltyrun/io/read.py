@@ -53,8 +53,8 @@ from penaltyrun.io.schema import (
     to_table,
     to_timestamp,
 )
+from penaltyrun.jobrecord import JOB_STATUSES
 from penaltyrun.runner.records import CORRUPT_DIR, JOBS_DIR, load_record
-from penaltyrun.runner.validate import JOB_STATUSES
 
 logger = logging.getLogger(__name__)
 

@@ -18,15 +18,16 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from penaltyrun import jobrecord
 from penaltyrun.errors import EnvironmentProblemError, describe_os_error
+from penaltyrun.jobrecord import SCHEMA_VERSION
 from penaltyrun.runner import lock
 from penaltyrun.runner.records import CORRUPT_DIR, load_record, quarantine_with_warning
-from penaltyrun.runner.validate import SCHEMA_VERSION
 
 logger = logging.getLogger(__name__)
 
-#: Versions of :data:`SCHEMA` (``SCHEMA_VERSION`` lives with the record checks,
-#: :mod:`penaltyrun.runner.validate`). 3: anytime traces and warm start; 4: ``started_at`` /
+#: Versions of :data:`SCHEMA` (``SCHEMA_VERSION`` lives with the record's fields,
+#: :mod:`penaltyrun.jobrecord`). 3: anytime traces and warm start; 4: ``started_at`` /
 #: ``finished_at`` are timestamp columns (UTC) — earlier versions stored ISO text, read back
 #: as timestamps; 5: ``packages`` (provenance), and the job id covers the root seed and the
 #: held-out setting — earlier files read back with ``packages`` null; 6: closed-loop
@@ -37,74 +38,22 @@ SCHEMA_HISTORY = {3: "anytime traces, warm start", 4: "timestamp columns",
                   6: "closed-loop diagnostics columns (closed_loop, cl_*)"}
 RESULTS_FILE = "results.parquet"
 
-#: Column name → (arrow type, description). JSON columns hold text.
-COLUMNS: dict[str, tuple[pa.DataType, str]] = {
-    "run_id": (pa.string(), "run directory name"),
-    "job_id": (pa.string(), "problem-case-param-optimizer-<settings hash>-sNNN"),
-    "problem": (pa.string(), "problem name"),
-    "case": (pa.string(), "problem case"),
-    "param": (pa.string(),
-              "parameterization (diagonal, full, geagsp, givens, cayley, cayley_tan)"),
-    "optimizer": (pa.string(), "optimizer name (pso, de, cmaes, grid, baseline)"),
-    "start": (pa.int64(), "start index within the cell"),
-    "seed": (pa.int64(), "job seed derived from runner.seed"),
-    "status": (pa.string(), "ok | diverged | failed | timeout"),
-    "error": (pa.string(), "error text (failed, timeout) or why the best did not converge"),
-    "best_cost": (pa.float64(), "best objective value"),
-    "best_converged": (pa.bool_(), "whether the best candidate met the terminal condition"),
-    "best_status": (pa.string(), "problem status of the best candidate"),
-    "t_final": (pa.float64(), "final time of the best candidate (problem time unit)"),
-    "best_z": (pa.list_(pa.float64()), "best decision vector"),
-    "z_names": (pa.list_(pa.string()), "labels of the decision variables"),
-    "matrices": (pa.string(), "JSON: decoded best matrices {name: nested list}"),
-    "scalars": (pa.string(), "JSON: best extra scalars"),
-    "metrics": (pa.string(), "JSON: detailed evaluation of the best candidate"),
-    "holdout": (pa.string(), "JSON: the best candidate on the problem's held-out set "
-                             "(e.g. attitude robustness grid), or null"),
-    "closed_loop": (pa.string(), "JSON: the best candidate's closed loop linearized at the "
-                                 "target (time: continuous | discrete, dt, matrix, gain, "
-                                 "state_names, input_names), or null (no linearization)"),
-    "cl_eig_real": (pa.list_(pa.float64()), "closed-loop eigenvalues, real parts (z-plane "
-                                            "for a discrete loop), slowest first"),
-    "cl_eig_imag": (pa.list_(pa.float64()), "closed-loop eigenvalues, imaginary parts"),
-    "cl_slowest_real": (pa.float64(), "slowest real part max Re(s) of the closed-loop poles "
-                                      "(1/time unit; discrete: log|z|/dt)"),
-    "cl_min_damping": (pa.float64(), "smallest damping ratio −Re(s)/|s| of the closed-loop "
-                                     "poles"),
-    "cl_gain_norm": (pa.float64(), "2-norm of the gain K of u = −K x (null: no gain)"),
-    "cl_gain_cond": (pa.float64(), "2-norm condition number of the gain"),
-    "n_evals": (pa.int64(), "objective evaluations"),
-    "n_iters": (pa.int64(), "optimizer iterations"),
-    "stop_reason": (pa.string(), "ftol (stall) | iters | max_evals (budget) | restarts | "
-                                 "grid+local, '+polish' after a local polish"),
-    "n_nonfinite": (pa.int64(), "non-finite costs replaced by a penalty"),
-    "history": (pa.list_(pa.float64()), "best cost after each iteration"),
-    "trace_evals": (pa.list_(pa.int64()), "anytime trace: cumulative evaluations at each "
-                                          "improvement of the best cost (and at the end)"),
-    "trace_best": (pa.list_(pa.float64()), "anytime trace: best cost so far at trace_evals"),
-    "max_evals": (pa.int64(), "evaluation budget of the job (null: none)"),
-    "warm_start": (pa.string(), "JSON: the diagonal stage of a warm-started full job "
-                                "(share, evaluations, best cost, best diagonal matrices), or "
-                                "null"),
-    "wall_time_s": (pa.float64(), "wall time of the job"),
-    "optimizer_settings": (pa.string(), "JSON: optimizer settings"),
-    "problem_params": (pa.string(), "JSON: problem parameter overrides"),
-    "param_options": (pa.string(), "JSON: parameterization options"),
-    "config_hash": (pa.string(), "hash of the resolved config"),
-    "config": (pa.string(), "resolved config (YAML)"),
-    "package_version": (pa.string(), "penaltyrun version"),
-    "git_commit": (pa.string(), "git commit of the code (or 'unknown')"),
-    "packages": (pa.string(), "JSON: versions of python, numpy, scipy, numba, pyswarms, cma, "
-                              "pandas, pyarrow (dask, distributed where used), penaltyrun "
-                              "and its git commit"),
-    "started_at": (pa.timestamp("us", tz="UTC"), "when the job started (UTC)"),
-    "finished_at": (pa.timestamp("us", tz="UTC"), "when the job finished (UTC)"),
-    "schema_version": (pa.int64(), "version of this schema"),
+#: Arrow type of each kind of :data:`penaltyrun.jobrecord.FIELDS`.
+ARROW_TYPES: dict[str, pa.DataType] = {
+    jobrecord.TEXT: pa.string(), jobrecord.INT: pa.int64(), jobrecord.NUMBER: pa.float64(),
+    jobrecord.BOOL: pa.bool_(), jobrecord.NUMBERS: pa.list_(pa.float64()),
+    jobrecord.INTS: pa.list_(pa.int64()), jobrecord.TEXTS: pa.list_(pa.string()),
+    jobrecord.JSON: pa.string(), jobrecord.TIME: pa.timestamp("us", tz="UTC"),
 }
+#: Column name → (arrow type, description), from the record's fields
+#: (:data:`penaltyrun.jobrecord.FIELDS`). JSON columns hold text.
+COLUMNS: dict[str, tuple[pa.DataType, str]] = {
+    name: (ARROW_TYPES[field.kind], field.description)
+    for name, field in jobrecord.FIELDS.items() if field.column}
 SCHEMA = pa.schema([pa.field(name, typ) for name, (typ, _) in COLUMNS.items()])
-JSON_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop", "warm_start",
-                "optimizer_settings", "problem_params", "param_options", "packages")
-TIMESTAMP_COLUMNS = ("started_at", "finished_at")
+JSON_COLUMNS = tuple(name for name in COLUMNS if jobrecord.FIELDS[name].kind == jobrecord.JSON)
+TIMESTAMP_COLUMNS = tuple(name for name in COLUMNS
+                          if jobrecord.FIELDS[name].kind == jobrecord.TIME)
 
 
 def to_timestamp(value: Any) -> datetime | None:

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.typed import is_int
 
 logger = logging.getLogger(__name__)
 
@@ -63,7 +64,7 @@ def require_int(key: str, value: object, least: int, allow_none: bool = False) -
     ≥ ``least`` (or ``None`` where allowed)."""
     if value is None and allow_none:
         return
-    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+    if not is_int(value) or value < least:
         what = "a positive integer" if least == 1 else f"an integer ≥ {least}"
         raise ConfigError(f"optimizer.{key}", f"must be {what}"
                           f"{' or null' if allow_none else ''}, got {value!r}")

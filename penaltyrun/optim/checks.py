@@ -16,6 +16,7 @@ import typing
 from typing import Any
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.typed import is_int, is_number
 
 _NAMES = {int: "an integer", float: "a number", bool: "true or false", str: "a string",
           type(None): "null"}
@@ -64,11 +65,11 @@ def _coerce(value: Any, hint: Any) -> Any:
             raise TypeError
         return value
     if hint is int:
-        if isinstance(value, bool) or not isinstance(value, int):
+        if not is_int(value):
             raise TypeError
         return value
     if hint is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value):
+        if not is_number(value) or math.isnan(value):
             raise TypeError
         return float(value)
     if hint is str:

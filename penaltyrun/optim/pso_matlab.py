@@ -88,6 +88,7 @@ from penaltyrun.optim.base import (
     require_int,
     uniform_box,
 )
+from penaltyrun.typed import is_number
 
 logger = logging.getLogger(__name__)
 
@@ -163,8 +164,7 @@ class PSOMatlabSettings(CommonSettings):
         require_int("max_iterations", self.max_iterations, 1, allow_none=True)
         wr = self.inertia_range
         if (not isinstance(wr, tuple | list) or len(wr) != 2
-                or not all(isinstance(w, int | float) and not isinstance(w, bool)
-                           and math.isfinite(w) for w in wr)):
+                or not all(is_number(w) and math.isfinite(w) for w in wr)):
             raise ConfigError("optimizer.inertia_range", f"must be [low, high] (two finite "
                               f"numbers), got {wr!r}")
         if wr[0] < 0:

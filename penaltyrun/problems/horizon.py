@@ -22,12 +22,12 @@ import copy
 import math
 from collections.abc import Mapping
 from dataclasses import replace
-from numbers import Real
 from typing import Any
 
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.typed import is_number
 
 #: Fields every long-horizon held-out result adds (beside ``cost``, ``converged``, ...).
 DEADLINE_FIELDS = ("converged_by_deadline", "cost_at_deadline", "status_at_deadline",
@@ -58,12 +58,11 @@ def check_settings(params: Any, prefix: str) -> None:
         Naming the key (``<prefix>.<name>``).
     """
     factor, cap = params.holdout_horizon_factor, params.holdout_t_max_cap
-    if not (isinstance(factor, Real) and not isinstance(factor, bool) and factor >= 1.0
-            and math.isfinite(factor)):
+    if not (is_number(factor, any_real=True) and factor >= 1.0 and math.isfinite(factor)):
         raise ConfigError(f"{prefix}.holdout_horizon_factor",
                           f"must be a number ≥ 1 (1: judge at the training deadline), "
                           f"got {factor!r}")
-    if not (isinstance(cap, Real) and not isinstance(cap, bool) and cap > 0.0):
+    if not (is_number(cap, any_real=True) and cap > 0.0):
         raise ConfigError(f"{prefix}.holdout_t_max_cap",
                           f"must be a positive time (s), got {cap!r}")
 

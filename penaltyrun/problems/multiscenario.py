@@ -29,6 +29,7 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import BatchEvaluation, accepts_thresholds
+from penaltyrun.typed import is_int
 
 AGGREGATES = ("mean", "max")
 KEYS = ("train_scenarios", "train_aggregate", "train_sample", "train_seed")
@@ -183,10 +184,10 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
     base = mod.make_problem(case, rest)
     n_sample = overrides.get("train_sample") or 0
     seed = overrides.get("train_seed", 1)
-    if not (isinstance(n_sample, int) and not isinstance(n_sample, bool) and n_sample >= 0):
+    if not (is_int(n_sample) and n_sample >= 0):
         raise ConfigError("problem.params.train_sample",
                           f"must be an integer >= 0, got {n_sample!r}")
-    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+    if not is_int(seed) or seed < 0:
         raise ConfigError("problem.params.train_seed", f"must be an integer >= 0, got {seed!r}")
     listed = scenarios
     if listed is not None and (isinstance(listed, Mapping) or not hasattr(listed, "__len__")

@@ -22,6 +22,7 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec
+from penaltyrun.typed import is_int
 
 #: Cost given to a candidate whose cost raised or was not finite (finite, so that every
 #: optimizer ranks it last but keeps going).
@@ -195,7 +196,7 @@ def from_cost(cost: Callable[..., Any],
             size, bounds = value
         except (TypeError, ValueError):
             raise ConfigError(label, f"expected (size, (low, high)), got {value!r}") from None
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+        if not is_int(size, any_integral=True) or size < 1:
             raise ConfigError(label, f"size must be a positive integer, got {size!r}")
         low, high = _bounds(label, bounds)
         if low <= 0:

@@ -15,8 +15,8 @@ import warnings
 import numpy as np
 import pandas as pd
 
+from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.bestknown import family, reference, with_problem_variant
-from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
 EPSILONS = (1e-2, 1e-3)
 CELL = ["problem", "case", "problem_variant", "variant", "optimizer", "param"]

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from penaltyrun.io import read_results
+from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (
     controllers,
@@ -42,11 +43,9 @@ from penaltyrun.report.tables import (
 )
 from penaltyrun.report.verdict import COLUMNS as VERDICT_COLUMNS
 from penaltyrun.report.verdict import verdict_rows
-from penaltyrun.runner.validate import JOB_STATUSES, NO_RESULT_STATUSES
 
 logger = logging.getLogger(__name__)
 
-KNOWN_STATUSES = JOB_STATUSES
 #: Columns of ``summary.md`` / ``comparison.md`` (every column is in the CSV files).
 SUMMARY_MD = ["problem", "case", "variant", "optimizer", "param", "max_evals", "mean_evals",
               "n_jobs", "n_converged", "best", "median", "mean", "worst", "std", "ci_note"]
@@ -123,7 +122,7 @@ def checks(df: pd.DataFrame) -> list[str]:
     """Warning lines: unimportable modules, unknown statuses, non-finite evaluations,
     active bounds."""
     lines = [f"- {md_line(w)}" for w in protocol.WARNINGS]
-    unknown = df[~df["status"].isin(KNOWN_STATUSES)]
+    unknown = df[~df["status"].isin(JOB_STATUSES)]
     for status, g in unknown.groupby("status"):
         lines.append(f"- {len(g)} job(s) with status {status!r}, unknown to this report: "
                      "listed, never counted as converged.")

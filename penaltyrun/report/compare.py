@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.stats import MIN_N_TEST, a12, a12_magnitude, converged, holm
-from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
 GROUP = ["problem", "case", "variant", "optimizer"]
 #: Display order of the maps (others follow alphabetically).

@@ -27,11 +27,11 @@ import pandas as pd
 from scipy.io import savemat
 
 from penaltyrun.io import decode_json, read_results
+from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import outdir
 from penaltyrun.report.stats import CELL, add_variant
 from penaltyrun.report.tables import StemBook
-from penaltyrun.runner.validate import NO_RESULT_STATUSES
 
 logger = logging.getLogger(__name__)
 

@@ -40,6 +40,7 @@ import pandas as pd  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from penaltyrun.io import decode_json  # noqa: E402
+from penaltyrun.jobrecord import NO_RESULT_STATUSES  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
 from penaltyrun.report.stats import holm  # noqa: E402
@@ -50,7 +51,6 @@ from penaltyrun.report.tables import (  # noqa: E402
     md_text,
     save_figure,
 )
-from penaltyrun.runner.validate import NO_RESULT_STATUSES  # noqa: E402
 
 #: Fewer pairs than this: the Wilcoxon test is reported as underpowered.
 MIN_PAIRS = 10

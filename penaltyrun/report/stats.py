@@ -18,7 +18,7 @@ import pandas as pd
 from scipy import stats
 
 from penaltyrun.io import decode_json
-from penaltyrun.runner.validate import NO_RESULT_STATUSES
+from penaltyrun.jobrecord import DIVERGED, NO_RESULT_STATUSES, OK
 
 CELL = ["problem", "case", "variant", "optimizer", "param"]
 #: Per-group size below which a rank test is reported as underpowered.
@@ -131,7 +131,7 @@ def converged(df: pd.DataFrame) -> pd.Series:
     cost) are failures: they count in the success rate, never in a cost statistic.
     """
     best = df["best_converged"] if "best_converged" in df else pd.Series(True, index=df.index)
-    return (df["status"] == "ok") & best.fillna(False).astype(bool)
+    return (df["status"] == OK) & best.fillna(False).astype(bool)
 
 
 def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
@@ -235,7 +235,7 @@ def cell_summary(df: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
         rows.append({
             **dict(zip(CELL, key)),
             "n_jobs": len(g), "n_converged": int(cost.size),
-            "n_diverged": int((g["status"] == "diverged").sum()),
+            "n_diverged": int((g["status"] == DIVERGED).sum()),
             "n_failed": int(g["status"].isin(NO_RESULT_STATUSES).sum()),
             "success_rate": cost.size / len(g),
             "best": float(np.min(cost)) if cost.size else np.nan,

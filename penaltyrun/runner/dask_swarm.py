@@ -35,6 +35,7 @@ import distributed
 import numpy as np
 
 from penaltyrun.errors import RunAbortedError
+from penaltyrun.jobrecord import FAILED
 from penaltyrun.problems.base import BatchEvaluation
 from penaltyrun.runner import swarm
 from penaltyrun.runner.dask_backend import (
@@ -377,7 +378,7 @@ def run_swarm(jobs: list[Job], workers: int, scheduler: str | None, max_retries:
             lost = 0
             for fut in done:  # the starts finished before a loss are kept
                 record = fut.result()
-                if record.get("status") == "failed" and scheduler_lost(client):
+                if record.get("status") == FAILED and scheduler_lost(client):
                     lost += 1
                     continue
                 yield futures[fut], record

@@ -12,15 +12,15 @@ from typing import Any
 import numpy as np
 
 from penaltyrun import optim
+from penaltyrun.jobrecord import DIVERGED, FAILED, OK
 from penaltyrun.problems import diagnostics
 from penaltyrun.problems.base import CUTOFF_STATUS
 from penaltyrun.runner import interrupts
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
 from penaltyrun.runner.swarm import LocalEvaluation
-from penaltyrun.runner.validate import JOB_STATUSES
 
-__all__ = ["HEARTBEAT_S", "JOB_STATUSES", "Heartbeat", "run_job"]
+__all__ = ["HEARTBEAT_S", "Heartbeat", "run_job"]
 
 logger = logging.getLogger(__name__)
 
@@ -263,7 +263,7 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
         detail, holdout = evaluation.best(job, prob, best_mats, best_scalars)
         converged = bool(detail.get("converged", False))
         record.update({
-            "status": "ok" if converged else "diverged",
+            "status": OK if converged else DIVERGED,
             "error": "" if converged else f"best candidate did not converge "
                                           f"({detail.get('status', 'unknown')})",
             "best_cost": float(result.best_cost),
@@ -289,13 +289,13 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
     except Exception as exc:  # a failing job is recorded, never crashes the run
         text = describe_job_error(exc)
         logger.error("job %s failed: %s", job.job_id, text)
-        record.update({"status": "failed", "error": f"{text}\n{traceback.format_exc()}"})
+        record.update({"status": FAILED, "error": f"{text}\n{traceback.format_exc()}"})
     except (KeyboardInterrupt, SystemExit) as exc:
         if not interrupts.raised_by_job(exc):  # a Ctrl-C / SIGTERM of the run stops it
             raise
         text = interrupts.describe_exit_exception(exc)
         logger.error("job %s failed: %s", job.job_id, text)
-        record.update({"status": "failed", "error": text})
+        record.update({"status": FAILED, "error": text})
     record["wall_time_s"] = time.perf_counter() - t0
     record["finished_at"] = datetime.now(timezone.utc).isoformat()
     return record

@@ -11,6 +11,7 @@ from typing import Any
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.runner.plan import check_n_starts
+from penaltyrun.typed import is_int, is_number
 
 #: runner option → (kind, description of the allowed values).
 RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
@@ -46,28 +47,20 @@ _ALLOWED = {"choice": BACKENDS, "evaluate_on": EVALUATE_ON,
             "progress": ("auto", "true", "false")}
 
 
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
 def check_value(key: str, kind: str, value: Any, what: str) -> None:
     """Check one option ``value`` of ``kind`` (pos_int, nonneg_int, bool, pos_float,
     opt_pos_float, unit_open, choice, evaluate_on, chunks, progress, address)."""
     ok = {
-        "pos_int": lambda v: _is_int(v) and v >= 1,
-        "workers": lambda v: v == "auto" or (_is_int(v) and v >= 1),
-        "nonneg_int": lambda v: _is_int(v) and v >= 0,
+        "pos_int": lambda v: is_int(v) and v >= 1,
+        "workers": lambda v: v == "auto" or (is_int(v) and v >= 1),
+        "nonneg_int": lambda v: is_int(v) and v >= 0,
         "bool": lambda v: isinstance(v, bool),
-        "pos_float": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
-        and math.isfinite(v) and v > 0,
-        "opt_pos_float": lambda v: v is None or (
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            and v > 0),
-        "unit_open": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
-        and 0 < v < 1,
+        "pos_float": lambda v: is_number(v) and math.isfinite(v) and v > 0,
+        "opt_pos_float": lambda v: v is None or (is_number(v) and math.isfinite(v) and v > 0),
+        "unit_open": lambda v: is_number(v) and 0 < v < 1,
         "choice": lambda v: v in BACKENDS,
         "evaluate_on": lambda v: v in EVALUATE_ON,
-        "chunks": lambda v: v == "auto" or (_is_int(v) and v >= 1),
+        "chunks": lambda v: v == "auto" or (is_int(v) and v >= 1),
         "progress": lambda v: v == "auto" or isinstance(v, bool),
         "address": lambda v: v is None or (isinstance(v, str) and bool(_ADDRESS.match(v))),
     }[kind](value)

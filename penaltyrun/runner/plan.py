@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.typed import is_int
 
 #: Most starts of one cell (``runner.n_starts``): a larger cell is refused with one line
 #: (its job list alone would fill the memory; split it into several seeds instead).
@@ -183,7 +184,7 @@ def check_n_starts(n_starts: Any) -> None:
     ConfigError
         Naming the key and the bound.
     """
-    if not isinstance(n_starts, int) or isinstance(n_starts, bool) or n_starts < 1:
+    if not is_int(n_starts) or n_starts < 1:
         raise ConfigError("runner.n_starts", f"must be a positive integer, got {n_starts!r}")
     if n_starts > MAX_N_STARTS:
         raise ConfigError("runner.n_starts", f"{n_starts} is above the limit of "

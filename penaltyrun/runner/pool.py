@@ -52,6 +52,7 @@ from collections.abc import Callable, Iterator
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
+from penaltyrun.jobrecord import FAILED, TIMEOUT
 from penaltyrun.runner import interrupts
 from penaltyrun.runner.job import identity_columns
 from penaltyrun.runner.plan import Job
@@ -200,7 +201,7 @@ def ended_itself(exitcode: int | None) -> bool:
     return exitcode is not None and (exitcode >= 0 or -exitcode in CRASH_SIGNALS)
 
 
-def failure_record(job: Job, error: str, status: str = "failed") -> dict[str, Any]:
+def failure_record(job: Job, error: str, status: str = FAILED) -> dict[str, Any]:
     """Record of a job that could not produce one itself (its worker died, or was killed
     at ``runner.job_timeout``: ``status="timeout"``)."""
     return {**identity_columns(job), "status": status, "error": error}
@@ -334,7 +335,7 @@ def run_pool(jobs: list[Job], workers: int, max_retries: int = 1,
         logger.error("job %s: %s; recorded timeout", job.job_id, cause[len("JobTimeout: "):])
         w.stop(kill=True)
         pool[i] = _Worker(ctx, func, beat_s)
-        yield job, {**failure_record(job, cause, status="timeout"), "wall_time_s": elapsed}
+        yield job, {**failure_record(job, cause, status=TIMEOUT), "wall_time_s": elapsed}
 
     def wait_s(busy: list[_Worker]) -> float:
         """Seconds to wait for messages: a heartbeat interval, less up to the next

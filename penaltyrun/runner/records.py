@@ -24,9 +24,10 @@ from pathlib import Path
 from typing import Any
 
 from penaltyrun.errors import EnvironmentProblemError, describe_os_error
+from penaltyrun.jobrecord import NO_RESULT_STATUSES, SCHEMA_VERSION
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.provenance import packages_json
-from penaltyrun.runner.validate import NO_RESULT_STATUSES, SCHEMA_VERSION, record_problem
+from penaltyrun.runner.validate import record_problem
 
 logger = logging.getLogger(__name__)
 

@@ -14,62 +14,46 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-#: Job-level statuses: ``ok`` (best candidate converged), ``diverged`` (the optimizer's
-#: best candidate did not meet the terminal condition), ``failed`` (the job raised, or its
-#: worker process died), ``timeout`` (the job ran longer than ``runner.job_timeout`` and
-#: its worker process was killed).
-JOB_STATUSES = ("ok", "diverged", "failed", "timeout")
-#: Statuses of a job that produced no result (no best cost): a resumed run with
-#: ``runner.retry_failed=true`` runs these again, and no statistic counts their costs.
-NO_RESULT_STATUSES = ("failed", "timeout")
-#: Version of the record / results schema this code writes (see :mod:`penaltyrun.io.schema`
-#: for the history). Records of a newer version are refused: their meaning is unknown here.
-SCHEMA_VERSION = 6
+from penaltyrun.jobrecord import (
+    ALWAYS,
+    BOOL,
+    FIELDS,
+    FINISHED,
+    INT,
+    INTS,
+    JOB_STATUSES,
+    NO_RESULT_STATUSES,
+    NUMBER,
+    NUMBERS,
+    OK,
+    SCHEMA_VERSION,
+    TEXT,
+    TEXTS,
+)
+from penaltyrun.typed import is_int, is_number
 
-_INT = "an integer"
-_NUMBER = "a number"
-_TEXT = "text"
+__all__ = ["JOB_STATUSES", "NO_RESULT_STATUSES", "OPTIONAL", "REQUIRED", "REQUIRED_FINISHED",
+           "SCHEMA_VERSION", "record_problem"]
 
-#: Fields every record has (also a ``failed`` or ``timeout`` one), with their kind.
-REQUIRED: dict[str, str] = {
-    "job_id": _TEXT, "problem": _TEXT, "case": _TEXT, "param": _TEXT, "optimizer": _TEXT,
-    "start": _INT, "seed": _INT, "status": _TEXT,
-}
-#: Fields an ``ok`` or ``diverged`` record has in addition.
-REQUIRED_FINISHED: dict[str, str] = {"best_cost": _NUMBER}
-#: Optional fields and their kind when present and not null.
-OPTIONAL: dict[str, str] = {
-    "error": _TEXT, "best_status": _TEXT, "stop_reason": _TEXT, "run_id": _TEXT,
-    "config_hash": _TEXT, "config": _TEXT, "module_hash": _TEXT, "package_version": _TEXT,
-    "git_commit": _TEXT,
-    "n_evals": _INT, "n_iters": _INT, "n_nonfinite": _INT, "max_evals": _INT,
-    "schema_version": _INT, "t_final": _NUMBER, "wall_time_s": _NUMBER,
-    "best_converged": "true or false", "best_z": "a list of numbers",
-    "history": "a list of numbers", "trace_best": "a list of numbers",
-    "trace_evals": "a list of integers", "z_names": "a list of text",
-    "cl_eig_real": "a list of numbers", "cl_eig_imag": "a list of numbers",
-    "cl_slowest_real": _NUMBER, "cl_min_damping": _NUMBER, "cl_gain_norm": _NUMBER,
-    "cl_gain_cond": _NUMBER,
-}
-
-
-def _is_int(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
+#: How each kind of :data:`penaltyrun.jobrecord.FIELDS` is checked; fields of another kind
+#: (JSON values, times) are not checked.
 _KIND_CHECKS = {
-    _INT: _is_int,
-    _NUMBER: _is_number,
-    _TEXT: lambda v: isinstance(v, str),
-    "true or false": lambda v: isinstance(v, bool),
-    "a list of numbers": lambda v: isinstance(v, list) and all(_is_number(x) for x in v),
-    "a list of integers": lambda v: isinstance(v, list) and all(_is_int(x) for x in v),
-    "a list of text": lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v),
+    INT: is_int,
+    NUMBER: is_number,
+    TEXT: lambda v: isinstance(v, str),
+    BOOL: lambda v: isinstance(v, bool),
+    NUMBERS: lambda v: isinstance(v, list) and all(is_number(x) for x in v),
+    INTS: lambda v: isinstance(v, list) and all(is_int(x) for x in v),
+    TEXTS: lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v),
 }
+#: Fields every record has (also a ``failed`` or ``timeout`` one), with their kind.
+REQUIRED: dict[str, str] = {name: f.kind for name, f in FIELDS.items() if f.required == ALWAYS}
+#: Fields an ``ok`` or ``diverged`` record has in addition.
+REQUIRED_FINISHED: dict[str, str] = {name: f.kind for name, f in FIELDS.items()
+                                     if f.required == FINISHED}
+#: Optional fields that are checked, and their kind, when present and not null.
+OPTIONAL: dict[str, str] = {name: f.kind for name, f in FIELDS.items()
+                            if not f.required and f.kind in _KIND_CHECKS}
 
 
 def record_problem(record: Any, job_id: str | None = None) -> str | None:
@@ -90,7 +74,7 @@ def record_problem(record: Any, job_id: str | None = None) -> str | None:
     if not isinstance(record, Mapping):
         return f"not a JSON object but {type(record).__name__}"
     version = record.get("schema_version")
-    if version is not None and (not _is_int(version) or not 1 <= version <= SCHEMA_VERSION):
+    if version is not None and (not is_int(version) or not 1 <= version <= SCHEMA_VERSION):
         return f"unknown schema_version {version!r} (this penaltyrun knows 1 to " \
                f"{SCHEMA_VERSION})"
     status = record.get("status")
@@ -113,7 +97,7 @@ def record_problem(record: Any, job_id: str | None = None) -> str | None:
     cost = record.get("best_cost")
     if status not in NO_RESULT_STATUSES and math.isnan(cost):
         return "best_cost is NaN"
-    if status == "ok" and not math.isfinite(cost):
+    if status == OK and not math.isfinite(cost):
         return f"best_cost is {cost} in an ok record (a converged cost is finite)"
     if record["start"] < 0:
         return f"start must be ≥ 0, got {record['start']}"

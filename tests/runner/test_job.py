@@ -128,3 +128,26 @@ def test_jobs_run_with_one_blas_thread(monkeypatch):
     monkeypatch.setattr(job_module, "_run_job", fake)
     assert job_module.run_job(None) == {"status": "ok"}
     assert seen["threads"] <= {job_module.BLAS_THREADS}
+
+
+# ------------------------------------------------------------------ the record's fields
+
+
+def test_every_field_a_job_writes_is_a_defined_record_field(tmp_path):
+    from penaltyrun.jobrecord import FIELDS, SCHEMA_VERSION
+    from penaltyrun.runner.job import run_job
+    from penaltyrun.runner.pool import failure_record
+    from penaltyrun.runner.records import load_record, write_record
+
+    job = _baseline_job("zermelo", "default", {"holdout_radii": [3.0],
+                                                "holdout_n_angles": 3})
+    finished = run_job(job)
+    assert finished["status"] in ("ok", "diverged"), finished.get("error")
+    broken = run_job(_baseline_job("zermelo", "default", {"no_such_param": 1}))
+    assert broken["status"] == "failed"
+    for record in (finished, broken, failure_record(job, "worker died")):
+        assert set(record) <= set(FIELDS), set(record) - set(FIELDS)
+        path = write_record(tmp_path, job, {**record, "job_id": job.job_id})
+        stored, reason = load_record(path)
+        assert reason == "" and stored["schema_version"] == SCHEMA_VERSION
+        assert set(stored) <= set(FIELDS)

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.problems.attitude.params import CASE_PARAMS, Params
 from penaltyrun.problems.attitude.plots import plot_histories
 from penaltyrun.problems.base import PaperValues, ReportInfo, ReportSection
@@ -110,7 +111,7 @@ def paper_tables(law: str, jobs: Sequence[Mapping[str, Any]]) -> list[ReportSect
     """The paper's Table 1 / 2 layout per optimizer (every optimizer that ran both maps of
     the default set-up): J per start, then mean / best / worst over converged starts."""
     main = [j for j in jobs if j["case"] in MANOEUVRES and not j["variant"]
-            and j["optimizer"] != "baseline" and j["status"] not in ("failed", "timeout")]
+            and j["optimizer"] != "baseline" and j["status"] not in NO_RESULT_STATUSES]
     out = []
     for optimizer in sorted({j["optimizer"] for j in main}):
         mine = [j for j in main if j["optimizer"] == optimizer]

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.problems.base import PaperValues, ReportInfo, ReportSection
 from penaltyrun.problems.lowthrust.params import build_params
 from penaltyrun.problems.lowthrust.plots import plot_elements, plot_thrust, plot_trajectory
@@ -122,7 +123,7 @@ def transfer_table(law: str, jobs: Sequence[Mapping[str, Any]]) -> ReportSection
     variant, optimizer and map (K = I baseline included), with the end statuses."""
     cells: dict[tuple[str, str, str, str], list[Mapping[str, Any]]] = {}
     for j in jobs:
-        if j["status"] not in ("failed", "timeout"):
+        if j["status"] not in NO_RESULT_STATUSES:
             cells.setdefault((j["case"], j["variant"], j["optimizer"], j["param"]), []).append(j)
     rows = []
     for (case, variant, optimizer, param), group in sorted(cells.items()):

@@ -24,6 +24,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.typed import is_number
 
 #: Functions an expression may call (one or two positional arguments).
 FUNCTIONS: dict[str, Callable[..., float]] = {
@@ -49,7 +50,7 @@ def _walk(node: ast.AST, names: Mapping[str, float], key: str, text: str) -> flo
                            f"{', '.join(sorted(FUNCTIONS))}, {', '.join(sorted(NAMES))})")
 
     if isinstance(node, ast.Constant):
-        if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+        if not is_number(node.value):
             raise refuse(f"{node.value!r} is not a number")
         return float(node.value)
     if isinstance(node, ast.Name):

@@ -23,6 +23,7 @@ from penaltyrun.problems import horizon
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.lqr import expr
 from penaltyrun.problems.multiscenario import TrainingParams
+from penaltyrun.typed import is_int, is_number
 
 PREFIX = "problem.params"
 PLANT_KEYS = ("A", "B", "plant_file", "plant", "dynamics")
@@ -254,7 +255,7 @@ def cost_unit(p: Params, discrete: bool) -> str:
 
 
 def _number(key: str, value: Any, positive: bool = True) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+    if not is_number(value) or not np.isfinite(value):
         raise ConfigError(f"{PREFIX}.{key}", f"must be a finite number, got {value!r}")
     if positive and not value > 0:
         raise ConfigError(f"{PREFIX}.{key}", f"must be > 0, got {value!r}")
@@ -346,7 +347,7 @@ def scalars(p: Params) -> None:
               "margin_points": 2}
     for key, low in lowest.items():
         value = getattr(p, key)
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        if not is_int(value) or value < low:
             raise ConfigError(f"{PREFIX}.{key}", f"must be an integer >= {low}, got "
                               f"{value!r}")
     horizon.check_settings(p, PREFIX)

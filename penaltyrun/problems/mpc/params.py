@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from numbers import Integral, Real
 from types import MappingProxyType
 from typing import Any, ClassVar
 
@@ -20,6 +19,7 @@ from penaltyrun.errors import ConfigError
 from penaltyrun.problems import horizon
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.multiscenario import TrainingParams
+from penaltyrun.typed import is_int, is_number
 
 #: ``default``: weights on the state and input in SI units (m, m/s, m/s²);
 #: ``scaled``: the same MPC with weights on the normalized state (1 km, 1 m/s) and input
@@ -153,14 +153,13 @@ def _key(name: str) -> str:
 
 def _positive(p: Params, name: str) -> None:
     value = getattr(p, name)
-    if isinstance(value, bool) or not isinstance(value, Real) or not (
-            math.isfinite(value) and value > 0):
+    if not is_number(value, any_real=True) or not (math.isfinite(value) and value > 0):
         raise ConfigError(_key(name), f"must be a positive number, got {value!r}")
 
 
 def _integer(p: Params, name: str, low: int) -> None:
     value = getattr(p, name)
-    if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
+    if not is_int(value, any_integral=True) or value < low:
         raise ConfigError(_key(name), f"must be an integer >= {low}, got {value!r}")
 
 
@@ -213,7 +212,7 @@ def validate(p: Params) -> Params:
     if p.plant not in PLANTS:
         raise ConfigError(_key("plant"), f"unknown plant {p.plant!r}", allowed=PLANTS)
     e = p.plant_eccentricity
-    if isinstance(e, bool) or not isinstance(e, Real) or not 0.0 <= e < 1.0:
+    if not is_number(e, any_real=True) or not 0.0 <= e < 1.0:
         raise ConfigError(_key("plant_eccentricity"), f"must be in [0, 1), got {e!r}")
     if p.plant == "cw" and e != 0.0:
         raise ConfigError(_key("plant_eccentricity"),

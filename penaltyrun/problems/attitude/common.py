@@ -301,7 +301,7 @@ class AttitudeProblem(AttitudeScenarios):
     def _criterion_detail(self, res: Mapping[str, np.ndarray]) -> dict[str, Any]:
         """Keys :meth:`evaluate` adds under a well-posed criterion (none for ``deadline``):
         ``criterion``, ``horizon`` (s, how long a run may last), and ``rho`` with
-        ``arrival_time`` (s, NaN if not arrived), or ``terminal_weight`` (S, 6×6) with
+        ``arrival_time`` (s, NaN if not arrived), or ``terminal_S`` (S, 6×6) with
         ``terminal_cost`` (x(T)ᵀ S x(T), N²·m²·s)."""
         p = self.params
         if p.criterion == criteria.DEADLINE:
@@ -312,7 +312,7 @@ class AttitudeProblem(AttitudeScenarios):
             out["arrival_time"] = float(res["t_final"][0]) if res["converged"][0] \
                 else float("nan")
         else:
-            out["terminal_weight"] = attitude_criteria.terminal_weight(p).tolist()
+            out["terminal_S"] = attitude_criteria.terminal_weight(p).tolist()
             out["terminal_cost"] = float(res["terminal_cost"][0])
         return out
 

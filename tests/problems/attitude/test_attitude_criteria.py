@@ -99,7 +99,7 @@ def _check_terminal(law, seed, given_s):
     assert res["converged"] and res["status"] == "converged"
     assert res["terminal_cost"] == pytest.approx(x @ S @ x, rel=1e-6)
     assert res["cost"] == pytest.approx(expected, rel=1e-6)
-    assert np.allclose(res["terminal_weight"], S, rtol=1e-12, atol=0.0)
+    assert np.allclose(res["terminal_S"], S, rtol=1e-12, atol=0.0)
 
 
 @pytest.mark.parametrize("law", sorted(LAWS))

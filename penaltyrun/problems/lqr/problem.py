@@ -28,6 +28,11 @@ Cost of one start (P = the failure penalty scale, r = ‖x(T)‖ / ‖x0‖):
   the sum of its candidate's J over the starts exceeded the number of starts × the
   threshold.
 
+Criteria (``criterion``, :mod:`~penaltyrun.problems.lqr.criteria`): ``terminal`` adds
+x(T)ᵀ S x(T) to each start's J; ``time_energy`` replaces J by the performance cost to the
+settling time plus ρ times that time, ``not_settled`` where the start has not settled by
+``free_time_cap``.
+
 Every graded cost is at least the start's J, so a cut candidate's mean cost is above its
 threshold and at most its uncut cost. A candidate's cost is the mean over its starts, its
 status the worst one (in the order above; ``cutoff`` whenever a start was cut) and it
@@ -46,7 +51,7 @@ import numpy as np
 from penaltyrun.dynamics import linear_feedback as loop
 from penaltyrun.dynamics.linear import quadratic_cost
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import horizon
+from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
@@ -55,6 +60,7 @@ from penaltyrun.problems.base import (
     check_spd,
 )
 from penaltyrun.problems.lqr import constraints as cons
+from penaltyrun.problems.lqr import criteria as lqr_criteria
 from penaltyrun.problems.lqr import discrete
 from penaltyrun.problems.lqr import params as pm
 from penaltyrun.problems.lqr.plant import Plant
@@ -124,6 +130,11 @@ class LQRProblem:
         self.penalty = float(p.failure_penalty) if p.failure_penalty is not None else \
             1000.0 * (self.optimum if np.isfinite(self.optimum) and self.optimum > 0 else 1.0)
         self.holdout_states()  # validate the held-out set now (bad input: exit 2)
+        lqr_criteria.check_supported(self)
+        self.S = lqr_criteria.terminal_weight(self) \
+            if p.criterion == criteria.TERMINAL or p.terminal_weight is not None else None
+        if p.criterion != criteria.TERMINAL:
+            self.S = None   # validated above, used by the terminal criterion only
 
     @property
     def cost_unit(self) -> str:
@@ -181,7 +192,16 @@ class LQRProblem:
         good = np.flatnonzero(ok)
         steps = None
         history = self.limits.needs_history(metrics)
-        if good.size and self.dt is not None and self.plant.linear and self.u_max is None \
+        free = self.params.criterion == criteria.TIME_ENERGY
+        if good.size and free:
+            J[good], t_end[good], x_final[good], codes[good] = lqr_criteria.free_time(
+                self, K[good], X0)
+            if self.dt is not None and history:  # the constraints' responses to t_max
+                steps = discrete.simulate(
+                    self.plant.A, self.plant.B, np.repeat(K[good], n_k, 0),
+                    np.tile(X0, (good.size, 1)), self.Wx, self.Wu, self.u_max,
+                    discrete.n_steps(self.t_max, self.dt), self._bound(X0), history=True)
+        elif good.size and self.dt is not None and self.plant.linear and self.u_max is None \
                 and not history:
             A_cl = self.plant.A - self.plant.B @ K[good]
             W = self.Wx + np.swapaxes(K[good], 1, 2) @ self.Wu @ K[good]
@@ -220,8 +240,10 @@ class LQRProblem:
             codes[good] = np.asarray([_LOOP_STATUS[int(s)] for s in run["status"]],
                                      dtype=object).reshape(good.size, n_k)
         ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
+        if self.S is not None:
+            J = J + criteria.terminal_cost(x_final, self.S)
         tol = self.params.settle_tol
-        if tol is not None:
+        if tol is not None and not free:
             codes[(codes == "converged") & ~(ratio <= tol)] = "not_settled"
         measures = self.limits.measure(K, ok, X0, self.t_max, steps, metrics)
         excess = measures.pop("violation")
@@ -467,13 +489,16 @@ class LQRProblem:
             return None
         Q, R = self._check(mats)
         p = self.params
+        train_t = criteria.run_horizon(p)
         long_t = horizon.holdout_horizon(self.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap)
+                                         p.holdout_t_max_cap) \
+            if criteria.judges_at_deadline(p) else train_t
         short = self._holdout_runs(Q, R, sc["x0"])
         long = horizon.at_horizon(self, long_t, t_max=long_t)._holdout_runs(Q, R, sc["x0"]) \
-            if long_t > self.t_max else short
-        out = horizon.combine(short, long, self.t_max, long_t)
-        out["arrival_time"] = np.full(len(sc["scenario"]), np.nan)
+            if long_t > train_t else short
+        out = horizon.combine(short, long, train_t, long_t)
+        if p.criterion != criteria.TIME_ENERGY:   # no target event: no arrival time
+            out["arrival_time"] = np.full(len(sc["scenario"]), np.nan)
         return {**sc, **out}
 
     def _holdout_runs(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray

@@ -224,10 +224,8 @@ def setup_label(values: Mapping[str, Any]) -> str:
     import hashlib
     import json
 
-    defaults = Params()
-    defining = {k: v for k, v in values.items() if k not in NOT_SETUP
-                and not (k in criteria.SETTINGS and v == getattr(defaults, k))}
-    if defining == {k: v for k, v in _known_answer_values().items() if k not in NOT_SETUP}:
+    defining = _defining(values)
+    if defining == _defining(_known_answer_values()):
         return ""
     digest = hashlib.sha256(json.dumps(defining, sort_keys=True, default=str).encode())
     if values.get("dynamics") is not None:
@@ -239,6 +237,14 @@ def setup_label(values: Mapping[str, Any]) -> str:
     else:
         source = "A,B"
     return f"{source}#{digest.hexdigest()[:8]}"
+
+
+def _defining(values: Mapping[str, Any]) -> dict[str, Any]:
+    """The objective-defining values; criterion settings count only when not at their
+    defaults (so labels of set-ups from before the criteria existed do not change)."""
+    defaults = Params()
+    return {k: v for k, v in values.items() if k not in NOT_SETUP
+            and not (k in criteria.SETTINGS and v == getattr(defaults, k))}
 
 
 def _known_answer_values() -> dict[str, Any]:

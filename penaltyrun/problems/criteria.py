@@ -158,6 +158,18 @@ def judges_at_deadline(params: Any) -> bool:
     return params.criterion == DEADLINE
 
 
+def report_name(params: Any, deadline_name: str, free_energy: str, fixed_energy: str
+                ) -> str:
+    """The cost's name in reports: ``deadline_name`` under ``deadline``; else
+    ``J = <free_energy> + ρ·t_f (ρ = …)`` (the energy to arrival, e.g.
+    ``"∫₀^t_f ½‖u‖² dt"``) or ``J = <fixed_energy> + x(T)ᵀ S x(T)`` (to T = t_max)."""
+    if params.criterion == TIME_ENERGY:
+        return f"J = {free_energy} + ρ·t_f (ρ = {float(params.rho):g})"
+    if params.criterion == TERMINAL:
+        return f"J = {fixed_energy} + x(T)ᵀ S x(T)"
+    return deadline_name
+
+
 def time_energy_cost(energy: Any, t_final: Any, rho: float) -> np.ndarray:
     """Free-final-time value ∫ (½ uᵀu + ρ) dt = energy + ρ · t_final."""
     return np.asarray(energy, dtype=float) + float(rho) * np.asarray(t_final, dtype=float)
@@ -170,5 +182,5 @@ def terminal_cost(x_final: Any, S: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["CRITERIA", "CriterionParams", "DEADLINE", "SETTINGS", "TERMINAL", "TIME_ENERGY",
-           "check", "freeze", "hashed_node", "judges_at_deadline", "run_horizon",
+           "check", "freeze", "hashed_node", "judges_at_deadline", "report_name", "run_horizon",
            "terminal_cost", "terminal_matrix", "time_energy_cost"]

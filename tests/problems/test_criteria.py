@@ -76,3 +76,20 @@ def test_multiscenario_aggregates_the_criterion(name, case, scenarios, criterion
              for sc in scenarios]
     assert multi.evaluate(mats)["cost"] == pytest.approx(np.mean(costs), rel=1e-12)
     assert multi.params.criterion == criterion
+
+
+@pytest.mark.parametrize("name,deadline_label,unit", [
+    ("attitude_lyapunov", "J = ∫½‖u‖² dt (N²·m²·s)", "N²·m²·s"),
+    ("mpc_rendezvous", "Δv = Σ Tₛ‖u_k‖₂ (m/s)", "m²/s³"),
+    ("lqr", "J = mean over x0 of ∫₀ᵀ (xᵀW_x x + uᵀW_u u) dt (weighted state² × time "
+            "(user units))", "weighted state² × time (user units)"),
+])
+def test_reports_name_the_criterion(name, deadline_label, unit):
+    from penaltyrun.problems import report_hooks
+
+    mod = registry.module(name)
+    assert report_hooks.info(mod, mod.DEFAULT_CASE, {}).cost_label == deadline_label
+    free = report_hooks.info(mod, mod.DEFAULT_CASE, {"criterion": "time_energy", "rho": 0.5})
+    fixed = report_hooks.info(mod, mod.DEFAULT_CASE, {"criterion": "terminal"})
+    assert "ρ = 0.5" in free.cost_name and free.cost_unit == unit and free.paper is None
+    assert "x(T)ᵀ S x(T)" in fixed.cost_name and fixed.paper is None

@@ -24,6 +24,7 @@ J (not Δv; ``delta_v`` stays in the detailed results).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -65,6 +66,20 @@ def position_tolerance(params: Any) -> float:
     return -1.0 if params.criterion == criteria.TERMINAL else float(params.pos_tol_m)
 
 
+def report_info(case: str, params: Mapping[str, Any]) -> Any:
+    """Report hook (:mod:`penaltyrun.problems.report_hooks`): Δv (m/s) under ``deadline``,
+    the criterion's J (m²/s³) otherwise."""
+    from penaltyrun.problems.base import ReportInfo
+    from penaltyrun.problems.mpc.params import build_params
+
+    p = build_params(case, params)
+    if p.criterion == criteria.DEADLINE:
+        return ReportInfo(cost_name="Δv = Σ Tₛ‖u_k‖₂", cost_unit="m/s")
+    return ReportInfo(cost_name=criteria.report_name(p, "", "Σ_k<k_f ½‖u_k‖² Tₛ",
+                                                         "Σ_k<N ½‖u_k‖² Tₛ"),
+                      cost_unit=COST_UNIT)
+
+
 def value(res: Any, params: Any, dt: float) -> float:
     """The criterion's value of a run (before any failure penalty): Δv (``deadline``),
     E + ρ t_f (``time_energy``) or E + s_Nᵀ S s_N (``terminal``)."""
@@ -76,5 +91,5 @@ def value(res: Any, params: Any, dt: float) -> float:
                                                      terminal_weight(params)))
 
 
-__all__ = ["COST_UNIT", "DEFAULT_RHO", "TERMINAL_SCALE", "position_tolerance", "run_horizon",
-           "run_steps", "terminal_weight", "value"]
+__all__ = ["COST_UNIT", "DEFAULT_RHO", "TERMINAL_SCALE", "position_tolerance", "report_info",
+           "run_horizon", "run_steps", "terminal_weight", "value"]

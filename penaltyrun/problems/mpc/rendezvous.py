@@ -48,6 +48,7 @@ from penaltyrun.problems.base import (
 from penaltyrun.problems.mpc import controller as ctl
 from penaltyrun.problems.mpc import criteria as mpc_criteria
 from penaltyrun.problems.mpc import scenarios as scen
+from penaltyrun.problems.mpc.criteria import report_info
 from penaltyrun.problems.mpc.model import cw_continuous, mean_motion, solve_dare_batch, zoh
 from penaltyrun.problems.mpc.params import (
     CASE_PARAMS,
@@ -401,4 +402,4 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> RendezvousMPC:
 
 __all__ = ["CASES", "CASE_PARAMS", "COST_LABEL", "COST_UNIT", "CUT_MARGIN", "DARE_FAILURE",
            "DEFAULT_CASE", "HARD_FAILURE_FACTOR", "NAME", "VARIANT_IGNORE", "Params",
-           "RendezvousMPC", "make_problem", "plot_inputs", "plot_trajectory"]
+           "RendezvousMPC", "make_problem", "plot_inputs", "plot_trajectory", "report_info"]

@@ -295,26 +295,8 @@ class AttitudeProblem(AttitudeScenarios):
             "objective_form": self.params.objective_form,
             "objective": float(res["cost"][0] if res["objective"] is None
                                else res["objective"][0]),
-            **self._criterion_detail(res),
+            **attitude_criteria.detail(self.params, res),
         }
-
-    def _criterion_detail(self, res: Mapping[str, np.ndarray]) -> dict[str, Any]:
-        """Keys :meth:`evaluate` adds under a well-posed criterion (none for ``deadline``):
-        ``criterion``, ``horizon`` (s, how long a run may last), and ``rho`` with
-        ``arrival_time`` (s, NaN if not arrived), or ``terminal_S`` (S, 6×6) with
-        ``terminal_cost`` (x(T)ᵀ S x(T), N²·m²·s)."""
-        p = self.params
-        if p.criterion == criteria.DEADLINE:
-            return {}
-        out: dict[str, Any] = {"criterion": p.criterion, "horizon": criteria.run_horizon(p)}
-        if p.criterion == criteria.TIME_ENERGY:
-            out["rho"] = float(p.rho)
-            out["arrival_time"] = float(res["t_final"][0]) if res["converged"][0] \
-                else float("nan")
-        else:
-            out["terminal_S"] = attitude_criteria.terminal_weight(p).tolist()
-            out["terminal_cost"] = float(res["terminal_cost"][0])
-        return out
 
     def simulate(
         self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None,

@@ -21,6 +21,7 @@ In attitude terms, with the energy E(t) = ∫₀ᵗ ½ uᵀu dt (N²·m²·s) of
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -118,4 +119,23 @@ def finish(problem: Any, G: np.ndarray, ok: np.ndarray, y0: np.ndarray | None, d
             "status": status, "terminal_cost": term}
 
 
-__all__ = ["DEFAULT_RHO", "NO_EVENT", "finish", "terminal_runs", "terminal_weight"]
+def detail(params: Any, res: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """Keys ``evaluate`` adds under a well-posed criterion (none for ``deadline``):
+    ``criterion``, ``horizon`` (s, how long a run may last), and ``rho`` with
+    ``arrival_time`` (s, NaN if not arrived), or ``terminal_S`` (S, 6×6) with
+    ``terminal_cost`` (x(T)ᵀ S x(T), N²·m²·s); ``res`` holds per-run arrays of one run."""
+    if params.criterion == criteria.DEADLINE:
+        return {}
+    out: dict[str, Any] = {"criterion": params.criterion,
+                           "horizon": criteria.run_horizon(params)}
+    if params.criterion == criteria.TIME_ENERGY:
+        out["rho"] = float(params.rho)
+        out["arrival_time"] = float(res["t_final"][0]) if res["converged"][0] \
+            else float("nan")
+    else:
+        out["terminal_S"] = terminal_weight(params).tolist()
+        out["terminal_cost"] = float(res["terminal_cost"][0])
+    return out
+
+
+__all__ = ["DEFAULT_RHO", "NO_EVENT", "detail", "finish", "terminal_runs", "terminal_weight"]

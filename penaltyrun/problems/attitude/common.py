@@ -273,7 +273,9 @@ class AttitudeProblem(AttitudeScenarios):
             ``problem``, ``case``, ``cost`` (objective), ``energy`` (J at the end, N²·m²·s),
             ``converged``, ``status``, ``t_final`` (s), ``t_max`` (s), ``final_distance``,
             ``initial_distance``, ``gain`` (3×6 nested list, u = −gain·(q_v, ω)),
-            ``objective_form`` and ``objective`` (the value the optimizer saw).
+            ``objective_form`` and ``objective`` (the value the optimizer saw); under a
+            well-posed criterion also the keys of
+            :func:`~penaltyrun.problems.attitude.criteria.detail`.
         """
         checked = self._check(mats)
         G, ok = self.gains({k: v[None] for k, v in checked.items()})

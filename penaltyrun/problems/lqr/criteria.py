@@ -20,13 +20,15 @@ criteria mean here:
     cost units per time unit (default 0.01). A start that has not settled by the cap costs
     J(cap) + ρ · cap + P (1 + r / (1 + r)), r = ‖x(cap)‖ / ‖x0‖ (``not_settled``, the
     problem's graded penalty). Sampled plant: J = Σ_{k < k_s} (x_kᵀW_x x_k + u_kᵀW_u u_k)
-    + ρ k_s dt, k_s the first settled sample. Continuous plants: linear without input
-    limits only (exact propagation by matrix exponentials; the settling time is found
+    + ρ k_s dt, k_s the first settled sample. Continuous linear plants without input
+    limits: exact propagation by matrix exponentials (the settling time is found
     with steps no longer than the time ‖x‖ needs to reach the level at the fastest rate
     ‖A − BK‖₂ allows, at least 0.05 / ‖A − BK‖₂ — a dip under the level between two
     steps that short is never deeper than 5 % — then safeguarded Newton to 1e-13 of the
-    step);
-    saturated or nonlinear continuous loops are a config error.
+    step). Saturated or nonlinear continuous loops: the vectorized Dormand–Prince
+    integrator (:mod:`penaltyrun.dynamics.linear_feedback`) with its settling event,
+    checked at the end of every accepted step and located inside it by bisection; a start
+    that diverges or fails there is graded as in the deadline criterion.
 """
 
 from __future__ import annotations
@@ -78,20 +80,6 @@ def terminal_weight(problem: Any) -> np.ndarray:
         raise ConfigError(key, "no default: the Riccati equation of (state_weight, "
                           "input_weight) has no stabilizing solution; give S")
     return 0.5 * (S + S.T)
-
-
-def check_supported(problem: Any) -> None:
-    """``time_energy`` needs a sampled plant or a linear one without input limits.
-
-    Raises
-    ------
-    ConfigError
-        A saturated or nonlinear continuous-time loop.
-    """
-    if problem.params.criterion == criteria.TIME_ENERGY and problem.dt is None \
-            and not problem.closed_form:
-        raise ConfigError("problem.params.criterion", "time_energy on a continuous plant "
-                          "needs a linear plant without u_max (or a sampled plant, dt)")
 
 
 def _expm(M: np.ndarray) -> np.ndarray:
@@ -280,6 +268,27 @@ def settle_sampled(A: np.ndarray, B: np.ndarray, K: np.ndarray, X0: np.ndarray,
     return k_s, cost, x, settled
 
 
+def _integrated(problem: Any, K: np.ndarray, X0: np.ndarray, level: float, cap: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`free_time` of saturated or nonlinear continuous loops: the vectorized
+    integrator with its settling event."""
+    from penaltyrun.dynamics import linear_feedback as loop
+
+    n_c, n_k = K.shape[0], X0.shape[0]
+    starts = np.tile(X0, (n_c, 1))
+    p = problem.params
+    run = loop.simulate(problem.plant.f, np.repeat(K, n_k, axis=0), starts, problem.Wx,
+                        problem.Wu, problem.u_max, cap, p.rtol, p.atol, p.max_steps,
+                        problem._bound(X0), settle=level * np.linalg.norm(starts, axis=1))
+    names = {loop.SETTLED: "converged", loop.HORIZON: "not_settled",
+             loop.DIVERGED: "diverged", loop.STEP_FAILURE: "step_failure",
+             loop.NONFINITE: "nonfinite"}
+    status = np.asarray([names[int(c)] for c in run["status"]], dtype=object)
+    t_end = run["t_end"].reshape(n_c, n_k)
+    J = criteria.time_energy_cost(run["cost"].reshape(n_c, n_k), t_end, p.rho)
+    return J, t_end, run["x_final"].reshape(n_c, n_k, -1), status.reshape(n_c, n_k)
+
+
 def free_time(problem: Any, K: np.ndarray, X0: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``time_energy`` runs of gains K (C, m, n) from starts X0 (k, n).
@@ -296,6 +305,8 @@ def free_time(problem: Any, K: np.ndarray, X0: np.ndarray
     """
     p = problem.params
     level, cap = settle_level(p), float(p.free_time_cap)
+    if problem.dt is None and not problem.closed_form:
+        return _integrated(problem, K, X0, level, cap)
     if problem.dt is None:
         A_cl = problem.plant.A - problem.plant.B @ K
         W = problem.Wx + np.swapaxes(K, 1, 2) @ problem.Wu @ K
@@ -311,5 +322,5 @@ def free_time(problem: Any, K: np.ndarray, X0: np.ndarray
     return criteria.time_energy_cost(J, t_end, p.rho), t_end, x_end, status
 
 
-__all__ = ["DEFAULT_RHO", "DEFAULT_SETTLE", "MAX_SEARCH", "MIN_STEP", "check_supported",
-           "free_time", "settle_continuous", "settle_level", "settle_sampled", "terminal_weight"]
+__all__ = ["DEFAULT_RHO", "DEFAULT_SETTLE", "MAX_SEARCH", "MIN_STEP", "free_time",
+           "settle_continuous", "settle_level", "settle_sampled", "terminal_weight"]

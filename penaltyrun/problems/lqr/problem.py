@@ -130,7 +130,6 @@ class LQRProblem:
         self.penalty = float(p.failure_penalty) if p.failure_penalty is not None else \
             1000.0 * (self.optimum if np.isfinite(self.optimum) and self.optimum > 0 else 1.0)
         self.holdout_states()  # validate the held-out set now (bad input: exit 2)
-        lqr_criteria.check_supported(self)
         self.S = lqr_criteria.terminal_weight(self) \
             if p.criterion == criteria.TERMINAL or p.terminal_weight is not None else None
         if p.criterion != criteria.TERMINAL:

@@ -20,7 +20,8 @@ Cost of one start (P = the failure penalty scale, r = ‖x(T)‖ / ‖x0‖):
   the summed relative excess): J + P (1 + v / (1 + v));
 * ``not_settled`` (``settle_tol`` set and r > settle_tol): J + P (1 + r / (1 + r));
 * ``diverged`` (‖x‖ > ``x_bound``) or ``step_failure`` at time t_f:
-  J(t_f) + P (2 + (T − t_f) / T) (the earlier, the worse);
+  J(t_f) + P (2 + (T − t_f) / T) (the earlier, the worse; T is ``free_time_cap`` under
+  ``criterion: time_energy``);
 * ``nonfinite``: 10 P + the finite part of J;
 * ``care_failure`` (no stabilizing Riccati solution): 10 P (1 + s / (1 + s)), s the
   relative residual of the best solution found (monotone in the failure's size);
@@ -252,7 +253,8 @@ class LQRProblem:
             cost = np.where(codes == "not_settled", J + P * (1.0 + ratio / (1.0 + ratio)), J)
             graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
             cost = np.where(codes == "constraint", J + P * (1.0 + graded), cost)
-            late = (self.t_max - t_end) / self.t_max
+            run_t = float(self.params.free_time_cap) if free else self.t_max
+            late = (run_t - t_end) / run_t
             cost = np.where(np.isin(codes, ("diverged", "step_failure")),
                             J + P * (2.0 + late), cost)
         finite_J = np.where(np.isfinite(J), J, 0.0)

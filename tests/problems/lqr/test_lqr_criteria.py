@@ -108,6 +108,13 @@ def test_time_energy_integrated_matches_solve_ivp(u_max):
     assert held["cost"][0] == pytest.approx(y[3], rel=1e-6)
 
 
+def test_time_energy_divergence_is_graded_above_the_penalty():
+    prob = lqr.make_problem("default", {"criterion": "time_energy", "u_max": 0.05})
+    res = prob.evaluate({"Q": np.eye(3), "R": np.eye(2)})
+    diverged = [c for c, s in zip(res["start_costs"], res["start_status"]) if s == "diverged"]
+    assert diverged and min(diverged) > 2.0 * res["failure_penalty"]
+
+
 def cubic(X, U):
     """A nonlinear plant for the test: the known-answer plant plus −0.1 x₁³ on ẋ₂."""
     out = X @ A.T + U @ B.T

@@ -24,7 +24,7 @@ import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from penaltyrun.errors import ConfigError
+from penaltyrun.errors import ConfigError, EnvironmentProblemError, describe_os_error
 
 logger = logging.getLogger(__name__)
 
@@ -131,12 +131,21 @@ def write_into(out: Path, key: str, write: Callable[[Path], None],
     -------
     list of Path
         The files now in ``out``, in name order.
+
+    Raises
+    ------
+    EnvironmentProblemError
+        Writing failed (e.g. a full disk): one line naming the folder (and the free space);
+        nothing of the new output is left in ``out``.
     """
     out = prepare(out, key)
     remove_abandoned(out, prefix)
     tmp = Path(tempfile.mkdtemp(prefix=f"{prefix}{os.getpid()}-", dir=out))
     try:
-        write(tmp)
+        try:
+            write(tmp)
+        except OSError as exc:  # a full disk or a failing device: one line naming the folder
+            raise EnvironmentProblemError(describe_os_error(exc, exc.filename or out)) from None
         previous = owned(out)
         new = sorted(item.name for item in tmp.iterdir())
         for name in new:

@@ -31,7 +31,7 @@ from penaltyrun.report import (
 from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
-from penaltyrun.report.stats import MIN_N_TEST, add_variant, cell_summary
+from penaltyrun.report.stats import BCA_MAX_N, MIN_N_TEST, add_variant, cell_summary
 from penaltyrun.report.tables import (
     StemBook,
     fmt,
@@ -103,8 +103,9 @@ def methods() -> str:
         "starts only** (a diverged start carries a graded penalty, a search aid, not a "
         "cost); the success rate stands beside them. Budget = `max_evals` (none: the "
         "optimizer's own limits) and the mean evaluations spent. Intervals: 95 % BCa "
-        "bootstrap (scipy.stats.bootstrap, 9999 resamples, seeded) of the median; none for "
-        "n < 3 or a constant sample. Best-known evidence: *certified* = reached by the grid "
+        "bootstrap (scipy.stats.bootstrap, 9999 resamples, seeded) of the median; above "
+        f"{BCA_MAX_N} converged starts the order-statistic interval of the median and "
+        "Student's t interval of the mean; none for n < 3 or a constant sample. Best-known evidence: *certified* = reached by the grid "
         f"optimizer (grid + local search) within {CERTIFY_RTOL:g} relative; *agreement* = "
         f"k ≥ 2 different optimizers within {CERTIFY_RTOL:g}; else *single optimizer*. "
         "Equal budget: equal `max_evals` and mean evaluations spent within "

@@ -92,3 +92,22 @@ def test_a_problem_without_a_plane_has_no_map():
 def test_quaternion_to_euler_inverts_euler_to_quaternion(yaw, pitch, roll):
     back = quaternion_to_euler(euler_to_quaternion([yaw, pitch, roll]))
     assert back == pytest.approx([yaw, pitch, roll], abs=1e-6)
+
+
+def test_mpc_map_point_is_a_run_from_that_start():
+    """A grid point of the rendezvous map equals the problem built with that start (at
+    rest, the training z) and the held-out horizon as its deadline."""
+    prob = problems.make("mpc_rendezvous", "default", {})
+    mats = {"Q": np.eye(6), "R": np.eye(3)}
+    bm = basin_map(prob, mats, n=3)
+    assert bm.axes.labels == ("along-track y (m)", "radial x (m)")
+    assert bm.axes.marker == (prob.params.s0[1], prob.params.s0[0])
+    y, x = bm.x[0], bm.y[2]
+    z = prob.params.s0[2]
+    alone = problems.make("mpc_rendezvous", "default", {
+        "s0": [float(x), float(y), z, 0.0, 0.0, 0.0], "t_max": bm.horizon})
+    res = alone.evaluate(mats)
+    assert bool(res["converged"]) == bool(bm.converged[2, 0])
+    assert res["cost"] == pytest.approx(bm.cost[2, 0], rel=1e-12)
+    if res["converged"]:
+        assert res["t_final"] == pytest.approx(bm.arrival_time[2, 0], rel=1e-12)

@@ -52,17 +52,21 @@ def givens_batch_columns(angles, n):
 
 
 def baseline_decode(p, Z: np.ndarray) -> np.ndarray:
-    """The previous ``Parameterization.decode`` for a batch (B, dim) → (B, N, N)."""
-    lam = Z[:, : p.n]
+    """The previous ``Parameterization.decode`` (its checks included) for a batch."""
+    Z = np.asarray(Z, float)
+    single = Z.ndim == 1
+    Zb = np.atleast_2d(Z)
+    if Zb.shape[1] != p.dim:
+        raise ValueError(f"{p.kind} (N={p.n}) expects {p.dim} variables")
+    lam = Zb[:, : p.n]
     if p.kind == "diagonal":
-        return lam[:, :, None] * np.eye(p.n)[None]
-    ang = np.ascontiguousarray(Z[:, p.n:])
-    if p.kind == "givens":
-        Q = givens_batch_columns(ang, p.n)
+        K = lam[:, :, None] * np.eye(p.n)[None]
     else:
-        Q = p.orthogonal(Z)
-    K = np.einsum("bij,bj,bkj->bik", Q, lam, Q)
-    return 0.5 * (K + np.transpose(K, (0, 2, 1)))
+        ang = np.ascontiguousarray(Zb[:, p.n:])
+        Q = givens_batch_columns(ang, p.n) if p.kind == "givens" else p.orthogonal(Zb)
+        K = np.einsum("bij,bj,bkj->bik", Q, lam, Q)
+        K = 0.5 * (K + np.transpose(K, (0, 2, 1)))
+    return K[0] if single else K
 
 
 def cpu(func, min_time: float = 0.02) -> float:

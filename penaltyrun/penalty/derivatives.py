@@ -189,10 +189,11 @@ def _geagsp_backward(Q, bases, vs, Ds, Qbar, starts):
     grad = np.zeros(starts[-1])
     for c in range(n - 1, -1, -1):
         m = n - c
-        B = bases[c, :, :m]
-        v = vs[c, :m]
+        B = np.ascontiguousarray(bases[c, :, :m])
+        Bt = np.ascontiguousarray(B.T)
+        v = vs[c, :m].copy()
         g = Qbar[:, c].copy()
-        vbar = B.T @ g
+        vbar = Bt @ g
         for i in range(m - 1):
             acc = 0.0
             for j in range(m):
@@ -204,10 +205,10 @@ def _geagsp_backward(Q, bases, vs, Ds, Qbar, starts):
         for i in range(m):
             for j in range(i + 1, m):
                 S[i, j] = vbar[i] * v[j] - v[i] * vbar[j]
-        Z = _lower_inverse(np.ascontiguousarray(B[:m, :])).T @ S
-        Qp = Q[:, :c]
-        Ybar = np.outer(-(Qp.T @ g), v) + Qp[:m, :].T @ Z
-        Qbar[:, :c] += B @ Ybar.T
+        Z = np.ascontiguousarray(_lower_inverse(np.ascontiguousarray(B[:m, :])).T) @ S
+        QpT = np.ascontiguousarray(Q[:, :c].T)
+        Ybar = np.outer(-(QpT @ g), v) + np.ascontiguousarray(QpT[:, :m]) @ Z
+        Qbar[:, :c] += B @ np.ascontiguousarray(Ybar.T)
     return grad
 
 
@@ -225,7 +226,8 @@ def _geagsp_vjp(angles: np.ndarray, n: int, lam: np.ndarray, Gs: np.ndarray
 
 def _givens_dq(angles: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Q and ∂Q/∂θ_k = −P_k[:, i] S_k[j, :] + P_k[:, j] S_k[i, :] (prefix P, suffix S)."""
-    planes = np.array([(j, i) for j in range(n - 1) for i in range(j + 1, n)]).reshape(-1, 2)
+    planes = np.array([(j, i) for j in range(n - 1) for i in range(j + 1, n)],
+                      dtype=np.int64).reshape(-1, 2)
     M = planes.shape[0]
     c, s = np.cos(angles), np.sin(angles)
     P = np.empty((M, n, n))

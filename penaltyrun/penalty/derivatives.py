@@ -224,31 +224,54 @@ def _geagsp_vjp(angles: np.ndarray, n: int, lam: np.ndarray, Gs: np.ndarray
 # --------------------------------------------------------------------------- Givens
 
 
-def _givens_dq(angles: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Q and ∂Q/∂θ_k = −P_k[:, i] S_k[j, :] + P_k[:, j] S_k[i, :] (prefix P, suffix S)."""
-    planes = np.array([(j, i) for j in range(n - 1) for i in range(j + 1, n)],
-                      dtype=np.int64).reshape(-1, 2)
-    M = planes.shape[0]
-    c, s = np.cos(angles), np.sin(angles)
-    P = np.empty((M, n, n))
-    cur = np.eye(n)
-    for k, (j, i) in enumerate(planes):
-        aj, ai = cur[:, j].copy(), cur[:, i].copy()
-        cur[:, j], cur[:, i] = c[k] * aj - s[k] * ai, s[k] * aj + c[k] * ai
-        P[k] = cur
-    S = np.empty((M, n, n))
-    cur = np.eye(n)
+@njit(cache=True)
+def _givens_dq_kernel(angles, n):
+    """Q and ∂Q/∂θ_k = −P_k[:, i] S_k[j, :] + P_k[:, j] S_k[i, :] for rotation k in plane
+    (j, i), with the prefix P_k = G_1 ⋯ G_k and the suffix S_k = G_{k+1} ⋯ G_M."""
+    M = angles.shape[0]
+    pj = np.empty((M, n))
+    pi_ = np.empty((M, n))
+    sj = np.empty((M, n))
+    si = np.empty((M, n))
+    jj = np.empty(M, np.int64)
+    ii = np.empty(M, np.int64)
+    k = 0
+    for j in range(n - 1):
+        for i in range(j + 1, n):
+            jj[k] = j
+            ii[k] = i
+            k += 1
+    Pt = np.eye(n)  # Pᵀ: rows are the columns of P
+    for k in range(M):
+        j, i = jj[k], ii[k]
+        c, s = np.cos(angles[k]), np.sin(angles[k])
+        for m in range(n):
+            a_j, a_i = Pt[j, m], Pt[i, m]
+            Pt[j, m] = c * a_j - s * a_i
+            Pt[i, m] = s * a_j + c * a_i
+        pj[k] = Pt[j]
+        pi_[k] = Pt[i]
+    S = np.eye(n)
     for k in range(M - 1, -1, -1):
-        S[k] = cur
-        j, i = planes[k]
-        rj, ri = cur[j].copy(), cur[i].copy()
-        cur[j], cur[i] = c[k] * rj + s[k] * ri, -s[k] * rj + c[k] * ri
-    kk = np.arange(M)
-    jj, ii = planes[:, 0], planes[:, 1]
-    dQ = (-np.einsum("ka,kb->kab", P[kk, :, ii], S[kk, jj, :])
-          + np.einsum("ka,kb->kab", P[kk, :, jj], S[kk, ii, :]))
-    Q = P[-1] if M else np.eye(n)
-    return Q, dQ
+        j, i = jj[k], ii[k]
+        sj[k] = S[j]
+        si[k] = S[i]
+        c, s = np.cos(angles[k]), np.sin(angles[k])
+        for m in range(n):
+            r_j, r_i = S[j, m], S[i, m]
+            S[j, m] = c * r_j + s * r_i
+            S[i, m] = -s * r_j + c * r_i
+    dQ = np.empty((M, n, n))
+    for k in range(M):
+        for a in range(n):
+            for b in range(n):
+                dQ[k, a, b] = pj[k, a] * si[k, b] - pi_[k, a] * sj[k, b]
+    return Pt.T.copy(), dQ
+
+
+def _givens_dq(angles: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Q (n, n) and ∂Q/∂θ_k for every angle, shape (M, n, n)."""
+    return _givens_dq_kernel(np.ascontiguousarray(angles, dtype=float), n)
 
 
 @njit(cache=True)

@@ -20,8 +20,10 @@ from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.attitude.frames import (
     euler_to_quaternion,
     perturbed_states,
+    quaternion_to_euler,
     robustness_grid,
 )
+from penaltyrun.problems.basins import BasinAxes, arrival_times
 
 logger = logging.getLogger(__name__)
 
@@ -134,6 +136,26 @@ class AttitudeScenarios:
         res.update({"scenario": sc["scenario"], "attitudes_deg": sc["attitudes_deg"],
                     "q_init": y0[:, :4], "omega_init": y0[:, 4:7]})
         return res
+
+    def basin_axes(self) -> BasinAxes:
+        """Initial attitudes over yaw and pitch (roll 0, degrees), the case's initial
+        rates; the training attitude is marked when its roll is 0."""
+        yaw, pitch, roll = quaternion_to_euler(self.y0[:4])
+        marker = (float(yaw), float(pitch)) if abs(roll) < 1e-6 else None
+        return BasinAxes(("yaw (deg)", "pitch (deg)"), (-180.0, -89.0), (180.0, 89.0),
+                         "s", marker)
+
+    def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
+                   points: np.ndarray) -> dict[str, Any]:
+        """One candidate from the attitudes (yaw, pitch) ``points`` (P, 2), roll 0, at the
+        held-out horizon."""
+        p = self.params
+        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap)
+        att = np.column_stack([points, np.zeros(len(points))])
+        runs = horizon.at_horizon(self, long_t).evaluate_grid(mats, att)
+        return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
+                "arrival_time": arrival_times(runs["converged"], runs["t_final"])}
 
 
 __all__ = ["AttitudeScenarios"]

@@ -60,6 +60,7 @@ from penaltyrun.problems.base import (
     ScalarSpec,
     check_spd,
 )
+from penaltyrun.problems.basins import BasinAxes
 from penaltyrun.problems.lqr import constraints as cons
 from penaltyrun.problems.lqr import criteria as lqr_criteria
 from penaltyrun.problems.lqr import discrete
@@ -501,6 +502,33 @@ class LQRProblem:
         if p.criterion != criteria.TIME_ENERGY:   # no target event: no arrival time
             out["arrival_time"] = np.full(len(sc["scenario"]), np.nan)
         return {**sc, **out}
+
+    def basin_axes(self) -> BasinAxes | None:
+        """Starts in the plane of the first two plant states (the others 0), ±2 times the
+        mean size of the training starts; None for a one-state plant."""
+        if self.n_plant < 2:
+            return None
+        radius = 2.0 * float(np.mean(np.linalg.norm(self.x0[:, :self.n_plant], axis=1)))
+        first = self.x0[0]
+        marker = (float(first[0]), float(first[1])) \
+            if not np.any(first[2:]) and len(self.x0) == 1 else None
+        return BasinAxes(self.channel_names()[0][:2], (-radius, -radius), (radius, radius),
+                         "", marker)
+
+    def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
+                   points: np.ndarray) -> dict[str, Any]:
+        """One (Q, R) from the starts ``points`` (P, 2) at the held-out horizon. The cost
+        has no target event: ``converged`` means the run neither diverged nor broke a
+        constraint or the settling rule, and ``arrival_time`` is NaN."""
+        Q, R = self._check(mats)
+        p = self.params
+        long_t = horizon.holdout_horizon(self.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap)
+        X0 = np.zeros((len(points), self.plant.n_states))
+        X0[:, :2] = points
+        runs = horizon.at_horizon(self, long_t, t_max=long_t)._holdout_runs(Q, R, X0)
+        return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
+                "arrival_time": np.full(len(points), np.nan)}
 
     def _holdout_runs(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray
                       ) -> dict[str, np.ndarray]:

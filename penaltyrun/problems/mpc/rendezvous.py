@@ -45,6 +45,7 @@ from penaltyrun.problems.base import (
     ScalarSpec,
     check_spd,
 )
+from penaltyrun.problems.basins import BasinAxes, arrival_times
 from penaltyrun.problems.mpc import controller as ctl
 from penaltyrun.problems.mpc import criteria as mpc_criteria
 from penaltyrun.problems.mpc import scenarios as scen
@@ -372,6 +373,31 @@ class RendezvousMPC:
         out = self.holdout_scenarios()
         out.update(horizon.combine(short, long, train_t, long_t))
         return out
+
+    def basin_axes(self) -> BasinAxes:
+        """Starts at rest in the orbital plane: along-track y × radial x (m), a square of
+        1.5 times the training start's distance; z as in the training start."""
+        s0 = np.asarray(self.params.s0, float)
+        reach = 1.5 * float(np.linalg.norm(s0[:3]))
+        marker = (float(s0[1]), float(s0[0])) if not np.any(s0[3:]) else None
+        return BasinAxes(("along-track y (m)", "radial x (m)"), (-reach, -reach),
+                         (reach, reach), "s", marker)
+
+    def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
+                   points: np.ndarray) -> dict[str, Any]:
+        """One candidate from the starts (y, x) ``points`` (P, 2), at rest, on the training
+        plant, at the held-out horizon."""
+        p = self.params
+        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap, p.sample_time_s)
+        base = scen.training(p)
+        starts = [scen.Scenario(f"basin:{k}", "basin", (float(x), float(y), base.s0[2],
+                                                        0.0, 0.0, 0.0),
+                                base.plant, base.eccentricity, base.thrust_scale)
+                  for k, (y, x) in enumerate(points)]
+        runs = horizon.at_horizon(self, long_t)._holdout_runs(mats, starts)
+        return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
+                "arrival_time": arrival_times(runs["converged"], runs["t_final"])}
 
     def _holdout_runs(self, mats: Mapping[str, Any], scenarios: list[scen.Scenario]
                       ) -> dict[str, np.ndarray]:

@@ -148,12 +148,16 @@ class AttitudeScenarios:
     def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
                    points: np.ndarray) -> dict[str, Any]:
         """One candidate from the attitudes (yaw, pitch) ``points`` (P, 2), roll 0, at the
-        held-out horizon."""
+        horizon the held-out set is judged at (the criterion's own horizon where it has
+        one)."""
         p = self.params
+        train_t = criteria.run_horizon(p)
         long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap)
+                                         p.holdout_t_max_cap) \
+            if criteria.judges_at_deadline(p) else train_t
         att = np.column_stack([points, np.zeros(len(points))])
-        runs = horizon.at_horizon(self, long_t).evaluate_grid(mats, att)
+        prob = horizon.at_horizon(self, long_t) if long_t > train_t else self
+        runs = prob.evaluate_grid(mats, att)
         return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
                 "arrival_time": arrival_times(runs["converged"], runs["t_final"])}
 

@@ -517,18 +517,25 @@ class LQRProblem:
 
     def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
                    points: np.ndarray) -> dict[str, Any]:
-        """One (Q, R) from the starts ``points`` (P, 2) at the held-out horizon. The cost
-        has no target event: ``converged`` means the run neither diverged nor broke a
-        constraint or the settling rule, and ``arrival_time`` is NaN."""
+        """One (Q, R) from the starts ``points`` (P, 2) at the horizon the held-out set is
+        judged at. ``converged`` means the run neither diverged nor broke a constraint or
+        the settling rule; ``arrival_time`` is the settling time under the ``time_energy``
+        criterion and NaN otherwise (the cost has no target event)."""
         Q, R = self._check(mats)
         p = self.params
+        train_t = criteria.run_horizon(p)
         long_t = horizon.holdout_horizon(self.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap)
+                                         p.holdout_t_max_cap) \
+            if criteria.judges_at_deadline(p) else train_t
         X0 = np.zeros((len(points), self.plant.n_states))
         X0[:, :2] = points
-        runs = horizon.at_horizon(self, long_t, t_max=long_t)._holdout_runs(Q, R, X0)
+        prob = horizon.at_horizon(self, long_t, t_max=long_t) if long_t > train_t else self
+        runs = prob._holdout_runs(Q, R, X0)
+        settled = p.criterion == criteria.TIME_ENERGY  # its runs end at the settling time
+        arrival = np.where(runs["converged"], runs["t_final"], np.nan) if settled \
+            else np.full(len(points), np.nan)
         return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
-                "arrival_time": np.full(len(points), np.nan)}
+                "arrival_time": arrival}
 
     def _holdout_runs(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray
                       ) -> dict[str, np.ndarray]:

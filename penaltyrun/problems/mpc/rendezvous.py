@@ -386,16 +386,19 @@ class RendezvousMPC:
     def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
                    points: np.ndarray) -> dict[str, Any]:
         """One candidate from the starts (y, x) ``points`` (P, 2), at rest, on the training
-        plant, at the held-out horizon."""
+        plant, at the horizon the held-out set is judged at."""
         p = self.params
+        train_t = mpc_criteria.run_horizon(p)
         long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap, p.sample_time_s)
+                                         p.holdout_t_max_cap, p.sample_time_s) \
+            if criteria.judges_at_deadline(p) else train_t
         base = scen.training(p)
         starts = [scen.Scenario(f"basin:{k}", "basin", (float(x), float(y), base.s0[2],
                                                         0.0, 0.0, 0.0),
                                 base.plant, base.eccentricity, base.thrust_scale)
                   for k, (y, x) in enumerate(points)]
-        runs = horizon.at_horizon(self, long_t)._holdout_runs(mats, starts)
+        prob = horizon.at_horizon(self, long_t) if long_t > train_t else self
+        runs = prob._holdout_runs(mats, starts)
         return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
                 "arrival_time": arrival_times(runs["converged"], runs["t_final"])}
 

@@ -89,8 +89,8 @@ class Params(ParamsMixin, TrainingParams):
     t_max : float
         Horizon cap; the event must fire before it.
     rtol, atol : float
-        Integration tolerances (paper: 1e-10) of the integrator, used for the gains the
-        closed form does not cover and for :meth:`Zermelo.simulate`.
+        Integration tolerances (paper: 1e-10) of the integrator, which evaluates the gains
+        the closed form does not cover (K not symmetric) and computes the plotted paths.
     max_step : float
         Largest integration step (``inf``: unbounded); integrator only.
     max_steps : int

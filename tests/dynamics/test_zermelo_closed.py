@@ -153,3 +153,38 @@ def test_cutoff_reports_the_exact_cost():
 def test_what_the_closed_form_does_not_cover_is_flagged(K, x0):
     res = closed(np.array([K], dtype=float), np.asarray(x0, dtype=float))
     assert not res[4][0] and res[3][0] == -1
+
+
+@settings(max_examples=30, deadline=None)
+@given(l1=st.floats(-8.0, 1.0), l2=st.floats(-8.0, 1.0), th=st.floats(0.0, np.pi),
+       r0=st.floats(0.01, 10.0), a0=st.floats(0.0, 2.0 * np.pi))
+def test_property_agrees_with_the_dop853_kernel(l1, l2, th, r0, a0):
+    # eigenvalues 10^l (1e-8 … 10), any rotation, any start outside the event radius
+    Q = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    K = Q @ np.diag([10.0 ** l1, 10.0 ** l2]) @ Q.T
+    K = np.ascontiguousarray(0.5 * (K + K.T))[None]
+    x0 = np.array([r0 * np.cos(a0), r0 * np.sin(a0)])
+    t, J, _, status, covered = closed(K, x0)
+    ts, Js, _, statuss = simulate_batch(K, x0, T_MAX, R_EVENT, 1e-10, 1e-10, np.inf,
+                                        1_000_000)
+    assert covered[0] and status[0] == statuss[0]
+    # relative 1e-8, or the integrator's absolute tolerance for tiny energies (from a start
+    # near the target: e.g. K = diag(0.1, 1), X0 = (0.125, 0), J = 4.5e-5, where the closed
+    # form agrees with scipy.integrate.quad to 1e-15 and the integrator is 4e-12 off)
+    assert J[0] == pytest.approx(Js[0], rel=1e-8, abs=1e-9)
+
+
+def test_energy_against_scipy_quad_on_a_known_path():
+    # K = diag(0.1, 1), X0 = (0.125, 0): x(t) = 0.125 e^{−0.1t}, y = 0, U = (x sin x − 0.1x, 0)
+    from scipy.integrate import quad
+
+    T = np.log(0.125 / R_EVENT) / 0.1
+
+    def f(t):
+        x = 0.125 * np.exp(-0.1 * t)
+        return 0.5 * (x * (np.sin(x) - 0.1)) ** 2
+
+    t, J, _, status, _ = closed(np.diag([0.1, 1.0])[None], np.array([0.125, 0.0]))
+    assert status[0] == integrate.EVENT and t[0] == pytest.approx(T, rel=1e-14)
+    assert J[0] == pytest.approx(quad(f, 0.0, T, epsabs=0.0, epsrel=1e-13, limit=500)[0],
+                                 rel=1e-13)

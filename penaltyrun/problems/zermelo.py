@@ -19,7 +19,8 @@ for every symmetric positive-definite K — every decoded candidate; the compile
 integrator (:mod:`penaltyrun.dynamics.zermelo`, tolerances ``rtol``/``atol``, ``max_step``,
 ``max_steps``) for the gains it does not cover (K not symmetric beyond round-off, not
 positive definite, a start inside the event radius). Both give the same statuses; their
-costs agree to about 1e-10 relative (the integrator's tolerance). With thresholds the closed
+costs agree to the integrator's accuracy (about 1e-10 relative; where they differ more, the
+closed form is the one that agrees with a tighter ``solve_ivp``). With thresholds the closed
 form computes J exactly and reports status ``cutoff`` with that J when it exceeds the
 threshold by :data:`CUT_MARGIN`, as the integrator would have stopped.
 

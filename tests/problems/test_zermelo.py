@@ -119,3 +119,49 @@ def test_holdout_leaves_out_the_training_start():
 def test_bad_holdout_settings(key, value):
     with pytest.raises(ConfigError, match=key):
         make_problem("default", {key: value})
+
+
+# ------------------------------------------------------------------ closed form vs integrator
+
+
+def _integrator(prob, K, x0=None):
+    p = prob.params
+    x0 = np.asarray(p.x0 if x0 is None else x0, float)
+    return zermelo.simulate_batch(np.ascontiguousarray(K), x0, p.t_max, p.event_radius,
+                                  p.rtol, p.atol, p.max_step, p.max_steps)
+
+
+def test_evaluate_batch_matches_the_integrator_on_decoded_candidates(prob):
+    from penaltyrun.runner.setup import build_layout
+
+    layout = build_layout(prob, "full", {})
+    lb, ub = layout.bounds()
+    Z = lb + np.random.default_rng(11).random((60, lb.size)) * (ub - lb)
+    K = layout.split(Z)[0]["K"]
+    batch = prob.evaluate_batch({"K": K})
+    ref = prob._graded(*_integrator(prob, K), float(np.hypot(*prob.params.x0)))
+    np.testing.assert_array_equal(batch.status, ref.status)
+    assert "converged" in set(batch.status)
+    np.testing.assert_allclose(batch.cost, ref.cost, rtol=1e-8)
+
+
+def test_non_symmetric_gain_is_integrated(prob):
+    # outside the closed form (Kᵀ ≠ K); its symmetric part is PD, so the event fires
+    K = np.array([[[1.0, 0.7], [-0.3, 0.8]], [[1.0, 0.2], [0.2, 0.5]]])
+    batch = prob.evaluate_batch({"K": K})
+    t_end, cost, _, status = _integrator(prob, K[:1])
+    assert batch.status[0] == "converged" and status[0] == 0
+    assert batch.cost[0] == cost[0]  # the integrator's own result, bitwise
+    assert batch.cost[0] == pytest.approx(reference_cost(K[0], prob.params)[0], rel=1e-8)
+
+
+def test_holdout_batch_matches_one_start_at_a_time():
+    prob = make_problem("default", {"holdout_radii": (2.0, 10.0), "holdout_n_angles": 3})
+    K = np.diag([0.02, 3.0])
+    res = prob._holdout_runs({"K": K}, prob.holdout_scenarios())
+    for k, x0 in enumerate(prob.holdout_scenarios()["x0"]):
+        t_end, energy, dist, status = _integrator(prob, K[None], x0)
+        be = prob._graded(t_end, energy, dist, status, float(np.hypot(*x0)))
+        assert res["status"][k] == be.status[0]
+        assert res["cost"][k] == pytest.approx(be.cost[0], rel=1e-8)
+        assert res["t_final"][k] == pytest.approx(t_end[0], rel=1e-8)

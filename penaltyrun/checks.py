@@ -27,6 +27,8 @@ MODES = ("optimize", "evaluate", "report", "plan")
 JOB_MODES = ("optimize", "plan")
 #: Subtrees whose keys are free (candidate matrices / scalars of ``mode=evaluate``).
 FREE_KEYS = ("matrices", "scalars")
+#: Keys a user may add with ``+key=value`` (``mode=evaluate`` only): ``gradient``.
+EVALUATE_EXTRAS = ("gradient",)
 REPORT_OPTIONS = {"input": (str, type(None)), "output": (str, type(None)), "paper": (bool,)}
 
 
@@ -42,7 +44,7 @@ def unknown_keys(cfg: Any, base: Any, prefix: str = "") -> tuple[str, list[str]]
         return None
     for key, value in cfg.items():
         dotted = f"{prefix}{key}"
-        if dotted in FREE_KEYS or dotted == "hydra":
+        if dotted in FREE_KEYS or dotted in EVALUATE_EXTRAS or dotted == "hydra":
             continue
         if key not in base:
             return dotted, sorted(str(k) for k in base)
@@ -158,6 +160,20 @@ def check_matrix_entries(values: Mapping[str, Any], prefix: str) -> None:
                                   f"{item!r}")
 
 
+def check_evaluate_extras(mode: str, gradient: Any, z: Any) -> None:
+    """``+gradient`` is true or false and only in ``mode=evaluate``; ``z`` is null or a
+    list of numbers."""
+    if gradient is not None:
+        if mode != "evaluate":
+            raise ConfigError("gradient", "only mode=evaluate reads it; drop +gradient or "
+                                          "pass mode=evaluate")
+        if not isinstance(gradient, bool):
+            raise ConfigError("gradient", f"must be true or false, got {gradient!r}")
+    if z is not None and (not isinstance(z, list) or not all(is_number(v) for v in z)):
+        raise ConfigError("z", f"must be a list of numbers (the optimizer's variables in "
+                               f"z_names order), e.g. z=[1.0,2.5]; got {z!r}")
+
+
 def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
                         prefix: str) -> None:
     """Check values against the type of the shipped default of the same key: a number
@@ -239,6 +255,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
     check_output_dir((plain(cfg.get("report")) or {}).get("output"))
     if mode == "report":
         return
+    check_evaluate_extras(mode, cfg.get("gradient"), plain(cfg.get("z")))
     if mode == "evaluate":
         for group in FREE_KEYS:
             check_matrix_entries(plain(cfg.get(group)) or {}, group)

@@ -160,6 +160,23 @@ def check_matrix_entries(values: Mapping[str, Any], prefix: str) -> None:
                                   f"{item!r}")
 
 
+def check_gradient_available(optimizer: str, options: Mapping[str, Any], prob: Any) -> None:
+    """An optimizer (or polish) that needs the exact gradient, on a problem without one, is
+    refused before any job runs."""
+    from penaltyrun.optim import GRADIENT_OPTIMIZERS
+    from penaltyrun.problems.base import gradient_support
+
+    reason = gradient_support(prob)
+    if not reason:
+        return
+    if optimizer in GRADIENT_OPTIMIZERS:
+        raise ConfigError("optimizer", f"{optimizer} needs the exact gradient, but {reason}; "
+                                       "pick another optimizer")
+    if options.get("polish") == "gradient":
+        raise ConfigError("optimizer.polish", f"gradient needs the exact gradient, but "
+                                              f"{reason}; use polish=L-BFGS-B (differences)")
+
+
 def check_evaluate_extras(mode: str, gradient: Any, z: Any) -> None:
     """``+gradient`` is true or false and only in ``mode=evaluate``; ``z`` is null or a
     list of numbers."""
@@ -273,6 +290,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
                     params, cfg.problem.get("module") or None)
     if mode in JOB_MODES:
         _checked("param", runner.build_layout, prob, cfg.param.name, _options(cfg, "param"))
+        check_gradient_available(cfg.optimizer.name, _options(cfg, "optimizer"), prob)
 
 
 def _checked(key: str, func: Any, *args: Any) -> Any:

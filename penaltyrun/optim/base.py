@@ -187,6 +187,7 @@ class CountingObjective:
         self.transformed = False  # objective values differ from the costs
         self.best_value = float("inf")
         self.value_costs: dict[float, float] = {}  # each new best value → its cost
+        self.charged = 0.0  # evaluation-equivalents charged for gradients, not yet counted
 
     @property
     def remaining(self) -> float:
@@ -247,6 +248,15 @@ class CountingObjective:
         if cut:
             raise BudgetExhaustedError
         return value
+
+    def charge(self, evaluations: float) -> None:
+        """Count ``evaluations`` evaluation-equivalents (e.g. the CPU of an exact gradient
+        in evaluations; fractions carry over to the next charge). The budget is checked at
+        the next call."""
+        self.charged += float(evaluations)
+        whole = int(self.charged)
+        self.n_evals += whole
+        self.charged -= whole
 
     def scalar(self, z: np.ndarray) -> float:
         """Value of one decision vector as the optimizer sees it (for scipy local

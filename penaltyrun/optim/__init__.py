@@ -5,7 +5,8 @@
 (exhaustive grid + local search, dimension ≤ 4), ``lbfgs`` (multi-start L-BFGS-B with the
 problem's exact gradient) and ``baseline`` (one given point).
 :func:`minimize` runs one of them, then the shared bounded polish (``optimizer.polish``)
-inside the same ``max_evals``.
+inside the same ``max_evals`` (``polish=gradient``: L-BFGS-B with the problem's exact
+gradient).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from penaltyrun.optim.checks import coerce_field, settings_hints
 from penaltyrun.optim.cmaes import CMAESSettings, run_cmaes
 from penaltyrun.optim.de import DESettings, run_de
 from penaltyrun.optim.grid import GridSettings, run_grid
-from penaltyrun.optim.lbfgs import GradientFn, LBFGSSettings, run_lbfgs
+from penaltyrun.optim.lbfgs import GradientFn, LBFGSSettings, gradient_polish, run_lbfgs
 from penaltyrun.optim.polish import local_search
 from penaltyrun.optim.pso import PSOSettings, run_pso
 from penaltyrun.optim.pso_matlab import PSOMatlabSettings, run_pso_matlab
@@ -134,7 +135,11 @@ def _minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarr
     if settings.polish == "none":
         return result
     counted.limit = settings.max_evals
-    outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
+    if settings.polish == "gradient":
+        outcome = gradient_polish(counted, counted.best_z, lb, ub, gradient,
+                                  getattr(settings, "grad_cost", None))
+    else:
+        outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
     stop = result.stop_reason + ("+polish" if outcome != "max_evals" else "+polish:max_evals")
     return counted.result(result.history, result.n_iters, stop)
 

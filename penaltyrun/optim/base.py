@@ -41,7 +41,7 @@ logger = logging.getLogger(__name__)
 BatchObjective = Callable[[np.ndarray], np.ndarray]
 
 #: Local-search methods of ``scipy.optimize.minimize`` that accept box bounds.
-POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP")
+POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP", "gradient")
 
 
 @contextlib.contextmanager
@@ -84,9 +84,11 @@ class CommonSettings:
         Hard cap on objective evaluations of one start (``None``: only the optimizer's own
         iteration limit and stall rule). Every job records ``n_evals ≤ max_evals``.
     polish : str
-        Bounded local search from the optimizer's best, inside the same budget: ``none`` or
+        Bounded local search from the optimizer's best, inside the same budget: ``none``,
         a ``scipy.optimize.minimize`` method (``L-BFGS-B``, ``Nelder-Mead``, ``Powell``,
-        ``TNC``, ``SLSQP``).
+        ``TNC``, ``SLSQP``; gradients by forward differences) or ``gradient`` (L-BFGS-B
+        with the problem's exact gradient, each gradient charged as evaluations like
+        ``optimizer=lbfgs``).
     polish_share : float
         Share of ``max_evals`` kept for the polish (the search stops earlier to leave it).
         Without ``max_evals`` the polish runs until the local method's own tolerance.

@@ -34,6 +34,7 @@ from penaltyrun.optim.base import (
     BatchObjective,
     BudgetExhaustedError,
     CommonSettings,
+    CountingObjective,
     OptimResult,
     as_counting,
     main_budget,
@@ -115,6 +116,67 @@ class LBFGSSettings(CommonSettings):
         return int(self.starts * self.maxiter * 20 * (1.0 + self.gradient_cost))
 
 
+def local_run(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray, ub: np.ndarray,
+              gradient: GradientFn, charge: float, options: LBFGSSettings
+              ) -> tuple[str, int]:
+    """One L-BFGS-B run from ``z0`` in the unit cube of [lb, ub] with exact gradients.
+
+    Parameters
+    ----------
+    counted : CountingObjective
+        The run's objective (values counted, traced and capped there).
+    z0 : ndarray, shape (dim,)
+        Start point (clipped into the box).
+    lb, ub : ndarray, shape (dim,)
+    gradient : callable
+        z → an object with ``grad`` (ndarray or None) and ``reason``.
+    charge : float
+        Evaluations charged per gradient.
+    options : LBFGSSettings
+        ``maxiter``, ``ftol``, ``gtol``, ``maxcor``.
+
+    Returns
+    -------
+    message : str
+        scipy's message, or ``no_gradient: <reason>``.
+    iterations : int
+        L-BFGS-B iterations (0 when the run ended without a gradient).
+
+    Raises
+    ------
+    BudgetExhaustedError
+        When the run's budget is spent (the best so far is kept by ``counted``).
+    """
+    from scipy.optimize import minimize
+
+    width = ub - lb
+    scale = [0.0]
+
+    def fun(u: np.ndarray) -> tuple[float, np.ndarray]:
+        z = lb + np.clip(u, 0.0, 1.0) * width
+        value = counted.scalar(z)
+        if counted.transformed:
+            raise ConfigError("optimizer", "the exact-gradient search minimizes the cost; "
+                              "this problem optimizes another objective form")
+        out = gradient(z)
+        counted.charge(charge)
+        if out.grad is None:
+            raise NoGradientError(out.reason)
+        if not scale[0]:
+            scale[0] = max(abs(value), 1e-300)
+        return value / scale[0], np.asarray(out.grad) * width / scale[0]
+
+    u0 = np.clip((np.asarray(z0, float) - lb) / width, 0.0, 1.0)
+    try:
+        res = minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * lb.size,
+                       options={"maxiter": options.maxiter, "ftol": options.ftol,
+                                "gtol": options.gtol, "maxcor": options.maxcor,
+                                "maxfun": 20 * options.maxiter})
+    except NoGradientError as exc:
+        return f"no_gradient: {exc}", 0
+    return str(res.message), int(res.nit)
+
+
 def run_lbfgs(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
               settings: LBFGSSettings, seed: int, x0: np.ndarray | None = None,
               gradient: GradientFn | None = None) -> OptimResult:
@@ -140,53 +202,25 @@ def run_lbfgs(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
         ``stop_reason``: ``max_evals`` or ``starts``; ``n_iters`` the L-BFGS-B iterations
         of all runs; ``history`` the best cost after each local run.
     """
-    from scipy.optimize import minimize
-
     if gradient is None:
         raise ConfigError("optimizer", "lbfgs needs the problem's exact gradient (its "
                           "gradient hook); this problem has none: pick another optimizer")
     counted = as_counting(objective, main_budget(settings))
     lb, ub = np.asarray(lb, float), np.asarray(ub, float)
-    width = ub - lb
     rng = np.random.default_rng(seed)
-    charge = settings.gradient_cost
     history: list[float] = []
-    n_iters = 0
     stop = "starts"
     n_runs = settings.starts if settings.starts is not None else math.inf
-    run = 0
+    run = n_iters = 0
     try:
         while run < n_runs:
-            u0 = rng.random(lb.size) if (run or x0 is None) else \
-                np.clip((np.asarray(x0, float) - lb) / width, 0.0, 1.0)
+            z0 = lb + rng.random(lb.size) * (ub - lb) if (run or x0 is None) else \
+                np.asarray(x0, float)
             run += 1
-            scale = [0.0]
-
-            def fun(u: np.ndarray, scale: list[float] = scale) -> tuple[float, np.ndarray]:
-                z = lb + np.clip(u, 0.0, 1.0) * width
-                value = counted.scalar(z)
-                if counted.transformed:
-                    raise ConfigError("optimizer", "lbfgs minimizes the cost; this problem "
-                                      "optimizes another objective form")
-                out = gradient(z)
-                counted.charge(charge)
-                if out.grad is None:
-                    raise NoGradientError(out.reason)
-                if not scale[0]:
-                    scale[0] = max(abs(value), 1e-300)
-                return value / scale[0], np.asarray(out.grad) * width / scale[0]
-
-            try:
-                res = minimize(fun, u0, jac=True, method="L-BFGS-B",
-                               bounds=[(0.0, 1.0)] * lb.size,
-                               options={"maxiter": settings.maxiter, "ftol": settings.ftol,
-                                        "gtol": settings.gtol, "maxcor": settings.maxcor,
-                                        "maxfun": 20 * settings.maxiter})
-                n_iters += int(res.nit)
-                logger.debug("L-BFGS-B run %d: %s after %d iterations; best %.12g", run,
-                             res.message, res.nit, counted.best_cost)
-            except NoGradientError as exc:
-                logger.debug("L-BFGS-B run %d ended: no gradient (%s)", run, exc)
+            message, nit = local_run(counted, z0, lb, ub, gradient, settings.gradient_cost,
+                                     settings)
+            n_iters += nit
+            logger.debug("L-BFGS-B run %d: %s; best %.12g", run, message, counted.best_cost)
             history.append(counted.best_cost)
     except BudgetExhaustedError:
         stop = "max_evals"
@@ -194,4 +228,30 @@ def run_lbfgs(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
     return counted.result(history, n_iters, stop)
 
 
-__all__ = ["GRADIENT_COST", "LBFGSSettings", "NoGradientError", "run_lbfgs"]
+def gradient_polish(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray,
+                    ub: np.ndarray, gradient: GradientFn | None, grad_cost: float | None
+                    ) -> str:
+    """``optimizer.polish=gradient``: one L-BFGS-B run with exact gradients from the
+    search's best, inside the budget left (default :class:`LBFGSSettings` tolerances).
+
+    Returns
+    -------
+    str
+        ``converged`` (the local run ended on its own criteria), ``no_gradient`` or
+        ``max_evals``.
+    """
+    if gradient is None:
+        raise ConfigError("optimizer.polish", "gradient needs the problem's exact gradient; "
+                          "this problem has none: use polish=L-BFGS-B (differences)")
+    charge = GRADIENT_COST if grad_cost is None else float(grad_cost)
+    try:
+        message, _ = local_run(counted, np.asarray(z0, float), np.asarray(lb, float),
+                               np.asarray(ub, float), gradient, charge, LBFGSSettings())
+    except BudgetExhaustedError:
+        return "max_evals"
+    logger.debug("gradient polish: %s; best %.12g", message, counted.best_cost)
+    return "no_gradient" if message.startswith("no_gradient") else "converged"
+
+
+__all__ = ["GRADIENT_COST", "LBFGSSettings", "NoGradientError", "gradient_polish",
+           "local_run", "run_lbfgs"]

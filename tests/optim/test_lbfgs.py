@@ -127,3 +127,34 @@ def test_records_carry_projected_gradient_and_active_bounds(tmp_path):
                          optimizer_options={"max_evals": 200}, n_starts=1, seed=4, workers=1,
                          run_dir=tmp_path / "cmaes").records.iloc[0]
     assert np.isfinite(cm["grad_norm"])  # every optimizer's best gets its certificate
+
+
+def test_gradient_polish_refines_any_optimizers_best_inside_the_budget():
+    prob = lqr.make_problem("default", {})
+    layout = build_layout(prob, "givens", {})
+    lb, ub = layout.bounds()
+
+    def objective(Z):
+        return prob.evaluate_batch(layout.split(Z)[0])
+
+    settings = optim.make_settings("pso", {"max_evals": 600, "polish": "gradient",
+                                           "polish_share": 0.5})
+    res = optim.minimize("pso", objective, lb, ub, settings, 3,
+                         gradient=lambda z: z_gradient(prob, layout, z))
+    assert res.n_evals <= 600 and "+polish" in res.stop_reason
+    assert abs(res.best_cost - prob.optimum) <= 1e-8 * prob.optimum
+    with pytest.raises(ConfigError, match="exact gradient"):
+        optim.minimize("pso", objective, lb, ub, settings, 3)
+
+
+def test_problem_without_gradient_is_refused_before_any_job():
+    from penaltyrun.checks import check_gradient_available
+    from penaltyrun.problems import zermelo
+
+    prob = zermelo.make_problem(zermelo.DEFAULT_CASE, {})
+    with pytest.raises(ConfigError, match="optimizer: lbfgs needs the exact gradient"):
+        check_gradient_available("lbfgs", {}, prob)
+    with pytest.raises(ConfigError, match="optimizer.polish"):
+        check_gradient_available("cmaes", {"polish": "gradient"}, prob)
+    check_gradient_available("cmaes", {"polish": "L-BFGS-B"}, prob)
+    check_gradient_available("lbfgs", {}, lqr.make_problem("default", {}))

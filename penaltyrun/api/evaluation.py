@@ -96,17 +96,17 @@ def with_gradient(prob: Any, layout: Any, result: dict[str, Any], z: Sequence[fl
                   ) -> dict[str, Any]:
     """``result`` plus ``z``, ``z_names`` and the gradient at z: ``grad`` (d cost / d z,
     ``z_names`` order; null where it does not exist), ``grad_matrices`` (d cost / d matrix,
-    symmetric) and ``gradient_note`` (why there is none; empty otherwise)."""
-    from penaltyrun.optim.gradient import z_gradient
+    symmetric; null where the cost has no gradient, given also where only the map has no
+    derivative) and ``gradient_note`` (why ``grad`` is null; empty otherwise)."""
+    from penaltyrun.optim.gradient import chain
 
     vec = np.asarray(z, dtype=float)
-    out = z_gradient(prob, layout, vec)
-    by_matrix = None
-    if out.exists:
-        mats, scalars = layout.split(vec[None])
-        detail = prob.gradient({k: v[0] for k, v in mats.items()},
-                               {k: float(v[0]) for k, v in scalars.items()} or None)
-        by_matrix = {k: np.asarray(v).tolist() for k, v in detail.matrices.items()}
+    mats, scalars = layout.split(vec[None])
+    detail = prob.gradient({k: v[0] for k, v in mats.items()},
+                           {k: float(v[0]) for k, v in scalars.items()} or None)
+    out = chain(layout, vec, detail)
+    by_matrix = {k: np.asarray(v).tolist() for k, v in detail.matrices.items()} \
+        if detail.exists else None
     return {**result, "z": vec.tolist(), "z_names": layout.names(),
             "grad": out.grad.tolist() if out.exists else None,
             "grad_matrices": by_matrix, "gradient_note": out.reason}

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.penalty import DecisionLayout, NotDifferentiableError
-from penaltyrun.problems.base import gradient_support
+from penaltyrun.problems.base import CostGradient, gradient_support
 
 #: A coordinate within this fraction of its box side of a bound is on that bound.
 BOUND_TOL = 1e-10
@@ -77,7 +77,13 @@ def z_gradient(problem: Any, layout: DecisionLayout, z: np.ndarray) -> ZGradient
     mats, scalars = layout.split(z[None])
     one = {name: value[0] for name, value in mats.items()}
     given = {name: float(value[0]) for name, value in scalars.items()} or None
-    out = problem.gradient(one, given)
+    return chain(layout, z, problem.gradient(one, given))
+
+
+def chain(layout: DecisionLayout, z: np.ndarray, out: CostGradient) -> ZGradient:
+    """d cost / d z from the problem's gradient ``out`` at the matrices of z: each matrix
+    block through its map's VJP, each scalar its own entry."""
+    z = np.asarray(z, dtype=float).reshape(-1)
     if not out.exists:
         return ZGradient(float(out.cost), str(out.status), None, out.reason)
     parts = []
@@ -130,5 +136,5 @@ def first_order(problem: Any, layout: DecisionLayout, z: np.ndarray) -> dict[str
             "gradient_note": out.reason}
 
 
-__all__ = ["BOUND_TOL", "ZGradient", "active_bounds", "first_order", "projected_gradient",
-           "z_gradient"]
+__all__ = ["BOUND_TOL", "ZGradient", "active_bounds", "chain", "first_order",
+           "projected_gradient", "z_gradient"]

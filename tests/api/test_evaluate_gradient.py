@@ -99,3 +99,14 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path, args, words):
     assert proc.returncode == 2
     assert words in proc.stderr and "Traceback" not in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_map_without_derivative_keeps_the_matrix_gradient():
+    """GEAGSP (param=full) encodes a diagonal matrix at a point where Gram–Schmidt skips a
+    basis vector: no d cost / d z there, but d cost / d Q, R still exists."""
+    mats = {"Q": np.diag(Z[:3]).tolist(), "R": np.diag(Z[3:]).tolist()}
+    out = penaltyrun.evaluate("lqr", mats, param="full", gradient=True)
+    assert out["grad"] is None and "not differentiable" in out["gradient_note"]
+    diag = penaltyrun.evaluate("lqr", z=Z, param="diagonal", gradient=True)
+    np.testing.assert_allclose(np.diag(out["grad_matrices"]["Q"]), diag["grad"][:3],
+                               rtol=1e-12)

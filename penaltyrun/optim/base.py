@@ -253,8 +253,16 @@ class CountingObjective:
 
     def charge(self, evaluations: float) -> None:
         """Count ``evaluations`` evaluation-equivalents (e.g. the CPU of an exact gradient
-        in evaluations; fractions carry over to the next charge). The budget is checked at
-        the next call."""
+        in evaluations; fractions carry over to the next charge).
+
+        Raises
+        ------
+        BudgetExhaustedError
+            When the charge does not fit in the budget left (nothing is charged: the work
+            it pays for must not be done).
+        """
+        if self.limit is not None and self.n_evals + self.charged + evaluations > self.limit:
+            raise BudgetExhaustedError
         self.charged += float(evaluations)
         whole = int(self.charged)
         self.n_evals += whole

@@ -158,8 +158,8 @@ def local_run(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray, ub: np
         if counted.transformed:
             raise ConfigError("optimizer", "the exact-gradient search minimizes the cost; "
                               "this problem optimizes another objective form")
+        counted.charge(charge)  # before the work: a gradient past the budget is not made
         out = gradient(z)
-        counted.charge(charge)
         if out.grad is None:
             raise NoGradientError(out.reason)
         if not scale[0]:

@@ -191,3 +191,27 @@ def test_gradient_capability_is_optional_and_named():
     other = zermelo.make_problem(zermelo.DEFAULT_CASE, {})
     reason = base.gradient_support(other)
     assert "no gradient" in reason and "\n" not in reason
+
+
+@pytest.mark.parametrize("how", ["mean", "max"])
+def test_multi_scenario_gradient_is_the_aggregates(how):
+    """Several training scenarios: the gradient of their mean (max) against central
+    differences of the aggregate, never the base scenario's alone."""
+    from penaltyrun import problems
+
+    prob = problems.make("lqr", None, {"train_scenarios": [{"x0": [[1, 0, 0]]},
+                                                           {"x0": [[0, 2, 1]]}],
+                                       "train_aggregate": how})
+    Qt, R = np.diag([2.0, 1.0, 3.0]), np.diag([1.0, 0.5])
+    grad = prob.gradient({"Q": Qt, "R": R})
+    assert grad.exists
+    E = np.array([[1.0, 0.3, 0.0], [0.3, -1.0, 0.2], [0.0, 0.2, 0.5]])
+
+    def f(s):
+        return prob.evaluate_batch({"Q": (Qt + s * E)[None], "R": R[None]}).cost[0]
+
+    h = 1e-3
+    cd = (4 * (f(h / 2) - f(-h / 2)) / h - (f(h) - f(-h)) / (2 * h)) / 3
+    assert float(np.sum(grad.matrices["Q"] * E)) == pytest.approx(cd, rel=1e-6)
+    plain = problems.make("zermelo", None, {"train_scenarios": [{"x0": (-8.0, 6.0)}]})
+    assert "no gradient" in base.gradient_support(plain)

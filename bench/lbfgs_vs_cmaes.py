@@ -77,7 +77,7 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[4, 8])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--cmaes-evals", type=int, default=5000, help="per state")
-    ap.add_argument("--lbfgs-evals", type=int, default=200, help="per state")
+    ap.add_argument("--lbfgs-evals", type=int, default=1000, help="per state")
     args = ap.parse_args()
     print(machine())
     print(f"{'n':>3} {'reached':>9} {'cmaes cpu s':>11} {'cmaes evals':>11} "
@@ -91,15 +91,17 @@ def main() -> None:
             # a CMA-ES start that never reached J*: its whole run's CPU, a lower bound
             rows.append((cm_cpu, cm_ev, lb_cpu, lb_ev, min(cm_cpu, cm_total)))
         a = np.asarray(rows)
-        ratio = a[:, 4] / a[:, 2]
+        ratio = (a[:, 4] / a[:, 2])[np.isfinite(a[:, 2])]  # seeds where lbfgs reached J*
         reached = (f"{int(np.isfinite(a[:, 0]).sum())}/{int(np.isfinite(a[:, 2]).sum())}"
                    f"/{len(a)}")
         bound = "≥" if not np.all(np.isfinite(a[:, 0])) else ""
+        lo, mid = (np.min(ratio), np.median(ratio)) if ratio.size else (np.nan, np.nan)
         print(f"{n:>3} {reached:>9} {np.median(a[:, 0]):11.3g} {np.median(a[:, 1]):11.6g} "
               f"{np.median(a[:, 2]):11.3g} {np.median(a[:, 3]):11.6g} "
-              f"{bound}{np.min(ratio):8.3g} {bound}{np.median(ratio):11.3g}")
-    print("reached: starts within 1e-6 of J*, CMA-ES / lbfgs / seeds; ≥: some CMA-ES starts "
-          "never reached J*, their whole run's CPU enters the ratio (a lower bound)")
+              f"{bound}{lo:8.3g} {bound}{mid:11.3g}")
+    print("reached: starts within 1e-6 of J*, CMA-ES / lbfgs / seeds; ratios over the seeds "
+          "where lbfgs reached J*; ≥: some CMA-ES starts never reached J*, their whole run's "
+          "CPU enters the ratio (a lower bound)")
 
 
 if __name__ == "__main__":

@@ -38,9 +38,9 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.linalg import solve_triangular
 
 from penaltyrun.penalty import orthogonal as orth
+from penaltyrun.penalty.orthogonal import _complement_basis
 
 #: Residuals below this (a factor 2 above the skip threshold) make GEAGSP non-differentiable.
 GEAGSP_DERIVATIVE_MARGIN = 2.0 * orth.GS_SKIP
@@ -53,75 +53,108 @@ class NotDifferentiableError(ValueError):
 # --------------------------------------------------------------------------- hypersphere
 
 
+@njit(cache=True)
+def _hypersphere_jac(phi, v, D):
+    """v(φ) into v (k+1,) and D[i, j] = ∂v_j/∂φ_i into D (k, k+1), O(k²)."""
+    k = phi.shape[0]
+    pre = 1.0
+    for j in range(k):
+        v[j] = pre * np.cos(phi[j])
+        pre *= np.sin(phi[j])
+    v[k] = pre
+    for i in range(k):
+        pre = 1.0
+        for j in range(k + 1):
+            g = np.cos(phi[j]) if j < k else 1.0
+            if j < i:
+                D[i, j] = 0.0
+            elif j == i:
+                D[i, j] = -pre * np.sin(phi[i])
+            else:
+                D[i, j] = pre * g
+            if j < k:
+                pre *= np.cos(phi[j]) if j == i else np.sin(phi[j])
+
+
 def hypersphere_jacobian(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit vector v(φ) ∈ R^{k+1} and its Jacobian D[i, j] = ∂v_j/∂φ_i, shape (k, k+1)."""
-    phi = np.asarray(phi, float)
-    k = phi.size
-    s, c = np.sin(phi), np.cos(phi)
-    g = np.append(c, 1.0)
-    v = np.concatenate([[1.0], np.cumprod(s)]) * g
-    F = np.tile(s, (k, 1))
-    F[np.arange(k), np.arange(k)] = c
-    pre = np.ones((k, k + 1))
-    pre[:, 1:] = np.cumprod(F, axis=1)
-    D = np.triu(pre * g[None, :], 1)
-    D[np.arange(k), np.arange(k)] = -pre[np.arange(k), np.arange(k)] * s
+    phi = np.ascontiguousarray(phi, dtype=float)
+    v, D = np.empty(phi.size + 1), np.empty((phi.size, phi.size + 1))
+    _hypersphere_jac(phi, v, D)
     return v, D
 
 
 # --------------------------------------------------------------------------- GEAGSP
 
 
-def geagsp_tape(angles: np.ndarray, n: int) -> tuple[np.ndarray, list, list, list]:
-    """Q (n, n) and, per column c, the basis B_c (n, n − c), v_c and ∂v_c/∂φ.
+@njit(cache=True)
+def _geagsp_tape(angles, n):
+    """Q, bases[c, :, :m] = B_c, vs[c, :m] = v_c, Ds[c, :m−1, :m] = ∂v_c/∂φ (m = n − c),
+    and the smallest Gram–Schmidt residual (the diagonal of the bases' top blocks)."""
+    Q = np.zeros((n, n))
+    bases = np.zeros((n, n, n))
+    vs = np.zeros((n, n))
+    Ds = np.zeros((n, n, n))
+    basis = np.empty((n, n))
+    smallest = np.inf
+    pos = 0
+    for c in range(n):
+        m = n - c
+        if m > 1:
+            _hypersphere_jac(angles[pos:pos + m - 1], vs[c, :m], Ds[c, :m - 1, :m])
+            pos += m - 1
+        else:
+            vs[c, 0] = 1.0
+        if c == 0:
+            for i in range(n):
+                bases[0, i, i] = 1.0
+        else:
+            found = _complement_basis(Q, c, n, basis)
+            if found < m:
+                smallest = 0.0
+            for j in range(min(found, m)):
+                smallest = min(smallest, basis[j, j])
+                for i in range(n):
+                    bases[c, i, j] = basis[i, j]
+        for i in range(n):
+            acc = 0.0
+            for j in range(m):
+                acc += bases[c, i, j] * vs[c, j]
+            Q[i, c] = acc
+    return Q, bases, vs, Ds, smallest
+
+
+def geagsp_tape(angles: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
+    """Q (n, n), bases (n, n, n), vs (n, n), Ds (n, n, n) as in :func:`_geagsp_tape`.
 
     Raises
     ------
     NotDifferentiableError
         If a Gram–Schmidt residual is within :data:`GEAGSP_DERIVATIVE_MARGIN` of zero.
     """
-    Q = np.zeros((n, n))
-    basis = np.empty((n, n))
-    Bs, vs, Ds = [], [], []
-    pos = 0
-    for c in range(n):
-        m = n - c
-        if m > 1:
-            v, D = hypersphere_jacobian(angles[pos:pos + m - 1])
-            pos += m - 1
-        else:
-            v, D = np.ones(1), np.zeros((0, 1))
-        if c == 0:
-            B = np.eye(n)
-        else:
-            found = orth._complement_basis(Q, c, n, basis)
-            B = basis[:, :m].copy()
-            if found < m or np.min(np.diag(B[:m])) <= GEAGSP_DERIVATIVE_MARGIN:
-                raise NotDifferentiableError(
-                    f"GEAGSP has no derivative here: column {c + 1}'s Gram–Schmidt basis "
-                    f"skips (or nearly skips) a standard basis vector")
-        Q[:, c] = B @ v
-        Bs.append(B)
-        vs.append(v)
-        Ds.append(D)
-    return Q, Bs, vs, Ds
+    Q, bases, vs, Ds, smallest = _geagsp_tape(np.ascontiguousarray(angles, dtype=float), n)
+    if smallest <= GEAGSP_DERIVATIVE_MARGIN:
+        raise NotDifferentiableError(
+            "GEAGSP has no derivative here: its Gram–Schmidt basis skips (or nearly "
+            f"skips) a standard basis vector (smallest residual {smallest:.1e})")
+    return Q, bases, vs, Ds
 
 
 def _geagsp_dq(angles: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Q (n, n) and ∂Q/∂φ_i for every angle, shape (M, n, n) (forward mode, all at once)."""
-    Q, Bs, vs, Ds = geagsp_tape(angles, n)
+    Q, bases, vs, Ds = geagsp_tape(angles, n)
     M = orth.n_angles(n)
     dQ = np.zeros((M, n, n))
     pos = 0
     for c in range(n):
         m = n - c
-        B, v, D = Bs[c], vs[c], Ds[c]
+        B, v, D = bases[c, :, :m], vs[c, :m], Ds[c, :m - 1, :m]
         if c == 0:
             dq = np.zeros((M, n))
         else:
             Qp = Q[:, :c]
             Y = np.einsum("dac,am->dcm", dQ[:, :, :c], B)
-            Linv = solve_triangular(B[:m], np.eye(m), lower=True)
+            Linv = _lower_inverse(np.ascontiguousarray(B[:m]))
             U = np.triu(Linv @ (Qp[:m] @ Y), 1)
             dB = -(Qp @ Y) + B @ (U - np.transpose(U, (0, 2, 1)))
             dq = dB @ v
@@ -131,57 +164,114 @@ def _geagsp_dq(angles: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return Q, dQ
 
 
+@njit(cache=True)
+def _lower_inverse(L):
+    """Inverse of a lower-triangular matrix (m, m) by forward substitution."""
+    m = L.shape[0]
+    X = np.zeros((m, m))
+    for j in range(m):
+        X[j, j] = 1.0 / L[j, j]
+        for i in range(j + 1, m):
+            acc = 0.0
+            for k in range(j, i):
+                acc += L[i, k] * X[k, j]
+            X[i, j] = -acc / L[i, i]
+    return X
+
+
+@njit(cache=True)
+def _geagsp_backward(Q, bases, vs, Ds, Qbar, starts):
+    """Reverse sweep over the GEAGSP columns: angle gradient (M,) of ⟨Qbar, Q⟩.
+
+    bases[c, :, :m] = B_c (n, m), vs[c, :m] = v_c, Ds[c, :m−1, :m] = ∂v_c/∂φ, m = n − c.
+    """
+    n = Q.shape[0]
+    grad = np.zeros(starts[-1])
+    for c in range(n - 1, -1, -1):
+        m = n - c
+        B = np.ascontiguousarray(bases[c, :, :m])
+        Bt = np.ascontiguousarray(B.T)
+        v = vs[c, :m].copy()
+        g = Qbar[:, c].copy()
+        vbar = Bt @ g
+        for i in range(m - 1):
+            acc = 0.0
+            for j in range(m):
+                acc += Ds[c, i, j] * vbar[j]
+            grad[starts[c] + i] = acc
+        if c == 0:
+            continue
+        S = np.zeros((m, m))
+        for i in range(m):
+            for j in range(i + 1, m):
+                S[i, j] = vbar[i] * v[j] - v[i] * vbar[j]
+        Z = np.ascontiguousarray(_lower_inverse(np.ascontiguousarray(B[:m, :])).T) @ S
+        QpT = np.ascontiguousarray(Q[:, :c].T)
+        Ybar = np.outer(-(QpT @ g), v) + np.ascontiguousarray(QpT[:, :m]) @ Z
+        Qbar[:, :c] += B @ np.ascontiguousarray(Ybar.T)
+    return grad
+
+
 def _geagsp_vjp(angles: np.ndarray, n: int, lam: np.ndarray, Gs: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Q and the angle gradient for the symmetric cotangent Gs = G + Gᵀ."""
-    Q, Bs, vs, Ds = geagsp_tape(angles, n)
+    Q, bases, vs, Ds = geagsp_tape(angles, n)
+    starts = np.concatenate([[0], np.cumsum(np.arange(n - 1, -1, -1))]).astype(np.int64)
     Qbar = (Gs @ Q) * lam[None, :]
-    grad = np.zeros(orth.n_angles(n))
-    starts = np.concatenate([[0], np.cumsum(np.arange(n - 1, 0, -1))])
-    for c in range(n - 1, -1, -1):
-        m = n - c
-        B, v, D = Bs[c], vs[c], Ds[c]
-        g = Qbar[:, c]
-        vbar = B.T @ g
-        if m > 1:
-            grad[starts[c]:starts[c] + m - 1] = D @ vbar
-        if c == 0:
-            continue
-        Qp = Q[:, :c]
-        A = np.outer(vbar, v)
-        Z = solve_triangular(B[:m].T, np.triu(A - A.T, 1), lower=False)
-        Ybar = -np.outer(Qp.T @ g, v) + Qp[:m].T @ Z
-        Qbar[:, :c] += B @ Ybar.T
-    return Q, grad
+    return Q, _geagsp_backward(Q, bases, vs, Ds, Qbar, starts)
 
 
 # --------------------------------------------------------------------------- Givens
 
 
-def _givens_dq(angles: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Q and ∂Q/∂θ_k = −P_k[:, i] S_k[j, :] + P_k[:, j] S_k[i, :] (prefix P, suffix S)."""
-    planes = np.array([(j, i) for j in range(n - 1) for i in range(j + 1, n)]).reshape(-1, 2)
-    M = planes.shape[0]
-    c, s = np.cos(angles), np.sin(angles)
-    P = np.empty((M, n, n))
-    cur = np.eye(n)
-    for k, (j, i) in enumerate(planes):
-        aj, ai = cur[:, j].copy(), cur[:, i].copy()
-        cur[:, j], cur[:, i] = c[k] * aj - s[k] * ai, s[k] * aj + c[k] * ai
-        P[k] = cur
-    S = np.empty((M, n, n))
-    cur = np.eye(n)
+@njit(cache=True)
+def _givens_dq_kernel(angles, n):
+    """Q and ∂Q/∂θ_k = −P_k[:, i] S_k[j, :] + P_k[:, j] S_k[i, :] for rotation k in plane
+    (j, i), with the prefix P_k = G_1 ⋯ G_k and the suffix S_k = G_{k+1} ⋯ G_M."""
+    M = angles.shape[0]
+    pj = np.empty((M, n))
+    pi_ = np.empty((M, n))
+    sj = np.empty((M, n))
+    si = np.empty((M, n))
+    jj = np.empty(M, np.int64)
+    ii = np.empty(M, np.int64)
+    k = 0
+    for j in range(n - 1):
+        for i in range(j + 1, n):
+            jj[k] = j
+            ii[k] = i
+            k += 1
+    Pt = np.eye(n)  # Pᵀ: rows are the columns of P
+    for k in range(M):
+        j, i = jj[k], ii[k]
+        c, s = np.cos(angles[k]), np.sin(angles[k])
+        for m in range(n):
+            a_j, a_i = Pt[j, m], Pt[i, m]
+            Pt[j, m] = c * a_j - s * a_i
+            Pt[i, m] = s * a_j + c * a_i
+        pj[k] = Pt[j]
+        pi_[k] = Pt[i]
+    S = np.eye(n)
     for k in range(M - 1, -1, -1):
-        S[k] = cur
-        j, i = planes[k]
-        rj, ri = cur[j].copy(), cur[i].copy()
-        cur[j], cur[i] = c[k] * rj + s[k] * ri, -s[k] * rj + c[k] * ri
-    kk = np.arange(M)
-    jj, ii = planes[:, 0], planes[:, 1]
-    dQ = (-np.einsum("ka,kb->kab", P[kk, :, ii], S[kk, jj, :])
-          + np.einsum("ka,kb->kab", P[kk, :, jj], S[kk, ii, :]))
-    Q = P[-1] if M else np.eye(n)
-    return Q, dQ
+        j, i = jj[k], ii[k]
+        sj[k] = S[j]
+        si[k] = S[i]
+        c, s = np.cos(angles[k]), np.sin(angles[k])
+        for m in range(n):
+            r_j, r_i = S[j, m], S[i, m]
+            S[j, m] = c * r_j + s * r_i
+            S[i, m] = -s * r_j + c * r_i
+    dQ = np.empty((M, n, n))
+    for k in range(M):
+        for a in range(n):
+            for b in range(n):
+                dQ[k, a, b] = pj[k, a] * si[k, b] - pi_[k, a] * sj[k, b]
+    return Pt.T.copy(), dQ
+
+
+def _givens_dq(angles: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Q (n, n) and ∂Q/∂θ_k for every angle, shape (M, n, n)."""
+    return _givens_dq_kernel(np.ascontiguousarray(angles, dtype=float), n)
 
 
 @njit(cache=True)

@@ -105,7 +105,7 @@ class Parameterization:
             K = lam[:, :, None] * np.eye(self.n)[None]
         else:
             Q = self.orthogonal(Zb)
-            K = np.einsum("bij,bj,bkj->bik", Q, lam, Q)
+            K = (Q * lam[:, None, :]) @ np.transpose(Q, (0, 2, 1))
             K = 0.5 * (K + np.transpose(K, (0, 2, 1)))
         return K[0] if single else K
 

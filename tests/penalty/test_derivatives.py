@@ -304,3 +304,10 @@ def test_bad_shapes_are_value_errors():
         p.jacobian(np.zeros(5))
     with pytest.raises(ValueError, match="G must have shape"):
         p.vjp(np.zeros(p.dim), np.zeros((2, 2)))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_one_by_one_matrix(kind):
+    p = make(kind, 1, (0.1, 10.0))
+    np.testing.assert_array_equal(p.jacobian(np.array([2.0])), [[[1.0]]])
+    np.testing.assert_array_equal(p.vjp(np.array([2.0]), np.array([[3.0]])), [3.0])

@@ -27,6 +27,8 @@ MODES = ("optimize", "evaluate", "report", "plan")
 JOB_MODES = ("optimize", "plan")
 #: Subtrees whose keys are free (candidate matrices / scalars of ``mode=evaluate``).
 FREE_KEYS = ("matrices", "scalars")
+#: Keys a user may add with ``+key=value`` (``mode=evaluate`` only): ``gradient``.
+EVALUATE_EXTRAS = ("gradient",)
 REPORT_OPTIONS = {"input": (str, type(None)), "output": (str, type(None)), "paper": (bool,)}
 
 
@@ -42,7 +44,7 @@ def unknown_keys(cfg: Any, base: Any, prefix: str = "") -> tuple[str, list[str]]
         return None
     for key, value in cfg.items():
         dotted = f"{prefix}{key}"
-        if dotted in FREE_KEYS or dotted == "hydra":
+        if dotted in FREE_KEYS or dotted in EVALUATE_EXTRAS or dotted == "hydra":
             continue
         if key not in base:
             return dotted, sorted(str(k) for k in base)
@@ -158,6 +160,37 @@ def check_matrix_entries(values: Mapping[str, Any], prefix: str) -> None:
                                   f"{item!r}")
 
 
+def check_gradient_available(optimizer: str, options: Mapping[str, Any], prob: Any) -> None:
+    """An optimizer (or polish) that needs the exact gradient, on a problem without one, is
+    refused before any job runs."""
+    from penaltyrun.optim import GRADIENT_OPTIMIZERS
+    from penaltyrun.problems.base import gradient_support
+
+    reason = gradient_support(prob)
+    if not reason:
+        return
+    if optimizer in GRADIENT_OPTIMIZERS:
+        raise ConfigError("optimizer", f"{optimizer} needs the exact gradient, but {reason}; "
+                                       "pick another optimizer")
+    if options.get("polish") == "gradient":
+        raise ConfigError("optimizer.polish", f"gradient needs the exact gradient, but "
+                                              f"{reason}; use polish=L-BFGS-B (differences)")
+
+
+def check_evaluate_extras(mode: str, gradient: Any, z: Any) -> None:
+    """``+gradient`` is true or false and only in ``mode=evaluate``; ``z`` is null or a
+    list of numbers."""
+    if gradient is not None:
+        if mode != "evaluate":
+            raise ConfigError("gradient", "only mode=evaluate reads it; drop +gradient or "
+                                          "pass mode=evaluate")
+        if not isinstance(gradient, bool):
+            raise ConfigError("gradient", f"must be true or false, got {gradient!r}")
+    if z is not None and (not isinstance(z, list) or not all(is_number(v) for v in z)):
+        raise ConfigError("z", f"must be a list of numbers (the optimizer's variables in "
+                               f"z_names order), e.g. z=[1.0,2.5]; got {z!r}")
+
+
 def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
                         prefix: str) -> None:
     """Check values against the type of the shipped default of the same key: a number
@@ -239,6 +272,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
     check_output_dir((plain(cfg.get("report")) or {}).get("output"))
     if mode == "report":
         return
+    check_evaluate_extras(mode, cfg.get("gradient"), plain(cfg.get("z")))
     if mode == "evaluate":
         for group in FREE_KEYS:
             check_matrix_entries(plain(cfg.get(group)) or {}, group)
@@ -256,6 +290,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
                     params, cfg.problem.get("module") or None)
     if mode in JOB_MODES:
         _checked("param", runner.build_layout, prob, cfg.param.name, _options(cfg, "param"))
+        check_gradient_available(cfg.optimizer.name, _options(cfg, "optimizer"), prob)
 
 
 def _checked(key: str, func: Any, *args: Any) -> Any:

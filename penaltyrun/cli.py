@@ -135,12 +135,17 @@ def summarize(path: Path, run_dir: Path) -> dict[str, int]:
 
 
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
-    """Evaluate the matrices given in ``matrices.*`` and print one JSON line."""
+    """Evaluate the matrices given in ``matrices.*`` (or the decision vector ``z``; with
+    ``+gradient=true`` also d cost / d z) and print one JSON line."""
     from penaltyrun import problems
-    from penaltyrun.api.evaluation import evaluate_matrices
+    from penaltyrun.api.evaluation import evaluate_candidate
 
     prob = problems.make(cfg.problem.name, cfg.case, problem_params(cfg), problem_module(cfg))
-    result = evaluate_matrices(prob, _plain(cfg.matrices) or {}, _plain(cfg.scalars) or {})
+    param = _plain(cfg.param) or {}
+    result = evaluate_candidate(prob, _plain(cfg.matrices) or {}, _plain(cfg.scalars) or {},
+                                _plain(cfg.get("z")), str(param.get("name", "full")),
+                                {k: v for k, v in param.items() if k != "name"},
+                                bool(cfg.get("gradient", False)))
     print(json.dumps(result, default=str), flush=True)
     hydra_cfg = HydraConfig.get()
     if hydra_cfg.output_subdir is None:  # cliargs.evaluate_overrides: nothing was written

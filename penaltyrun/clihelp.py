@@ -23,7 +23,8 @@ INDENT = 13
 
 MODES = (
     ("optimize", "run the cell's optimizer starts; write results.parquet, jobs/, report/"),
-    ("evaluate", "cost of the matrices given as matrices.K=[[...]]; one JSON line on stdout"),
+    ("evaluate", "cost of the matrices given as matrices.K=[[...]] (or z=[...]; +gradient=true "
+                 "adds d cost / d z); one JSON line on stdout"),
     ("report", "tables and figures from results: report.input=<results.parquet or folder>"),
     ("plan", "forecast jobs, evaluations and time of a cell or a sweep; runs nothing"),
 )

@@ -29,7 +29,7 @@ NO_RESULT_STATUSES = (FAILED, TIMEOUT)
 #: Version of the record / results schema this code writes (the history:
 #: :data:`penaltyrun.io.schema.SCHEMA_HISTORY`). Records of a newer version are refused:
 #: their meaning is unknown here.
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 
 # Kinds of values, worded as the record checks name them in their messages.
 INT = "an integer"
@@ -81,7 +81,8 @@ FIELDS: dict[str, Field] = {
     "case": Field(TEXT, "problem case", ALWAYS),
     "param": Field(TEXT, "parameterization (diagonal, full, geagsp, givens, cayley, "
                          "cayley_tan)", ALWAYS),
-    "optimizer": Field(TEXT, "optimizer name (pso, de, cmaes, grid, baseline)", ALWAYS),
+    "optimizer": Field(TEXT, "optimizer name (pso, pso_matlab, de, cmaes, grid, lbfgs, "
+                             "baseline)", ALWAYS),
     "start": Field(INT, "start index within the cell", ALWAYS),
     "seed": Field(INT, "job seed derived from runner.seed", ALWAYS),
     "status": Field(TEXT, " | ".join(JOB_STATUSES), ALWAYS),
@@ -109,7 +110,14 @@ FIELDS: dict[str, Field] = {
                                     "poles"),
     "cl_gain_norm": Field(NUMBER, "2-norm of the gain K of u = −K x (null: no gain)"),
     "cl_gain_cond": Field(NUMBER, "2-norm condition number of the gain"),
-    "n_evals": Field(INT, "objective evaluations"),
+    "grad_norm": Field(NUMBER, "projected-gradient norm ‖clip(z − ∇, lb, ub) − z‖∞ of the "
+                               "cost at best_z (cost unit per unit of z; null: no gradient, "
+                               "see gradient_note)"),
+    "active_bounds": Field(TEXTS, "variables of best_z on a bound of the box, as "
+                                  "'<name>=lower' / '<name>=upper'"),
+    "gradient_note": Field(TEXT, "why the cost has no gradient at best_z (empty: it has)"),
+    "n_evals": Field(INT, "objective evaluations (lbfgs: evaluation-equivalents, each "
+                          "gradient charged optimizer.grad_cost evaluations)"),
     "n_iters": Field(INT, "optimizer iterations"),
     "stop_reason": Field(TEXT, "ftol (stall) | iters | max_evals (budget) | restarts | "
                                "grid+local, '+polish' after a local polish"),

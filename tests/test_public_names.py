@@ -60,7 +60,8 @@ def test_top_level_api_has_the_documented_signatures():
     import inspect
 
     expected = {
-        "from_cost": "(cost, matrices, *, scalars=None, batched=False, name='user')",
+        "from_cost": "(cost, matrices, *, scalars=None, batched=False, name='user', "
+                     "gradient=None)",
         "tune": "(problem, *, param='full', optimizer='cmaes', n_starts=10, seed=None, "
                 "optimizer_options=None, case=None, params=None, run_dir=None, workers=None, "
                 "resume=False, job_timeout=None)",

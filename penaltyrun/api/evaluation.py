@@ -1,13 +1,21 @@
-"""Evaluate given matrices in detail: :func:`evaluate` (``penaltyrun mode=evaluate``)."""
+"""Evaluate given matrices in detail: :func:`evaluate` (``penaltyrun mode=evaluate``).
+
+A candidate is given as matrices (``matrices``) or as the optimizer's decision vector
+(``z``, in the order of ``z_names`` of the parameterization ``param``); ``gradient`` adds
+d cost / d z (:func:`with_gradient`).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
+
+import numpy as np
 
 from penaltyrun import problems
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.base import check_spd
+from penaltyrun.problems.base import check_spd, gradient_support
+from penaltyrun.typed import is_number
 
 
 def evaluate_matrices(prob: Any, matrices: Mapping[str, Any],
@@ -56,9 +64,105 @@ def evaluate_matrices(prob: Any, matrices: Mapping[str, Any],
     return prob.evaluate(given, values or None)
 
 
-def evaluate(problem: Any, matrices: Mapping[str, Any], *, case: str | None = None,
-             params: Mapping[str, Any] | None = None,
-             scalars: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def decode_z(layout: Any, z: Any) -> tuple[dict[str, Any], dict[str, float]]:
+    """Matrices and scalars of a decision vector ``z`` (list of numbers, ``z_names`` order).
+
+    Raises
+    ------
+    ConfigError
+        ``z`` not a list of numbers, of the wrong length or outside the box.
+    """
+    names = layout.names()
+    if not isinstance(z, Sequence) or isinstance(z, str) or \
+            not all(is_number(v) for v in z):
+        raise ConfigError("z", f"must be a list of {len(names)} numbers in the order "
+                               f"{', '.join(names)}; got {z!r}")
+    vec = np.asarray([float(v) for v in z])
+    if vec.size != len(names):
+        raise ConfigError("z", f"expected {len(names)} values ({', '.join(names)}), got "
+                               f"{vec.size}")
+    lb, ub = layout.bounds()
+    outside = np.flatnonzero(~((vec >= lb) & (vec <= ub)))
+    if outside.size:
+        i = int(outside[0])
+        raise ConfigError("z", f"{names[i]} = {vec[i]:g} is outside its bounds "
+                               f"[{lb[i]:g}, {ub[i]:g}]")
+    mats, scalars = layout.split(vec[None])
+    return ({k: v[0].tolist() for k, v in mats.items()},
+            {k: float(v[0]) for k, v in scalars.items()})
+
+
+def with_gradient(prob: Any, layout: Any, result: dict[str, Any], z: Sequence[float]
+                  ) -> dict[str, Any]:
+    """``result`` plus ``z``, ``z_names`` and the gradient at z: ``grad`` (d cost / d z,
+    ``z_names`` order; null where it does not exist), ``grad_matrices`` (d cost / d matrix,
+    symmetric; null where the cost has no gradient, given also where only the map has no
+    derivative) and ``gradient_note`` (why ``grad`` is null; empty otherwise)."""
+    from penaltyrun.optim.gradient import chain
+
+    vec = np.asarray(z, dtype=float)
+    mats, scalars = layout.split(vec[None])
+    detail = prob.gradient({k: v[0] for k, v in mats.items()},
+                           {k: float(v[0]) for k, v in scalars.items()} or None)
+    out = chain(layout, vec, detail)
+    by_matrix = {k: np.asarray(v).tolist() for k, v in detail.matrices.items()} \
+        if detail.exists else None
+    return {**result, "z": vec.tolist(), "z_names": layout.names(),
+            "grad": out.grad.tolist() if out.exists else None,
+            "grad_matrices": by_matrix, "gradient_note": out.reason}
+
+
+def evaluate_candidate(prob: Any, matrices: Mapping[str, Any] | None,
+                       scalars: Mapping[str, Any] | None, z: Any, param: str,
+                       param_options: Mapping[str, Any] | None, gradient: bool
+                       ) -> dict[str, Any]:
+    """The detailed evaluation of one candidate given as ``matrices`` (+ ``scalars``) or
+    as ``z``; with ``gradient``, also d cost / d z (:func:`with_gradient`) — of the given
+    matrices encoded in the map ``param``.
+
+    Raises
+    ------
+    ConfigError
+        Both or neither of ``matrices`` and ``z``; a bad ``z``; matrices the map cannot
+        represent when a gradient is asked for; a problem without a gradient hook.
+    """
+    from penaltyrun.runner.setup import build_layout
+
+    given = {k: v for k, v in (matrices or {}).items() if v is not None}
+    if z is None and not gradient:
+        return evaluate_matrices(prob, given, scalars)
+    if gradient:
+        reason = gradient_support(prob)
+        if reason:
+            raise ConfigError("gradient", f"{reason}; drop +gradient=true")
+    layout = build_layout(prob, param, dict(param_options or {}))
+    if z is not None:
+        if given:
+            raise ConfigError("z", f"give the candidate either as z or as matrices "
+                                   f"({', '.join(sorted(given))}), not both")
+        mats, z_scalars = decode_z(layout, z)
+        result = evaluate_matrices(prob, mats, z_scalars)
+        vec = list(z)
+    else:
+        result = evaluate_matrices(prob, given, scalars)
+        try:
+            vec = layout.join({k: np.asarray(v, dtype=float) for k, v in given.items()},
+                              {k: float(v) for k, v in (scalars or {}).items()
+                               if v is not None}).tolist()
+        except ValueError as exc:
+            raise ConfigError("param", f"the gradient is taken with respect to z of the "
+                                       f"{param} map, which cannot represent these matrices "
+                                       f"({exc}); pass param=<map> or z=[...]") from None
+    if not gradient:
+        return {**result, "z": [float(v) for v in vec], "z_names": layout.names()}
+    return with_gradient(prob, layout, result, vec)
+
+
+def evaluate(problem: Any, matrices: Mapping[str, Any] | None = None, *,
+             case: str | None = None, params: Mapping[str, Any] | None = None,
+             scalars: Mapping[str, Any] | None = None, z: Sequence[float] | None = None,
+             param: str = "full", param_options: Mapping[str, Any] | None = None,
+             gradient: bool = False) -> dict[str, Any]:
     """Evaluate one candidate's matrices in detail: the dict ``penaltyrun mode=evaluate``
     prints for the same problem, case, parameters and matrices.
 
@@ -75,6 +179,16 @@ def evaluate(problem: Any, matrices: Mapping[str, Any], *, case: str | None = No
         Problem parameter overrides.
     scalars : mapping, optional
         Extra scalars of the problem (e.g. ``eta_cut`` of ``qlaw``).
+    z : sequence of float, optional
+        The candidate as the optimizer's decision vector instead of ``matrices``, in the
+        order of ``z_names`` of the map ``param``.
+    param : str
+        Parameterization of ``z`` and of the gradient (``diagonal``, ``full``, ...).
+    param_options : mapping, optional
+        Its options (``eig_bounds``, ``cayley_bound``).
+    gradient : bool
+        Add ``grad`` (d cost / d z, ``z_names`` order; null with ``gradient_note`` where
+        the cost has no gradient), ``grad_matrices``, ``z`` and ``z_names``.
 
     Returns
     -------
@@ -90,7 +204,7 @@ def evaluate(problem: Any, matrices: Mapping[str, Any], *, case: str | None = No
     with held(obj):
         prob = problems.make(name, case, {k: v for k, v in merged.items() if v is not None},
                              module)
-        return evaluate_matrices(prob, matrices, scalars)
+        return evaluate_candidate(prob, matrices, scalars, z, param, param_options, gradient)
 
 
-__all__ = ["evaluate", "evaluate_matrices"]
+__all__ = ["decode_z", "evaluate", "evaluate_candidate", "evaluate_matrices", "with_gradient"]

@@ -32,10 +32,13 @@ logger = logging.getLogger(__name__)
 #: as timestamps; 5: ``packages`` (provenance), and the job id covers the root seed and the
 #: held-out setting — earlier files read back with ``packages`` null; 6: closed-loop
 #: diagnostics of the best candidate (``closed_loop``, ``cl_*``) — earlier files read back
-#: with them null (the report computes them from the stored matrices).
+#: with them null (the report computes them from the stored matrices); 7: first-order
+#: columns of the best candidate (``grad_norm``, ``active_bounds``, ``gradient_note``) —
+#: earlier files read back with them null.
 SCHEMA_HISTORY = {3: "anytime traces, warm start", 4: "timestamp columns",
                   5: "packages column; job id covers runner.seed and runner.holdout",
-                  6: "closed-loop diagnostics columns (closed_loop, cl_*)"}
+                  6: "closed-loop diagnostics columns (closed_loop, cl_*)",
+                  7: "first-order columns (grad_norm, active_bounds, gradient_note)"}
 RESULTS_FILE = "results.parquet"
 
 #: Arrow type of each kind of :data:`penaltyrun.jobrecord.FIELDS`.

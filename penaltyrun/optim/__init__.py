@@ -2,9 +2,11 @@
 
 ``pso`` (pyswarms), ``pso_matlab`` (MATLAB's ``particleswarm`` re-implemented in numpy),
 ``de`` (scipy differential evolution), ``cmaes`` (IPOP-CMA-ES from ``cma``), ``grid``
-(exhaustive grid + local search, dimension ≤ 4) and ``baseline`` (one given point).
+(exhaustive grid + local search, dimension ≤ 4), ``lbfgs`` (multi-start L-BFGS-B with the
+problem's exact gradient) and ``baseline`` (one given point).
 :func:`minimize` runs one of them, then the shared bounded polish (``optimizer.polish``)
-inside the same ``max_evals``.
+inside the same ``max_evals`` (``polish=gradient``: L-BFGS-B with the problem's exact
+gradient).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from penaltyrun.optim.checks import coerce_field, settings_hints
 from penaltyrun.optim.cmaes import CMAESSettings, run_cmaes
 from penaltyrun.optim.de import DESettings, run_de
 from penaltyrun.optim.grid import GridSettings, run_grid
+from penaltyrun.optim.lbfgs import GradientFn, LBFGSSettings, gradient_polish, run_lbfgs
 from penaltyrun.optim.polish import local_search
 from penaltyrun.optim.pso import PSOSettings, run_pso
 from penaltyrun.optim.pso_matlab import PSOMatlabSettings, run_pso_matlab
@@ -38,10 +41,13 @@ from penaltyrun.optim.pso_matlab import PSOMatlabSettings, run_pso_matlab
 OPTIMIZERS = {"pso": (PSOSettings, run_pso), "de": (DESettings, run_de),
               "cmaes": (CMAESSettings, run_cmaes), "grid": (GridSettings, run_grid),
               "baseline": (BaselineSettings, run_baseline),
-              "pso_matlab": (PSOMatlabSettings, run_pso_matlab)}
+              "pso_matlab": (PSOMatlabSettings, run_pso_matlab),
+              "lbfgs": (LBFGSSettings, run_lbfgs)}
+#: Optimizers that need the problem's exact gradient.
+GRADIENT_OPTIMIZERS = ("lbfgs",)
 
 Settings = (PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
-            | PSOMatlabSettings)
+            | PSOMatlabSettings | LBFGSSettings)
 
 
 def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
@@ -93,7 +99,8 @@ def check_dimension(settings: Settings, dim: int) -> None:
 
 
 def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
-             settings: Settings, seed: int, x0: np.ndarray | None = None) -> OptimResult:
+             settings: Settings, seed: int, x0: np.ndarray | None = None,
+             gradient: GradientFn | None = None) -> OptimResult:
     """Run optimizer ``name`` with ``settings`` on ``objective`` over [lb, ub].
 
     The search spends at most ``max_evals`` minus the polish share; the polish (if
@@ -107,11 +114,12 @@ def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarra
     it inside the call only.
     """
     with global_rng_kept():
-        return _minimize(name, objective, lb, ub, settings, seed, x0)
+        return _minimize(name, objective, lb, ub, settings, seed, x0, gradient)
 
 
 def _minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
-              settings: Settings, seed: int, x0: np.ndarray | None) -> OptimResult:
+              settings: Settings, seed: int, x0: np.ndarray | None,
+              gradient: GradientFn | None) -> OptimResult:
     if name == "baseline":
         if x0 is None:
             raise ValueError("the baseline optimizer needs x0")
@@ -120,16 +128,24 @@ def _minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarr
     counted.limit = main_budget(settings)
     if x0 is not None:  # a warm start is evaluated first: the run's best is never worse
         counted(np.asarray(x0, float)[None, :])
-    result = OPTIMIZERS[name][1](counted, lb, ub, settings, seed, x0)
+    if name in GRADIENT_OPTIMIZERS:
+        result = run_lbfgs(counted, lb, ub, settings, seed, x0, gradient)
+    else:
+        result = OPTIMIZERS[name][1](counted, lb, ub, settings, seed, x0)
     if settings.polish == "none":
         return result
     counted.limit = settings.max_evals
-    outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
+    if settings.polish == "gradient":
+        outcome = gradient_polish(counted, counted.best_z, lb, ub, gradient,
+                                  getattr(settings, "grad_cost", None))
+    else:
+        outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
     stop = result.stop_reason + ("+polish" if outcome != "max_evals" else "+polish:max_evals")
     return counted.result(result.history, result.n_iters, stop)
 
 
-__all__ = ["OPTIMIZERS", "POLISH_METHODS", "BaselineSettings", "CMAESSettings",
-           "CommonSettings", "DESettings", "GridSettings", "OptimResult", "PSOMatlabSettings",
+__all__ = ["GRADIENT_OPTIMIZERS", "OPTIMIZERS", "POLISH_METHODS", "BaselineSettings",
+           "CMAESSettings", "CommonSettings", "DESettings", "GridSettings", "LBFGSSettings",
+           "OptimResult", "PSOMatlabSettings",
            "PSOSettings", "Settings", "check_dimension", "make_settings", "minimize",
            "planned_evals"]

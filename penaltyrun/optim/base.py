@@ -41,7 +41,7 @@ logger = logging.getLogger(__name__)
 BatchObjective = Callable[[np.ndarray], np.ndarray]
 
 #: Local-search methods of ``scipy.optimize.minimize`` that accept box bounds.
-POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP")
+POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP", "gradient")
 
 
 @contextlib.contextmanager
@@ -84,9 +84,11 @@ class CommonSettings:
         Hard cap on objective evaluations of one start (``None``: only the optimizer's own
         iteration limit and stall rule). Every job records ``n_evals ≤ max_evals``.
     polish : str
-        Bounded local search from the optimizer's best, inside the same budget: ``none`` or
+        Bounded local search from the optimizer's best, inside the same budget: ``none``,
         a ``scipy.optimize.minimize`` method (``L-BFGS-B``, ``Nelder-Mead``, ``Powell``,
-        ``TNC``, ``SLSQP``).
+        ``TNC``, ``SLSQP``; gradients by forward differences) or ``gradient`` (L-BFGS-B
+        with the problem's exact gradient, each gradient charged as evaluations like
+        ``optimizer=lbfgs``).
     polish_share : float
         Share of ``max_evals`` kept for the polish (the search stops earlier to leave it).
         Without ``max_evals`` the polish runs until the local method's own tolerance.
@@ -187,6 +189,7 @@ class CountingObjective:
         self.transformed = False  # objective values differ from the costs
         self.best_value = float("inf")
         self.value_costs: dict[float, float] = {}  # each new best value → its cost
+        self.charged = 0.0  # evaluation-equivalents charged for gradients, not yet counted
 
     @property
     def remaining(self) -> float:
@@ -247,6 +250,23 @@ class CountingObjective:
         if cut:
             raise BudgetExhaustedError
         return value
+
+    def charge(self, evaluations: float) -> None:
+        """Count ``evaluations`` evaluation-equivalents (e.g. the CPU of an exact gradient
+        in evaluations; fractions carry over to the next charge).
+
+        Raises
+        ------
+        BudgetExhaustedError
+            When the charge does not fit in the budget left (nothing is charged: the work
+            it pays for must not be done).
+        """
+        if self.limit is not None and self.n_evals + self.charged + evaluations > self.limit:
+            raise BudgetExhaustedError
+        self.charged += float(evaluations)
+        whole = int(self.charged)
+        self.n_evals += whole
+        self.charged -= whole
 
     def scalar(self, z: np.ndarray) -> float:
         """Value of one decision vector as the optimizer sees it (for scipy local

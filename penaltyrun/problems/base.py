@@ -23,6 +23,11 @@ A problem module (``penaltyrun/problems/<name>.py``) exposes
   solution). A law with no linearization at the target (e.g. a low-thrust steering law)
   leaves the hook out. The runner stores its eigenvalue diagnostics with each job
   (:mod:`penaltyrun.problems.diagnostics`) and the report shows them.
+* optionally, on the problem object, ``gradient(mats, scalars) -> CostGradient``: the exact
+  gradient of one candidate's cost with respect to its matrices and scalars
+  (:class:`GradientProblem`); a point where it does not exist (a status change, a kink, a
+  simulated cost) returns the reason instead of a number. Optimizers that need gradients
+  check it with :func:`gradient_support`.
 * optionally, in the dict ``simulate`` returns, besides ``t`` and the time histories:
   ``channels`` ({history key: [one name per column]}) and ``limits`` ({history key:
   (lower, upper)}, scalars or one value per column, ``±inf`` for none), so the report
@@ -143,6 +148,62 @@ class Problem(Protocol):
         """Time histories of one candidate for plots (``t`` plus named arrays; optionally
         ``channels`` and ``limits``, see the module docstring)."""
         ...
+
+
+@dataclass(frozen=True)
+class CostGradient:
+    """The gradient of one candidate's cost with respect to its tuned matrices and scalars
+    (``gradient`` hook), or the reason it does not exist there.
+
+    Attributes
+    ----------
+    cost : float
+        The candidate's cost (as ``evaluate_batch`` returns it).
+    status : str
+        The candidate's status.
+    matrices : mapping name → ndarray (N, N), or None
+        d cost / d matrix as a symmetric matrix G: for every symmetric perturbation dM,
+        d cost = Σ_ij G_ij dM_ij (cost unit per matrix unit). None when the gradient does
+        not exist.
+    scalars : mapping name → float
+        d cost / d scalar (empty for a problem without scalars).
+    reason : str
+        Why there is no gradient (a status other than a smooth one, a simulated cost, a
+        kink); empty when it exists.
+    """
+
+    cost: float
+    status: str
+    matrices: Mapping[str, np.ndarray] | None = None
+    scalars: Mapping[str, float] = field(default_factory=dict)
+    reason: str = ""
+
+    @property
+    def exists(self) -> bool:
+        """Whether the cost is differentiable at this candidate (``matrices`` given)."""
+        return self.matrices is not None
+
+
+@runtime_checkable
+class GradientProblem(Protocol):
+    """Optional capability of a problem (built-in or user): the exact gradient of one
+    candidate's cost. Optimizers that use gradients (``optimizer=lbfgs``,
+    ``optimizer.polish=gradient``) and ``mode=evaluate +gradient=true`` need it."""
+
+    def gradient(
+        self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None
+    ) -> CostGradient:
+        """The cost of one candidate and its gradient (:class:`CostGradient`); a point where
+        the gradient does not exist gives ``matrices=None`` and a ``reason``."""
+        ...
+
+
+def gradient_support(problem: Any) -> str:
+    """Empty when ``problem`` has the ``gradient`` hook, else the one-line reason."""
+    if callable(getattr(problem, "gradient", None)):
+        return ""
+    return (f"problem {getattr(problem, 'name', type(problem).__name__)!r} has no gradient "
+            "(its object defines no gradient(mats, scalars) method)")
 
 
 @dataclass(frozen=True)
@@ -367,6 +428,8 @@ __all__ = [
     "CUTOFF_STATUS",
     "BatchEvaluation",
     "ClosedLoop",
+    "CostGradient",
+    "GradientProblem",
     "MatrixSpec",
     "ParamsMixin",
     "PaperValues",
@@ -376,5 +439,6 @@ __all__ = [
     "ScalarSpec",
     "accepts_thresholds",
     "check_spd",
+    "gradient_support",
     "status_names",
 ]

@@ -28,7 +28,12 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.base import BatchEvaluation, accepts_thresholds
+from penaltyrun.problems.base import (
+    BatchEvaluation,
+    CostGradient,
+    accepts_thresholds,
+    gradient_support,
+)
 from penaltyrun.typed import is_int
 
 AGGREGATES = ("mean", "max")
@@ -102,7 +107,39 @@ class MultiScenarioProblem:
         # problem's.
         if name == "base":
             raise AttributeError(name)
+        if name == "gradient":  # the aggregate's, never the base scenario's alone
+            if all(not gradient_support(p) for p in self.scenarios):
+                return self._gradient
+            raise AttributeError(name)
         return getattr(self.base, name)
+
+    def _gradient(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                  ) -> CostGradient:
+        """Gradient of the aggregate (the ``gradient`` hook when every training scenario
+        has one): the mean of the scenarios' gradients, or for ``max`` the gradient of the
+        one scenario whose cost is the largest (none where two tie: a kink)."""
+        parts = [p.gradient(mats, scalars) for p in self.scenarios]
+        costs = np.asarray([g.cost for g in parts], dtype=float)
+        cost = float(_aggregate(costs[:, None], self.aggregate)[0])
+        failed = [g for g in parts if not g.exists]
+        status = next((g.status for g in parts if g.status != "converged"), "converged")
+        if failed:
+            return CostGradient(cost, status, None, {}, f"training scenario: {failed[0].reason}")
+        if self.aggregate == "mean":
+            weights = np.full(len(parts), 1.0 / len(parts))
+        else:
+            order = np.argsort(costs)
+            if len(costs) > 1 and costs[order[-1]] - costs[order[-2]] <= \
+                    1e-9 * max(1.0, abs(costs[order[-1]])):
+                return CostGradient(cost, status, None, {}, "the largest training scenario "
+                                    "costs tie (the max has a kink there)")
+            weights = np.zeros(len(parts))
+            weights[order[-1]] = 1.0
+        mats_out = {k: sum(w * np.asarray(g.matrices[k]) for w, g in zip(weights, parts))
+                    for k in parts[0].matrices}
+        sc_out = {k: float(sum(w * g.scalars[k] for w, g in zip(weights, parts)))
+                  for k in (parts[0].scalars or {})}
+        return CostGradient(cost, status, mats_out, sc_out, "")
 
     def evaluate_batch(self, mats: Mapping[str, np.ndarray],
                        scalars: Mapping[str, np.ndarray] | None = None,

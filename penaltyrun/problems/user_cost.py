@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.base import BatchEvaluation, MatrixSpec, ScalarSpec
+from penaltyrun.problems.base import BatchEvaluation, CostGradient, MatrixSpec, ScalarSpec
 from penaltyrun.typed import is_int
 
 #: Cost given to a candidate whose cost raised or was not finite (finite, so that every
@@ -145,10 +145,56 @@ class CostProblem:
         return {}
 
 
+class GradientCostProblem(CostProblem):
+    """A :class:`CostProblem` with the user's exact gradient (the ``gradient`` hook).
+
+    Parameters
+    ----------
+    cost, matrices, scalars, batched, name
+        As :class:`CostProblem`.
+    grad : callable
+        ``grad(**mats, **scalars)`` of one candidate (never batched): {matrix name: d cost /
+        d entry, shape (n, n)} plus {scalar name: d cost / d scalar}.
+    """
+
+    def __init__(self, cost: Callable[..., Any], matrices: tuple[MatrixSpec, ...],
+                 scalars: tuple[ScalarSpec, ...], batched: bool, name: str,
+                 grad: Callable[..., Any]) -> None:
+        super().__init__(cost, matrices, scalars, batched, name)
+        self.grad = grad
+
+    def gradient(self, mats: Mapping[str, np.ndarray],
+                 scalars: Mapping[str, float] | None = None) -> CostGradient:
+        """The candidate's cost and the user's gradient; a failed candidate, or a gradient
+        that raises or is malformed, gives the reason instead."""
+        ev = self.evaluate(mats, scalars)
+        cost, status = float(ev["cost"]), str(ev["status"])
+        if status != "converged":
+            return CostGradient(cost, status, None, {}, f"status {status}: no gradient")
+        one = {k: np.asarray(v, float) for k, v in mats.items()}
+        sc = {k: float(v) for k, v in (scalars or {}).items()}
+        try:
+            out = self.grad(**one, **sc)
+            by_matrix = {}
+            for spec in self.matrices:
+                G = np.asarray(out[spec.name], dtype=float)
+                if G.shape != (spec.size, spec.size) or not np.all(np.isfinite(G)):
+                    return CostGradient(cost, status, None, {}, f"the gradient of "
+                                        f"{spec.name} is not a finite {spec.size}x{spec.size} "
+                                        "array")
+                by_matrix[spec.name] = 0.5 * (G + G.T)
+            by_scalar = {spec.name: float(out[spec.name]) for spec in self.scalars}
+        except Exception as exc:  # a failing gradient is a reason, never a crash
+            return CostGradient(cost, status, None, {},
+                                f"the gradient raised {type(exc).__name__}: {exc}")
+        return CostGradient(cost, status, by_matrix, by_scalar, "")
+
+
 def from_cost(cost: Callable[..., Any],
               matrices: Mapping[str, tuple[int, tuple[float, float]]], *,
               scalars: Mapping[str, tuple[float, float]] | None = None,
-              batched: bool = False, name: str = "user") -> CostProblem:
+              batched: bool = False, name: str = "user",
+              gradient: Callable[..., Any] | None = None) -> CostProblem:
     """A problem that tunes the matrices of your own cost function.
 
     Parameters
@@ -168,6 +214,11 @@ def from_cost(cost: Callable[..., Any],
         Whether ``cost`` evaluates a whole batch at once (faster for vectorized costs).
     name : str
         Problem name in records and reports.
+    gradient : callable, optional
+        The exact gradient of one candidate: ``gradient(**mats, **scalars)`` (single
+        candidate, also for a batched cost) returns {matrix name: ∂cost/∂K_ij, shape
+        (n, n)} and {scalar name: ∂cost/∂scalar}. Enables ``optimizer=lbfgs``,
+        ``polish=gradient`` and ``evaluate(..., gradient=True)``.
 
     Returns
     -------
@@ -207,6 +258,10 @@ def from_cost(cost: Callable[..., Any],
     clash = {m.name for m in specs} & {s.name for s in scalar_specs}
     if clash:
         raise ConfigError(f"scalars.{sorted(clash)[0]}", "is also a matrix name")
+    if gradient is not None:
+        if not callable(gradient):
+            raise ConfigError("gradient", f"must be callable, got {type(gradient).__name__}")
+        return GradientCostProblem(cost, tuple(specs), scalar_specs, batched, name, gradient)
     return CostProblem(cost, tuple(specs), scalar_specs, batched, name)
 
 
@@ -231,4 +286,5 @@ def as_module(problem: Any) -> types.ModuleType:
     return mod
 
 
-__all__ = ["CASE", "FAILURE_COST", "STATUSES", "CostProblem", "as_module", "from_cost"]
+__all__ = ["CASE", "FAILURE_COST", "STATUSES", "CostProblem", "GradientCostProblem",
+           "as_module", "from_cost"]

@@ -8,8 +8,13 @@ the same problem (equal ``problem_variant``); the baseline (K = I) is not a sear
 not enter. Evidence for a best-known value (:data:`LEVELS`): *certified* when the grid
 optimizer (exhaustive grid + local search) reached it within :data:`CERTIFY_RTOL` relative;
 *agreement (k optimizers; reached by m of n starts)* when k ≥ 2 different optimizers did;
-otherwise *single optimizer (reached by m of n starts)*: m of the cell's n starts (every
-optimizer, converged or not) came within the tolerance.
+otherwise *first-order certified local optimum* when the best start's projected gradient
+(``grad_norm`` of its record: the problem's exact gradient, a problem with a gradient only)
+is at most :data:`FIRST_ORDER_RTOL` × max(1, |cost|), else *single optimizer (reached by m
+of n starts)*: m of the cell's n starts (every optimizer, converged or not) came within the
+tolerance. A first-order certificate says the value is a stationary point of the box (a
+local optimum for a convex neighbourhood), not that it is the global one; beside the
+*certified* and *agreement* levels the evidence text names it too.
 """
 
 from __future__ import annotations
@@ -26,7 +31,10 @@ from penaltyrun.report.stats import converged
 CERTIFY_RTOL = 1e-4
 KEY = ["problem", "case", "problem_variant"]
 #: Evidence levels, strongest first.
-LEVELS = ("certified", "agreement", "single optimizer")
+LEVELS = ("certified", "agreement", "first-order certified local optimum", "single optimizer")
+#: Projected-gradient norm, relative to max(1, |cost|), below which the best start is a
+#: first-order certified local optimum (the cost unit per unit of the decision variables).
+FIRST_ORDER_RTOL = 1e-6
 #: Optimizer whose best is exhaustive (grid + local search).
 EXHAUSTIVE = "grid"
 FAMILIES = ("diagonal", "full")
@@ -72,7 +80,8 @@ def best_known(df: pd.DataFrame) -> pd.DataFrame:
         per_opt = g.groupby("optimizer")["best_cost"].min().astype(float)
         agree = [o for o, v in per_opt.items() if within(v, ref)]
         n_at = int(sum(within(float(v), ref) for v in g["best_cost"].astype(float)))
-        level, evidence = _evidence(agree, n_at, int(n_starts.loc[key]))
+        level, evidence = _evidence(agree, n_at, int(n_starts.loc[key]),
+                                    first_order(top.get("grad_norm"), ref))
         certified = level == "certified"
         rows.append({
             **dict(zip(KEY + ["family"], key)), "best_known": ref,
@@ -87,14 +96,30 @@ def best_known(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _evidence(agree: list[str], n_at: int, n_starts: int) -> tuple[str, str]:
+def first_order(grad_norm: object, cost: float) -> bool:
+    """Whether a start's projected-gradient norm certifies a first-order stationary point
+    (≤ :data:`FIRST_ORDER_RTOL` × max(1, |cost|); missing or NaN: no)."""
+    try:
+        norm = float(grad_norm)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+    return bool(np.isfinite(norm) and norm <= FIRST_ORDER_RTOL * max(1.0, abs(cost)))
+
+
+def _evidence(agree: list[str], n_at: int, n_starts: int, stationary: bool = False
+              ) -> tuple[str, str]:
     """(level, text) of a best-known value reached by the optimizers ``agree`` (``n_at`` of
-    the cell's ``n_starts`` starts, every optimizer, within :data:`CERTIFY_RTOL`)."""
+    the cell's ``n_starts`` starts, every optimizer, within :data:`CERTIFY_RTOL`);
+    ``stationary``: the best start is a first-order certified local optimum."""
+    also = "; first-order certified" if stationary else ""
     if EXHAUSTIVE in agree:
-        return "certified", "certified (grid + local search)"
+        return "certified", f"certified (grid + local search{also})"
     reached = f"reached by {n_at} of {n_starts} starts"
     if len(agree) >= 2:
-        return "agreement", f"agreement ({len(agree)} optimizers; {reached})"
+        return "agreement", f"agreement ({len(agree)} optimizers; {reached}{also})"
+    if stationary:
+        return (LEVELS[2], f"first-order certified local optimum ({agree[0]}; projected "
+                           f"gradient ≤ {FIRST_ORDER_RTOL:g}·max(1, |cost|); {reached})")
     return "single optimizer", f"single optimizer ({agree[0]}; {reached})"
 
 

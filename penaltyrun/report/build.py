@@ -30,7 +30,7 @@ from penaltyrun.report import (
     tuning,
 )
 from penaltyrun.report.anytime import target_table
-from penaltyrun.report.bestknown import CERTIFY_RTOL, best_known, shortfall
+from penaltyrun.report.bestknown import CERTIFY_RTOL, FIRST_ORDER_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
 from penaltyrun.report.stats import BCA_MAX_N, MIN_N_TEST, add_variant, cell_summary
 from penaltyrun.report.tables import (
@@ -109,7 +109,9 @@ def methods() -> str:
         "Student's t interval of the mean; none for n < 3 or a constant sample. "
         "Best-known evidence: *certified* = reached by the grid "
         f"optimizer (grid + local search) within {CERTIFY_RTOL:g} relative; *agreement* = "
-        f"k ≥ 2 different optimizers within {CERTIFY_RTOL:g}; else *single optimizer*. "
+        f"k ≥ 2 different optimizers within {CERTIFY_RTOL:g}; *first-order certified local "
+        f"optimum* = the best start's projected exact gradient ≤ {FIRST_ORDER_RTOL:g}·max(1, "
+        "|cost|) (problems with a gradient); else *single optimizer*. "
         "Equal budget: equal `max_evals` and mean evaluations spent within "
         f"{100 * SPENT_RTOL:g} %; otherwise \"{NO_TEST}\". Tests: two-sided Mann–Whitney U "
         "between two maps of one optimizer and budget; Vargha–Delaney A12 = P(a start of "

@@ -219,7 +219,7 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         parts.append("no equal-budget test (" + (
             "budgets differ" if not any(r["equal_budget"] for r in budgets)
             else "too few converged starts") + ")")
-    if d["level"] == "single optimizer":
+    if d["level"] in ("single optimizer", "first-order certified local optimum"):
         parts.append("the diagonal value rests on a single optimizer: run `optimizer=grid` "
                      "or a second optimizer before calling the gain a property of the map")
     if disc is not None and disc["verdict"] == "within discretization noise":

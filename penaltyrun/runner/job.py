@@ -7,14 +7,16 @@ import time
 import traceback
 from dataclasses import replace
 from datetime import datetime, timezone
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from penaltyrun import optim
 from penaltyrun.jobrecord import DIVERGED, FAILED, OK
+from penaltyrun.optim.gradient import first_order, z_gradient
 from penaltyrun.problems import diagnostics
-from penaltyrun.problems.base import CUTOFF_STATUS
+from penaltyrun.problems.base import CUTOFF_STATUS, gradient_support
 from penaltyrun.runner import interrupts
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.setup import build, build_layout
@@ -162,6 +164,25 @@ def _objective(evaluation: Any, job: Job, prob: Any, layout: Any, param: str,
                      accepts_thresholds=bool(getattr(func, "accepts_thresholds", False)))
 
 
+def _gradient(prob: Any, layout: Any) -> Any:
+    """z → d cost / d z of ``prob`` over ``layout`` for the gradient optimizers; None when
+    the problem has no gradient hook."""
+    if gradient_support(prob):
+        return None
+    return partial(z_gradient, prob, layout)
+
+
+def _first_order(prob: Any, layout: Any, z: np.ndarray) -> dict[str, Any]:
+    """The record's first-order columns of the best z (:func:`first_order`); a gradient
+    that raises is noted, never fails the job."""
+    try:
+        return first_order(prob, layout, z)
+    except Exception as exc:  # noqa: BLE001 — a diagnostic: the job's result stands
+        logger.warning("gradient at the best candidate failed: %s", exc)
+        return {"grad_norm": float("nan"), "active_bounds": [],
+                "gradient_note": f"gradient failed: {exc}"}
+
+
 def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: Any
                   ) -> tuple[optim.OptimResult, dict[str, Any]]:
     """Diagonal stage, then the full search seeded with the best diagonal matrix.
@@ -186,7 +207,7 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
     diag_settings = replace(settings, max_evals=diag_budget)
     diag = optim.minimize(job.optimizer, _objective(evaluation, job, prob, diag_layout,
                                                     "diagonal", diag_settings), dlb, dub,
-                          diag_settings, job.seed)
+                          diag_settings, job.seed, gradient=_gradient(prob, diag_layout))
     mats, scalars = diag_layout.split(diag.best_z[None, :])
     diag_mats = {k: v[0] for k, v in mats.items()}
     diag_scalars = {k: float(v[0]) for k, v in scalars.items()}
@@ -195,7 +216,7 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
     full_settings = replace(settings, max_evals=max(1, budget - diag.n_evals))
     full = optim.minimize(job.optimizer, _objective(evaluation, job, prob, layout, job.param,
                                                     full_settings),
-                          lb, ub, full_settings, job.seed, x0)
+                          lb, ub, full_settings, job.seed, x0, _gradient(prob, layout))
     trace_evals = list(diag.trace_evals) + [diag.n_evals + n for n in full.trace_evals]
     trace_best = np.minimum.accumulate(list(diag.trace_best) + list(full.trace_best))
     result = optim.OptimResult(
@@ -256,7 +277,8 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
         else:
             result = optim.minimize(job.optimizer,
                                     _objective(evaluation, job, prob, layout, job.param,
-                                               settings), lb, ub, settings, job.seed, x0)
+                                               settings), lb, ub, settings, job.seed, x0,
+                                    _gradient(prob, layout))
         mats, scalars = layout.split(result.best_z[None, :])
         best_mats = {k: v[0] for k, v in mats.items()}
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}
@@ -286,6 +308,7 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
             "max_evals": getattr(settings, "max_evals", None),
         })
         record.update(_jsonable(diagnostics.record_columns(prob, best_mats, best_scalars)))
+        record.update(_jsonable(_first_order(prob, layout, result.best_z)))
     except Exception as exc:  # a failing job is recorded, never crashes the run
         text = describe_job_error(exc)
         logger.error("job %s failed: %s", job.job_id, text)

@@ -102,3 +102,23 @@ def test_shortfall_is_the_gap_to_the_family_best_known():
     assert not pso["reached_best_known"]
     assert gaps.loc[("grid", "diagonal"), "gap_best_pct"] == 0.0
     assert gaps.loc[("pso", "geagsp"), "best_known"] == 3.0  # the full family's value
+
+
+@pytest.mark.parametrize(("grad_norm", "level", "words"), [
+    (1e-9, "first-order certified local optimum", "first-order certified local optimum (lbfgs"),
+    (1e-3, "single optimizer", "single optimizer (lbfgs"),
+    (float("nan"), "single optimizer", "single optimizer (lbfgs"),
+    (None, "single optimizer", "single optimizer (lbfgs"),
+])
+def test_first_order_certificate_from_the_projected_gradient(grad_norm, level, words):
+    rows = [{**job("givens", "lbfgs", 2.0), "grad_norm": grad_norm},
+            {**job("givens", "cmaes", 2.5), "grad_norm": 1e-12}]  # not the best: no say
+    f = bk_row(best_known(pd.DataFrame(rows)), "full")
+    assert f["level"] == level and f["evidence"].startswith(words)
+
+
+def test_agreement_notes_a_first_order_certificate():
+    rows = [{**job("givens", "lbfgs", 2.0), "grad_norm": 1e-10},
+            {**job("givens", "cmaes", 2.00001), "grad_norm": None}]
+    f = bk_row(best_known(pd.DataFrame(rows)), "full")
+    assert f["level"] == "agreement" and "first-order certified" in f["evidence"]

@@ -56,6 +56,7 @@ from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
+    CostGradient,
     MatrixSpec,
     ScalarSpec,
     check_spd,
@@ -65,6 +66,7 @@ from penaltyrun.problems.lqr import constraints as cons
 from penaltyrun.problems.lqr import criteria as lqr_criteria
 from penaltyrun.problems.lqr import discrete
 from penaltyrun.problems.lqr import params as pm
+from penaltyrun.problems.lqr.gradient import lqr_gradient
 from penaltyrun.problems.lqr.plant import Plant
 from penaltyrun.problems.lqr.riccati import dlqr_gains, lqr_gains
 
@@ -341,6 +343,13 @@ class LQRProblem:
             "dt": self.dt, "state_penalty": self.state_penalty(Q[None])[0].tolist(),
             **self.limits.report(res),
         }
+
+    def gradient(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                 ) -> CostGradient:
+        """Cost of one (Q̃, R) and its exact gradient d cost / d (Q̃, R)
+        (:mod:`~penaltyrun.problems.lqr.gradient`), or the reason there is none."""
+        Q, R = self._check(mats)
+        return lqr_gradient(self, Q, R)
 
     def simulate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None,
                  n_points: int = 400) -> dict[str, np.ndarray]:

@@ -46,3 +46,18 @@ def test_a_run_with_report_writes_it(tmp_path):
                         "runner.report=true", f"hydra.run.dir={tmp_path / 'run'}"], tmp_path)
     assert "penaltyrun.report" in loaded
     assert (tmp_path / "run" / "report").is_dir()
+
+
+def test_a_refused_value_is_answered_before_numba_and_hydra(tmp_path):
+    loaded, err = _run(["problem=zermelo", "runner.n_starts=0"], tmp_path)
+    assert "penaltyrun: error: runner.n_starts: must be a positive integer, got 0" in err
+    assert "exit 2" in err
+    assert not {"numba", "hydra"} & set(loaded)
+    assert list(tmp_path.iterdir()) == []  # no run directory
+
+
+def test_a_refused_choice_still_names_the_allowed_ones(tmp_path):
+    """What the quick check leaves alone is answered by the preflight as before."""
+    loaded, err = _run(["param=bogus", "runner.n_starts=2"], tmp_path)
+    assert "penaltyrun: error: param: unknown choice 'bogus' (allowed:" in err
+    assert "exit 2" in err and "numba" not in loaded

@@ -1,0 +1,88 @@
+"""The value checks that need no config: answered before Hydra (or numba) is imported.
+
+A ``runner.*`` option or ``mode`` given on the command line as a plain value
+(``runner.n_starts=0``, ``runner.seed=-1``, ``mode=optimise``) is checked here first, by
+the same checks the preflight applies to the composed config
+(:func:`penaltyrun.runner.options.check_value`), so a refused value costs the check, not
+the import of Hydra and of the problems' compiled kernels. Only refusals are answered here:
+a value that passes, and any override whose value is not a plain literal (a sweep, a quoted
+string, an interpolation, ``+``/``~`` prefixes), goes through the full preflight as before.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from penaltyrun.errors import ConfigError
+from penaltyrun.overrides import split_argv
+
+#: Options after which the quick check still applies (other options, e.g. ``--cfg`` or a
+#: user config directory, leave everything to the preflight).
+PLAIN_OPTIONS = ("-m", "--multirun")
+#: A value as Hydra's override grammar reads it, for the literals handled here.
+_INT = re.compile(r"[+-]?(?:0|[1-9][0-9]*)")
+_FLOAT = re.compile(r"[+-]?(?:(?:(?:0|[1-9][0-9]*)\.[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+                    r"|(?:0|[1-9][0-9]*)[eE][+-]?[0-9]+)")
+_ID = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_SKIP = object()
+
+
+def literal(text: str) -> Any:
+    """The value of a plain override literal as Hydra reads it (int, float, bool, None or
+    an identifier string), or :data:`_SKIP` for anything else."""
+    lower = text.lower()
+    if lower in ("true", "false"):
+        return lower == "true"
+    if lower == "null":
+        return None
+    if _INT.fullmatch(text):
+        return int(text)
+    if _FLOAT.fullmatch(text):
+        return float(text)
+    if lower in ("inf", "nan") or not _ID.fullmatch(text):
+        return _SKIP
+    return text
+
+
+def check_plain_values(argv: list[str]) -> None:
+    """Refuse a plain ``runner.*`` or ``mode`` value that the preflight would refuse, with
+    the preflight's own message (see the module docstring).
+
+    Parameters
+    ----------
+    argv : list of str
+        The command line after the program name.
+
+    Raises
+    ------
+    ConfigError
+        The first refused value, naming its key.
+    """
+    options, overrides = split_argv(argv)
+    if any(opt not in PLAIN_OPTIONS for opt in options):
+        return
+    for arg in overrides:
+        key, eq, text = arg.partition("=")
+        value = literal(text) if eq else _SKIP
+        if value is _SKIP:
+            continue
+        if key == "mode":
+            from penaltyrun.checks import MODES
+
+            if value not in MODES:
+                raise ConfigError("mode", f"unknown mode {value!r}", allowed=MODES)
+        elif key.startswith("runner."):
+            _check_runner(key.removeprefix("runner."), value)
+
+
+def _check_runner(name: str, value: Any) -> None:
+    from penaltyrun.runner.options import RUNNER_OPTIONS, check_value
+    from penaltyrun.runner.plan import check_n_starts
+
+    if name not in RUNNER_OPTIONS:
+        return  # the preflight names the unknown key with the config's own list
+    kind, what = RUNNER_OPTIONS[name]
+    check_value(name, kind, value, what)
+    if name == "n_starts":
+        check_n_starts(value)

@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.dynamics import integrate
-from penaltyrun.dynamics.zermelo import drift, simulate_batch
+from penaltyrun.dynamics.zermelo import drift, simulate_batch, simulate_pairs
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import horizon
 from penaltyrun.problems.base import (
@@ -164,7 +164,8 @@ class Zermelo:
         return self._graded(*self._run(K, None, cutoff), float(np.hypot(*self.params.x0)))
 
     def _graded(self, t_end: np.ndarray, cost: np.ndarray, dist: np.ndarray,
-                status: np.ndarray, d0: float) -> BatchEvaluation:
+                status: np.ndarray, d0: float | np.ndarray) -> BatchEvaluation:
+        """Graded costs; ``d0``: the start's distance ‖x0‖ (one, or one per run)."""
         converged = status == integrate.EVENT
         with np.errstate(over="ignore", invalid="ignore"):
             penalty = cost + self.params.failure_penalty * (1.0 + dist / d0)
@@ -273,20 +274,18 @@ class Zermelo:
 
     def _holdout_runs(self, mats: Mapping[str, Any], sc: Mapping[str, np.ndarray]
                       ) -> dict[str, np.ndarray]:
-        """Per-scenario results of one K at this problem's ``t_max``."""
+        """Per-scenario results of one K at this problem's ``t_max``: every held-out start
+        in one kernel call (:func:`~penaltyrun.dynamics.zermelo.simulate_pairs`)."""
         K = check_spd("matrices.K", mats["K"], 2)
-        out: dict[str, list] = {k: [] for k in ("cost", "energy", "converged", "status",
-                                                "t_final", "final_distance")}
-        for x0 in sc["x0"]:
-            t_end, energy, dist, status = self._run(K[None], x0)
-            be = self._graded(t_end, energy, dist, status, float(np.hypot(*x0)))
-            for key, value in (("cost", be.cost[0]), ("energy", energy[0]),
-                               ("converged", be.converged[0]), ("status", be.status[0]),
-                               ("t_final", t_end[0]), ("final_distance", dist[0])):
-                out[key].append(value)
-        res = {k: np.asarray(v) for k, v in out.items()}
-        res["status"] = np.asarray(out["status"], dtype=object)
-        return res
+        X0 = np.ascontiguousarray(sc["x0"], dtype=float).reshape(-1, 2)
+        p = self.params
+        t_end, energy, dist, status = simulate_pairs(
+            np.ascontiguousarray(np.broadcast_to(K, (X0.shape[0], 2, 2))), X0,
+            float(p.t_max), float(p.event_radius), float(p.rtol), float(p.atol),
+            float(p.max_step), int(p.max_steps))
+        be = self._graded(t_end, energy, dist, status, np.hypot(X0[:, 0], X0[:, 1]))
+        return {"cost": be.cost, "energy": energy, "converged": be.converged,
+                "status": be.status, "t_final": t_end, "final_distance": dist}
 
     def simulate(
         self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None,

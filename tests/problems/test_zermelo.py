@@ -119,3 +119,39 @@ def test_holdout_leaves_out_the_training_start():
 def test_bad_holdout_settings(key, value):
     with pytest.raises(ConfigError, match=key):
         make_problem("default", {key: value})
+
+
+def _holdout_one_call_per_start(prob, K, sc):
+    """The held-out runs as they were computed before: one kernel call per start."""
+    out = {k: [] for k in ("cost", "energy", "converged", "status", "t_final",
+                           "final_distance")}
+    for x0 in sc["x0"]:
+        t_end, energy, dist, status = prob._run(K[None], x0)
+        be = prob._graded(t_end, energy, dist, status, float(np.hypot(*x0)))
+        for key, value in (("cost", be.cost[0]), ("energy", energy[0]),
+                           ("converged", be.converged[0]), ("status", be.status[0]),
+                           ("t_final", t_end[0]), ("final_distance", dist[0])):
+            out[key].append(value)
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_batched_holdout_is_the_per_start_holdout(seed):
+    """All held-out starts in one kernel call give, bit for bit, the runs of one call per
+    start, failures (a gain too weak to arrive, one that stalls) included."""
+    rng = np.random.default_rng(seed)
+    prob = make_problem("default", {"t_max": 30.0, "max_steps": 400})
+    sc = prob.holdout_scenarios()
+    gains = [PAPER_K_FULL, np.diag([1e-3, 1e-3]), np.diag([50.0, 0.02])]
+    L = rng.normal(size=(2, 2))
+    gains.append(L @ L.T + 0.05 * np.eye(2))
+    seen = set()
+    for K in gains:
+        K = np.asarray(K, dtype=float)
+        batched = prob._holdout_runs({"K": K}, sc)
+        old = _holdout_one_call_per_start(prob, K, sc)
+        for key, values in old.items():
+            assert batched[key].tolist() == list(values), key
+        assert batched["status"].dtype == object
+        seen |= set(batched["status"])
+    assert {"converged", "horizon"} <= seen

@@ -1,0 +1,90 @@
+"""The compiled Riccati candidate loop of small plants (riccati.hamiltonian_compiled,
+dynamics/small_linear.py) against the batched numpy path it replaces there: the same
+statuses and gains to 1e-12, failures included."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from penaltyrun.problems.lqr import riccati
+
+
+def _spd(rng, count, size, floor=1e-3):
+    L = rng.normal(size=(count, size, size))
+    return L @ np.swapaxes(L, 1, 2) / size + floor * np.eye(size)
+
+
+def _both(A, B, Q, R, monkeypatch):
+    monkeypatch.setattr(riccati, "COMPILED_MAX_STATES", 8)
+    compiled = riccati.lqr_gains(A, B, Q, R)
+    monkeypatch.setattr(riccati, "COMPILED_MAX_STATES", 0)
+    batched = riccati.lqr_gains(A, B, Q, R)
+    return compiled, batched
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 6, 8])
+def test_gains_match_the_batched_path(n, monkeypatch):
+    rng = np.random.default_rng(10 + n)
+    for m in (1, 2, 3):
+        A = rng.normal(size=(n, n)) / np.sqrt(n)
+        B = rng.normal(size=(n, m))
+        Q, R = _spd(rng, 16, n), _spd(rng, 16, m, 0.1)
+        (K1, ok1, f1), (K0, ok0, f0) = _both(A, B, Q, R, monkeypatch)
+        assert np.array_equal(ok1, ok0) and ok1.all()
+        assert np.max(np.abs(K1 - K0)) <= 1e-12 * max(1.0, np.max(np.abs(K0)))
+        assert np.array_equal(f1, f0)
+
+
+def test_same_direct_solutions_and_failures(monkeypatch):
+    """P and verdict of the Hamiltonian step itself agree; candidates without a
+    stabilizing solution (an undamped mode left unpenalized: eigenvalues of H on the
+    imaginary axis), an unstabilizable plant and a non-finite candidate fail in both."""
+    rng = np.random.default_rng(3)
+    A = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    B = np.array([[0.0], [1.0], [1.0]])
+    Q, R = _spd(rng, 6, 3), _spd(rng, 6, 1, 0.1)
+    Q[1] = 0.0
+    Q[2] = np.diag([0.0, 0.0, 1.0])
+    S = B @ np.linalg.inv(R) @ B.T
+    P1, res1, ok1 = riccati.hamiltonian_compiled(A, S, Q)
+    P0, res0, ok0 = riccati.hamiltonian_solutions(A, S, Q)
+    assert ok1.tolist() == ok0.tolist() == [True, False, False, True, True, True]
+    assert np.array_equal(np.isfinite(res1), np.isfinite(res0))
+    np.testing.assert_allclose(P1, P0, rtol=0, atol=1e-12 * np.max(np.abs(P0)))
+    (K1, okK1, f1), (K0, okK0, f0) = _both(A, B, Q, R, monkeypatch)
+    assert np.array_equal(okK1, okK0)
+    np.testing.assert_allclose(K1, K0, rtol=0, atol=1e-12 * np.max(np.abs(K0)))
+    np.testing.assert_allclose(f1, f0, rtol=1e-6, atol=1e-12)
+    A_bad = np.diag([1.0, 2.0])  # the unstable mode 2 is not reachable: unstabilizable
+    B_bad = np.array([[1.0], [0.0]])
+    (_, okb1, _), (_, okb0, _) = _both(A_bad, B_bad, _spd(rng, 4, 2), _spd(rng, 4, 1),
+                                       monkeypatch)
+    assert not okb1.any() and not okb0.any()
+    Q_nan = _spd(rng, 3, 3)
+    Q_nan[2, 0, 0] = np.nan
+    P1, res1, ok1 = riccati.hamiltonian_compiled(A, np.broadcast_to(B @ B.T, (3, 3, 3)),
+                                                 Q_nan)
+    assert ok1.tolist() == [True, True, False] and res1[2] == np.inf
+
+
+def test_problem_costs_and_statuses_unchanged(monkeypatch):
+    """problem=lqr evaluate_batch through the compiled loop and through the numpy batch."""
+    from penaltyrun import problems
+
+    rng = np.random.default_rng(5)
+    n, m = 4, 2
+    A, B = rng.normal(size=(n, n)) / 2.0, rng.normal(size=(n, m))
+    prob = problems.make("lqr", None, {"A": A.tolist(), "B": B.tolist(),
+                                       "x0": rng.normal(size=(3, n)).tolist(),
+                                       "t_max": 10.0, "settle_tol": 1e-2})
+    Q, R = _spd(rng, 12, n), _spd(rng, 12, m, 0.1)
+    Q[3] *= 1e-9  # weak penalties: slow loops that do not settle
+    R[4] *= 1e6
+    monkeypatch.setattr(riccati, "COMPILED_MAX_STATES", 8)
+    new = prob.evaluate_batch({"Q": Q, "R": R})
+    monkeypatch.setattr(riccati, "COMPILED_MAX_STATES", 0)
+    old = prob.evaluate_batch({"Q": Q, "R": R})
+    assert new.status.tolist() == old.status.tolist()
+    assert len(set(old.status)) > 1
+    np.testing.assert_allclose(new.cost, old.cost, rtol=1e-12, atol=0)

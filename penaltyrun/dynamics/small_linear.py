@@ -2,11 +2,15 @@
 
 For plants of a few states a batch of LQR candidates costs tens of microseconds of LAPACK
 but several hundred of numpy calls on arrays of a few numbers, each paying Python's and
-numpy's per-call cost. :func:`care_hamiltonian` does the arithmetic of the batched
-Hamiltonian Riccati solve of :func:`penaltyrun.problems.lqr.riccati.hamiltonian_solutions`
-candidate by candidate in one compiled call, with the same LAPACK routines (``dgeev`` through
-:mod:`penaltyrun.dynamics.lapack`; LU inverse and SVD through numba), so the results agree
-with the numpy path to round-off (the tests compare them on random candidates).
+numpy's per-call cost. Each function here does the arithmetic of a batched numpy path
+candidate by candidate in one compiled call, with the same LAPACK routines (``dgeev``
+through :mod:`penaltyrun.dynamics.lapack`; LU and SVD through numba), so the results agree
+with the numpy path to round-off (the tests compare them on random candidates):
+
+* :func:`care_hamiltonian`: the Hamiltonian Riccati solve of
+  :func:`penaltyrun.problems.lqr.riccati.hamiltonian_solutions`;
+* :func:`quadratic_eig`: the eigendecomposition route of
+  :func:`penaltyrun.dynamics.linear.quadratic_cost`.
 """
 
 from __future__ import annotations
@@ -112,4 +116,77 @@ def care_hamiltonian(A, S, Q, cond_max, residual_tol, stability_margin):
     return P, res, ok
 
 
-__all__ = ["care_hamiltonian"]
+@njit(cache=True)
+def _expm1(z):
+    """expm1 of a complex number, by numpy's formula (the same bits as ``numpy.expm1``)."""
+    a = np.sin(z.imag / 2.0)
+    return complex(np.expm1(z.real) * np.cos(z.imag) - 2.0 * a * a,
+                   np.exp(z.real) * np.sin(z.imag))
+
+
+@njit(cache=True)
+def quadratic_eig(A_cl, W, X0, t_max, cond_max):
+    """Cost ∫₀ᵀ xᵀ W x dt and x(T) of ẋ = A_cl x by the eigendecomposition A_cl = V D V⁻¹:
+    x0ᵀ V⁻ᵀ [G_ij (e^{(λ_i+λ_j)T} − 1) / (λ_i + λ_j)] V⁻¹ x0 with G = Vᵀ W V.
+
+    Parameters
+    ----------
+    A_cl : ndarray, shape (B, n, n)
+        Closed-loop matrices (1/time unit).
+    W : ndarray, shape (B, n, n)
+        Symmetric weights.
+    X0 : ndarray, shape (B, k, n)
+        Initial states.
+    t_max : float
+        Horizon T (time unit of A_cl).
+    cond_max : float
+        Largest condition number of V accepted.
+
+    Returns
+    -------
+    cost : ndarray, shape (B, k)
+    x_final : ndarray, shape (B, k, n)
+    good : ndarray of bool, shape (B,)
+        The loops computed here (finite spectrum, V conditioned below ``cond_max``); the
+        others are left to the Lyapunov / ``expm`` route.
+    """
+    n_b, n = A_cl.shape[0], A_cl.shape[1]
+    n_k = X0.shape[1]
+    cost = np.zeros((n_b, n_k))
+    x_final = np.zeros((n_b, n_k, n))
+    good = np.zeros(n_b, dtype=np.bool_)
+    work = np.empty(geev_workspace(n, True))
+    factor = np.empty((n, n), dtype=np.complex128)
+    for b in range(n_b):
+        if not np.all(np.isfinite(A_cl[b])):
+            continue
+        lam, V, info = geev(A_cl[b], work, True)
+        if info != 0 or not np.all(np.isfinite(lam.real) & np.isfinite(lam.imag)):
+            continue
+        sv = np.linalg.svd(V)[1]
+        if not (sv[n - 1] > 0.0 and sv[0] / sv[n - 1] < cond_max):
+            continue
+        good[b] = True
+        Y = np.linalg.solve(V, np.ascontiguousarray(X0[b].T).astype(np.complex128))
+        G = np.ascontiguousarray(V.T) @ W[b].astype(np.complex128) @ V
+        for i in range(n):
+            for j in range(n):
+                st = (lam[i] + lam[j]) * t_max
+                factor[i, j] = t_max if abs(st) < 1e-12 else _expm1(st) / (lam[i] + lam[j])
+        Mt = G * factor
+        decay = np.exp(lam * t_max)
+        for q in range(n_k):
+            total = 0.0 + 0.0j
+            for i in range(n):
+                for j in range(n):
+                    total += Y[i, q] * Mt[i, j] * Y[j, q]
+            cost[b, q] = total.real
+            for i in range(n):
+                x = 0.0 + 0.0j
+                for j in range(n):
+                    x += V[i, j] * (decay[j] * Y[j, q])
+                x_final[b, q, i] = x.real
+    return cost, x_final, good
+
+
+__all__ = ["care_hamiltonian", "quadratic_eig"]

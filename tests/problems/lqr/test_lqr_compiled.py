@@ -88,3 +88,69 @@ def test_problem_costs_and_statuses_unchanged(monkeypatch):
     assert new.status.tolist() == old.status.tolist()
     assert len(set(old.status)) > 1
     np.testing.assert_allclose(new.cost, old.cost, rtol=1e-12, atol=0)
+
+
+# ---------------------------------------------------- grading of the runs (rows' tail)
+
+
+def _graded_before(prob, J, t_end, x_final, X0, codes, excess):
+    """The grading as it was computed before, every penalty on the whole batch."""
+    from penaltyrun.problems.lqr.problem import HARD_FACTOR
+
+    ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
+    tol = prob.params.settle_tol
+    if tol is not None:
+        codes[(codes == "converged") & ~(ratio <= tol)] = "not_settled"
+    codes[(codes == "converged") & (excess > 0)] = "constraint"
+    P = prob.penalty
+    with np.errstate(all="ignore"):
+        cost = np.where(codes == "not_settled", J + P * (1.0 + ratio / (1.0 + ratio)), J)
+        graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
+        cost = np.where(codes == "constraint", J + P * (1.0 + graded), cost)
+        late = (prob.t_max - t_end) / prob.t_max
+        cost = np.where(np.isin(codes, ("diverged", "step_failure")), J + P * (2.0 + late),
+                        cost)
+    finite_J = np.where(np.isfinite(J), J, 0.0)
+    return np.where(np.isfinite(cost) & (codes != "nonfinite"), cost,
+                    HARD_FACTOR * P + finite_J)
+
+
+def _aggregate_before(res):
+    from penaltyrun.problems.lqr.problem import STATUSES
+
+    rank = np.vectorize(STATUSES.index, otypes=[int])(res["status"])
+    worst = np.asarray([STATUSES[r] for r in rank.max(axis=1)], dtype=object)
+    return res["cost"].mean(axis=1), worst == "converged", worst
+
+
+@pytest.mark.parametrize("settle_tol", [None, 0.05])
+@pytest.mark.parametrize("simulated", [False, True])
+@pytest.mark.parametrize("seed", range(4))
+def test_grading_is_the_one_before(settle_tol, simulated, seed):
+    """Graded costs and statuses bit for bit as before, on runs of every status with
+    finite, infinite and NaN costs and violations."""
+    from penaltyrun import problems
+    from penaltyrun.problems.lqr.problem import STATUSES, LQRProblem
+
+    rng = np.random.default_rng(seed)
+    prob = problems.make("lqr", None, {"settle_tol": settle_tol, "t_max": 5.0})
+    n_c, n_k, n = 40, 3, prob.plant.n_states
+    X0 = rng.normal(size=(n_k, n))
+    J = rng.exponential(size=(n_c, n_k)) * 10.0 ** rng.integers(-3, 4, (n_c, n_k))
+    J[rng.random(J.shape) < 0.1] = np.inf
+    J[rng.random(J.shape) < 0.05] = np.nan
+    t_end = rng.uniform(0.0, prob.t_max, (n_c, n_k))
+    x_final = rng.normal(size=(n_c, n_k, n)) * 10.0 ** rng.integers(-4, 1, (n_c, n_k, 1))
+    excess = np.where(rng.random((n_c, n_k)) < 0.7, 0.0, rng.exponential(size=(n_c, n_k)))
+    excess[rng.random(excess.shape) < 0.05] = np.inf
+    pool = [s for s in STATUSES if s not in ("care_failure", "not_settled", "constraint")]
+    codes = np.asarray(rng.choice(pool if simulated else ["converged"], (n_c, n_k)),
+                       dtype=object)
+    codes_before = codes.copy()
+    cost = prob._graded(J, t_end, x_final, X0, codes, excess, simulated)
+    before = _graded_before(prob, J, t_end, x_final, X0, codes_before, excess)
+    assert codes.tolist() == codes_before.tolist()
+    np.testing.assert_array_equal(cost, before)
+    res = {"cost": cost, "status": codes}
+    for new, old in zip(LQRProblem._aggregate(res), _aggregate_before(res)):
+        assert new.tolist() == old.tolist()

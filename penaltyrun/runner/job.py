@@ -40,8 +40,8 @@ def _jsonable(value: Any) -> Any:
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
+    if isinstance(value, np.ndarray):  # a numeric array's tolist() is plain Python already
+        return _jsonable(value.tolist()) if value.dtype == object else value.tolist()
     if isinstance(value, np.generic):
         return value.item()
     return value  # non-finite floats stay floats (json writes Infinity / NaN and reads them)

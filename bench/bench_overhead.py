@@ -13,7 +13,8 @@ CPU time (``time.process_time``; a child's from ``os.wait4``), min and median:
    the problem modules imported); after: ``python -m penaltyrun.cli``.
 3. **problem=lqr evaluate_batch** per call at n = 2, 4, 8 states (2 inputs, 3 starts, 10
    candidates: a CMA-ES generation): before, the batched numpy Riccati solve and cost and the
-   grading on the whole batch (kept callable here); after, as shipped.
+   grading on the whole batch (kept callable here); after, as shipped. Beside them, the
+   batch's eigensolves alone (the arithmetic floor of an evaluation).
 4. **Zermelo held-out set** of one gain: one kernel call per start (before) against one call
    for all starts.
 
@@ -31,6 +32,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from datetime import date
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -250,6 +252,21 @@ def _lqr_pair(prob: Any, mats: dict[str, np.ndarray], repeats: int
     return before, after
 
 
+def _lapack_only(prob: Any, mats: dict[str, np.ndarray]) -> None:
+    """The eigensolves of one evaluation alone (Hamiltonian, closed-loop spectrum twice),
+    batched: the arithmetic an evaluation cannot avoid."""
+    A, B = prob.plant.A, prob.plant.B
+    n = A.shape[0]
+    Q = prob.state_penalty(mats["Q"])
+    S = B @ np.linalg.inv(mats["R"]) @ B.T
+    H = np.zeros((Q.shape[0], 2 * n, 2 * n))
+    H[:, :n, :n], H[:, :n, n:], H[:, n:, :n], H[:, n:, n:] = A, -S, -Q, -A.T
+    np.linalg.eig(H)
+    A_cl = A - S @ Q  # a batch of the same shape and kind as the closed loops
+    np.linalg.eigvals(A_cl)
+    np.linalg.eig(A_cl)
+
+
 def bench_lqr(pairs: int, repeats: int = 40) -> list[str]:
     from penaltyrun import problems
 
@@ -272,9 +289,12 @@ def bench_lqr(pairs: int, repeats: int = 40) -> list[str]:
         diff = float(np.max(np.abs(new.cost - old.cost) / np.abs(old.cost)))
 
         before, after = _lqr_pair(prob, mats, repeats)
+        floor = min(cpu_of(partial(_lapack_only, prob, mats), repeats) * 1e6
+                    for _ in range(pairs))
         b, a = interleaved(before, after, pairs)
         lines.append(f"lqr evaluate_batch n={n}, 10 candidates (µs per call): "
-                     f"{summary(b, a)}; largest relative cost difference {diff:.1e}")
+                     f"{summary(b, a)}; largest relative cost difference {diff:.1e}; "
+                     f"LAPACK eigensolves alone {floor:.0f} µs")
     return lines
 
 

@@ -1,10 +1,12 @@
 """The value checks that need no config: answered before Hydra (or numba) is imported.
 
-A ``runner.*`` option or ``mode`` given on the command line as a plain value
-(``runner.n_starts=0``, ``runner.seed=-1``, ``mode=optimise``) is checked here first, by
-the same checks the preflight applies to the composed config
-(:func:`penaltyrun.runner.options.check_value`), so a refused value costs the check, not
-the import of Hydra and of the problems' compiled kernels. Only refusals are answered here:
+A ``runner.*`` option, ``mode`` or an ``optimizer.*`` option given on the command line as a
+plain value (``runner.n_starts=0``, ``runner.seed=-1``, ``mode=optimise``,
+``optimizer.n_particles=0``) is checked here first, by the same checks the preflight
+applies to the composed config (:func:`penaltyrun.runner.options.check_value`,
+:func:`penaltyrun.optim.make_settings` with the chosen optimizer file's other options), so
+a refused value costs the check, not the import of Hydra and of the problems' compiled
+kernels. Only refusals are answered here:
 a value that passes, and any override whose value is not a plain literal (a sweep, a quoted
 string, an interpolation, ``+``/``~`` prefixes), goes through the full preflight as before.
 """
@@ -62,11 +64,13 @@ def check_plain_values(argv: list[str]) -> None:
     options, overrides = split_argv(argv)
     if any(opt not in PLAIN_OPTIONS for opt in options):
         return
+    values = {}
     for arg in overrides:
         key, eq, text = arg.partition("=")
         value = literal(text) if eq else _SKIP
         if value is _SKIP:
             continue
+        values[key] = value
         if key == "mode":
             from penaltyrun.checks import MODES
 
@@ -74,6 +78,9 @@ def check_plain_values(argv: list[str]) -> None:
                 raise ConfigError("mode", f"unknown mode {value!r}", allowed=MODES)
         elif key.startswith("runner."):
             _check_runner(key.removeprefix("runner."), value)
+    groups = {arg.partition("=")[0].lstrip("+~") for arg in overrides}
+    if not groups & {"experiment", "hydra.searchpath"}:
+        _check_optimizer(values)
 
 
 def _check_runner(name: str, value: Any) -> None:
@@ -86,3 +93,32 @@ def _check_runner(name: str, value: Any) -> None:
     check_value(name, kind, value, what)
     if name == "n_starts":
         check_n_starts(value)
+
+
+def _check_optimizer(values: dict[str, Any]) -> None:
+    """Plain ``optimizer.*`` values of a run that plans jobs, checked with the chosen
+    shipped optimizer file's other options (:func:`penaltyrun.optim.make_settings`), as the
+    preflight checks them. Left to the preflight: a mode that does not read the optimizer,
+    an optimizer file that is not penaltyrun's own or names others, a key it does not list."""
+    from penaltyrun.checks import JOB_MODES
+    from penaltyrun.userconf import CONF_DIR
+
+    given = {k.removeprefix("optimizer."): v for k, v in values.items()
+             if k.startswith("optimizer.")}
+    name = values.get("optimizer", "pso")
+    if not given or values.get("mode", "optimize") not in JOB_MODES or \
+            not isinstance(name, str):
+        return
+    path = CONF_DIR / "optimizer" / f"{name}.yaml"
+    if not path.is_file():
+        return
+    from penaltyrun import yamlsafe
+
+    shipped = yamlsafe.load_file(path)
+    if not isinstance(shipped, dict) or "defaults" in shipped or \
+            not set(given) <= set(shipped) - {"name"}:
+        return
+    from penaltyrun import optim
+
+    options = {k: v for k, v in {**shipped, **given}.items() if k != "name"}
+    optim.make_settings(str(shipped.get("name")), options)

@@ -21,6 +21,10 @@ REFUSED = [
     ["runner.max_retries=-1"], ["runner.stall_timeout=.0"], ["mode=optimise"],
     ["mode=1"], ["-m", "problem=zermelo", "runner.n_starts=0"],
     ["problem=zermelo", "runner.report=null"],
+    ["optimizer.n_particles=0"], ["optimizer.w=abc"], ["optimizer.iters=1.5"],
+    ["optimizer=cmaes", "optimizer.popsize=-2"], ["optimizer=de", "optimizer.polish=bogus"],
+    ["mode=plan", "optimizer=pso_matlab", "optimizer.max_evals=0"],
+    ["optimizer=pso_paper_50x50", "optimizer.polish_share=2.0"],
 ]
 
 
@@ -48,6 +52,9 @@ def test_refusals_are_the_preflights(argv, tmp_path):
     ["runner.n_starts='0'"], ["runner.n_starts=0,1"], ["+runner.n_starts=0"],
     ["runner.n_starts=${runner.seed}"], ["runner.bogus=0"], ["--cfg", "job", "runner.n_starts=0"],
     ["runner.n_starts=007"], ["runner.job_timeout=inf"],
+    ["optimizer.n_particles=40"], ["optimizer.bogus=1"], ["optimizer=bogus", "optimizer.w=1"],
+    ["mode=evaluate", "optimizer.n_particles=0"], ["+experiment=x", "optimizer.iters=0"],
+    ["optimizer=cmaes", "optimizer.n_particles=0"],
 ])
 def test_left_to_the_preflight(argv):
     """Values that pass, and anything that is not a plain literal (or comes with options

@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 #: Runs the command line with the arguments given, then prints which of the watched
 #: modules were imported, as a JSON list on the last line of standard output.
 _SCRIPT = """
@@ -48,9 +50,14 @@ def test_a_run_with_report_writes_it(tmp_path):
     assert (tmp_path / "run" / "report").is_dir()
 
 
-def test_a_refused_value_is_answered_before_numba_and_hydra(tmp_path):
-    loaded, err = _run(["problem=zermelo", "runner.n_starts=0"], tmp_path)
-    assert "penaltyrun: error: runner.n_starts: must be a positive integer, got 0" in err
+@pytest.mark.parametrize(("argv", "line"), [
+    (["problem=zermelo", "runner.n_starts=0"],
+     "penaltyrun: error: runner.n_starts: must be a positive integer, got 0"),
+    (["optimizer=cmaes", "optimizer.popsize=-2"], "penaltyrun: error: optimizer.popsize: "),
+])
+def test_a_refused_value_is_answered_before_numba_and_hydra(argv, line, tmp_path):
+    loaded, err = _run(argv, tmp_path)
+    assert line in err
     assert "exit 2" in err
     assert not {"numba", "hydra"} & set(loaded)
     assert list(tmp_path.iterdir()) == []  # no run directory

@@ -1,14 +1,17 @@
-"""The value checks that need no config: answered before Hydra (or numba) is imported.
+"""The checks that need no composed config: answered before Hydra (or numba) is imported.
 
-A ``runner.*`` option, ``mode`` or an ``optimizer.*`` option given on the command line as a
-plain value (``runner.n_starts=0``, ``runner.seed=-1``, ``mode=optimise``,
-``optimizer.n_particles=0``) is checked here first, by the same checks the preflight
-applies to the composed config (:func:`penaltyrun.runner.options.check_value`,
-:func:`penaltyrun.optim.make_settings` with the chosen optimizer file's other options), so
-a refused value costs the check, not the import of Hydra and of the problems' compiled
-kernels. Only refusals are answered here:
-a value that passes, and any override whose value is not a plain literal (a sweep, a quoted
-string, an interpolation, ``+``/``~`` prefixes), goes through the full preflight as before.
+A plain value on the command line for a ``runner.*`` option, ``mode``, an ``optimizer.*``
+option or a config-group choice (``runner.n_starts=0``, ``runner.seed=-1``,
+``mode=optimise``, ``optimizer.n_particles=0``, ``param=bogus``) is checked here first, by
+the checks the preflight applies (:func:`penaltyrun.runner.options.check_value`,
+:func:`penaltyrun.optim.make_settings` with the chosen optimizer file's other options, the
+files of penaltyrun's config directory) and with the preflight's wording, so a refused value
+costs the check, not the import of Hydra and of the problems' compiled kernels.
+
+Only refusals are answered here. A value that passes, an override whose value is not a
+plain literal (a sweep, a quoted string, an interpolation, a list), and every override of a
+command line with options other than ``-m`` (``--config-dir``, ``--cfg`` ...) or with
+``hydra.searchpath`` go through the full preflight as before.
 """
 
 from __future__ import annotations
@@ -79,8 +82,32 @@ def check_plain_values(argv: list[str]) -> None:
         elif key.startswith("runner."):
             _check_runner(key.removeprefix("runner."), value)
     groups = {arg.partition("=")[0].lstrip("+~") for arg in overrides}
-    if not groups & {"experiment", "hydra.searchpath"}:
+    if "hydra.searchpath" in groups:
+        return  # other config directories: their choices and files are the preflight's
+    _check_choices(argv, {k.lstrip("+"): v for k, v in values.items()})
+    if "experiment" not in groups:
         _check_optimizer(values)
+
+
+def _check_choices(argv: list[str], values: dict[str, Any]) -> None:
+    """A plain config-group choice (``param=bogus``) that no file of penaltyrun's own
+    config directory names: the preflight's line, with its hint when such a file lies
+    elsewhere (:func:`penaltyrun.userconf.misplaced`) or the allowed names."""
+    from penaltyrun import userconf
+    from penaltyrun.preflight import GROUPS
+
+    for group in GROUPS:
+        value = values.get(group)
+        if not isinstance(value, str):
+            continue
+        allowed = sorted(path.stem for path in (userconf.CONF_DIR / group).glob("*.yaml"))
+        if value in allowed:
+            continue
+        source, _ = userconf.parse_source(argv)
+        hint = userconf.misplaced(group, value, source, [])
+        if hint:
+            raise ConfigError(group, f"unknown choice {value!r}: {hint}")
+        raise ConfigError(group, f"unknown choice {value!r}", allowed=allowed)
 
 
 def _check_runner(name: str, value: Any) -> None:

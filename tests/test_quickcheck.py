@@ -25,6 +25,8 @@ REFUSED = [
     ["optimizer=cmaes", "optimizer.popsize=-2"], ["optimizer=de", "optimizer.polish=bogus"],
     ["mode=plan", "optimizer=pso_matlab", "optimizer.max_evals=0"],
     ["optimizer=pso_paper_50x50", "optimizer.polish_share=2.0"],
+    ["param=bogus"], ["problem=zermelo2", "runner.n_starts=3"], ["optimizer=psoo"],
+    ["+experiment=nope"], ["-m", "param=givenz"], ["optimizer=bogus", "optimizer.w=1"],
 ]
 
 
@@ -46,20 +48,36 @@ def test_refusals_are_the_preflights(argv, tmp_path):
 
 
 @pytest.mark.parametrize("argv", [
+    ["param=givens", "problem=lqr", "optimizer=cmaes", "+experiment=zermelo_paper"],
+    ["param=diagonal,bogus"], ["hydra.searchpath=[file:///tmp]", "param=mine"],
     ["runner.n_starts=3"], ["runner.seed=0"], ["runner.workers=auto"],
     ["runner.job_timeout=null"], ["runner.warm_start_share=0.5"], ["mode=plan"],
     ["runner.progress=auto"], ["runner.chunks=auto"],
     ["runner.n_starts='0'"], ["runner.n_starts=0,1"], ["+runner.n_starts=0"],
     ["runner.n_starts=${runner.seed}"], ["runner.bogus=0"], ["--cfg", "job", "runner.n_starts=0"],
     ["runner.n_starts=007"], ["runner.job_timeout=inf"],
-    ["optimizer.n_particles=40"], ["optimizer.bogus=1"], ["optimizer=bogus", "optimizer.w=1"],
-    ["mode=evaluate", "optimizer.n_particles=0"], ["+experiment=x", "optimizer.iters=0"],
+    ["optimizer.n_particles=40"], ["optimizer.bogus=1"],
+    ["mode=evaluate", "optimizer.n_particles=0"],
+    ["+experiment=zermelo_paper", "optimizer.iters=0"],
     ["optimizer=cmaes", "optimizer.n_particles=0"],
 ])
 def test_left_to_the_preflight(argv):
     """Values that pass, and anything that is not a plain literal (or comes with options
     that change the config), are not answered here."""
     check_plain_values(argv)
+
+
+def test_a_choice_misplaced_in_the_current_directory_gets_the_preflights_hint(
+        tmp_path, monkeypatch):
+    """``problem=mine`` with ``mine.yaml`` lying in the current directory: the hint of
+    :func:`penaltyrun.userconf.misplaced`, as the preflight gives it."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine.yaml").write_text("name: zermelo\n")
+    argv = ["problem=mine"]
+    with pytest.raises(ConfigError) as quick:
+        check_plain_values(argv)
+    assert "mine.yaml" in str(quick.value)
+    assert str(quick.value) == _full(argv, tmp_path)
 
 
 @settings(max_examples=80, deadline=None)

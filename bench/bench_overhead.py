@@ -7,7 +7,8 @@ CPU time (``time.process_time``; a child's from ``os.wait4``), min and median:
    held-out starts): CPU per job outside the integration kernels. Before: BLAS limited by
    ``threadpool_limits`` entered per job and the held-out set run one kernel call per start
    (both kept callable here); after: :func:`penaltyrun.runner.job.run_job` as shipped.
-2. **refused override** (``runner.n_starts=0``): CPU of the whole ``penaltyrun`` process.
+2. **refused override** (``runner.n_starts=0``, a range; ``param=bogus``, a choice): CPU of
+   the whole ``penaltyrun`` process.
    Before: the same command-line checks in the order they ran before (Hydra imported with
    the command line, the value refused by the preflight after the config was composed and
    the problem modules imported); after: ``python -m penaltyrun.cli``.
@@ -173,23 +174,23 @@ def bench_job(pairs: int) -> str:
 
 # ------------------------------------------------------------------ 2. refused override
 
-def child_cpu(args: list[str]) -> float:
-    """CPU seconds (user + system) of a child process run to its end."""
+def child_cpu(args: list[str], key: str) -> float:
+    """CPU seconds (user + system) of a child process run to its end, which must refuse
+    ``key`` with exit code 2."""
     with open(os.devnull, "w") as null:
         proc = subprocess.Popen(args, stdout=null, stderr=subprocess.PIPE, text=True)
         _, status, usage = os.wait4(proc.pid, 0)
         err = proc.stderr.read()
         proc.stderr.close()
-    assert os.waitstatus_to_exitcode(status) == 2 and "runner.n_starts" in err, err
+    assert os.waitstatus_to_exitcode(status) == 2 and f"error: {key}:" in err, err
     return usage.ru_utime + usage.ru_stime
 
 
-def bench_refusal(pairs: int) -> str:
-    argv = ["problem=zermelo", "runner.n_starts=0"]
-    b, a = interleaved(lambda: child_cpu([sys.executable, "-c", OLD_REFUSAL, *argv]),
-                       lambda: child_cpu([sys.executable, "-m", "penaltyrun.cli", *argv]),
-                       pairs)
-    return f"refused override runner.n_starts=0, process CPU (s): {summary(b, a)}"
+def bench_refusal(pairs: int, argv: list[str], key: str) -> str:
+    b, a = interleaved(
+        lambda: child_cpu([sys.executable, "-c", OLD_REFUSAL, *argv], key),
+        lambda: child_cpu([sys.executable, "-m", "penaltyrun.cli", *argv], key), pairs)
+    return f"refused override {argv[-1]}, process CPU (s): {summary(b, a)}"
 
 
 # -------------------------------------------------------------------- 3. problem=lqr
@@ -326,7 +327,9 @@ def main() -> None:
     from threadpoolctl import threadpool_limits
 
     print(f"{machine()}; {date.today().isoformat()}; CPU time; before / after")
-    print(bench_refusal(args.process_pairs), flush=True)
+    print(bench_refusal(args.process_pairs, ["problem=zermelo", "runner.n_starts=0"],
+                        "runner.n_starts"), flush=True)
+    print(bench_refusal(args.process_pairs, ["param=bogus"], "param"), flush=True)
     print(bench_job(args.pairs), flush=True)
     with threadpool_limits(limits=1, user_api="blas"):
         print(bench_holdout(args.pairs), flush=True)

@@ -120,8 +120,12 @@ def quadratic_cost(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
     if A_cl.shape[1] <= COMPILED_MAX_STATES:
         from penaltyrun.dynamics.small_linear import quadratic_eig
 
-        cost, x_final, good = quadratic_eig(A_cl, np.ascontiguousarray(W),
-                                            np.ascontiguousarray(X0), float(t_max), COND_MAX)
+        try:
+            cost, x_final, good = quadratic_eig(A_cl, np.ascontiguousarray(W),
+                                                np.ascontiguousarray(X0), float(t_max),
+                                                COND_MAX)
+        except np.linalg.LinAlgError:  # an SVD or solve that failed: the numpy batch
+            good = _eig_batch(A_cl, W, X0, float(t_max), cost, x_final)
     else:
         good = _eig_batch(A_cl, W, X0, float(t_max), cost, x_final)
     for b in np.flatnonzero(~good):

@@ -109,10 +109,13 @@ def hamiltonian_compiled(A: np.ndarray, S: np.ndarray, Q: np.ndarray
     the fallback)."""
     from penaltyrun.dynamics.small_linear import care_hamiltonian
 
-    return care_hamiltonian(np.ascontiguousarray(A, dtype=float),
-                            np.ascontiguousarray(S, dtype=float),
-                            np.ascontiguousarray(Q, dtype=float), COND_MAX, RESIDUAL_TOL,
-                            STABILITY_MARGIN)
+    try:
+        return care_hamiltonian(np.ascontiguousarray(A, dtype=float),
+                                np.ascontiguousarray(S, dtype=float),
+                                np.ascontiguousarray(Q, dtype=float), COND_MAX, RESIDUAL_TOL,
+                                STABILITY_MARGIN)
+    except np.linalg.LinAlgError:  # an SVD or LU that did not converge: the numpy batch
+        return hamiltonian_solutions(A, S, Q)
 
 
 def lqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray

@@ -154,3 +154,27 @@ def test_grading_is_the_one_before(settle_tol, simulated, seed):
     res = {"cost": cost, "status": codes}
     for new, old in zip(LQRProblem._aggregate(res), _aggregate_before(res)):
         assert new.tolist() == old.tolist()
+
+
+def test_a_failing_compiled_step_falls_back_to_numpy(monkeypatch):
+    """An SVD or LU that does not converge inside a compiled loop (LinAlgError) costs the
+    batch the numpy path, never the evaluation."""
+    from penaltyrun.dynamics import linear, small_linear
+
+    def broken(*args):
+        raise np.linalg.LinAlgError("did not converge")
+
+    rng = np.random.default_rng(2)
+    A, B = rng.normal(size=(3, 3)), rng.normal(size=(3, 2))
+    Q, R = _spd(rng, 5, 3), _spd(rng, 5, 2, 0.1)
+    S = B @ np.linalg.inv(R) @ B.T
+    expected = riccati.hamiltonian_solutions(A, S, Q)
+    monkeypatch.setattr(small_linear, "care_hamiltonian", broken)
+    monkeypatch.setattr(small_linear, "quadratic_eig", broken)
+    for got, want in zip(riccati.hamiltonian_compiled(A, S, Q), expected):
+        np.testing.assert_array_equal(got, want)
+    A_cl = -np.eye(3)[None] + 0.1 * rng.normal(size=(4, 3, 3))
+    W = np.broadcast_to(np.eye(3), (4, 3, 3))
+    cost, _ = linear.quadratic_cost(A_cl, W, np.eye(3), 2.0)
+    monkeypatch.setattr(linear, "COMPILED_MAX_STATES", 0)
+    np.testing.assert_array_equal(cost, linear.quadratic_cost(A_cl, W, np.eye(3), 2.0)[0])

@@ -197,13 +197,13 @@ def bench_refusal(pairs: int, argv: list[str], key: str) -> str:
 
 def _graded_before(self: Any, J: np.ndarray, t_end: np.ndarray, x_final: np.ndarray,
                    X0: np.ndarray, codes: np.ndarray, excess: np.ndarray,
-                   simulated: bool) -> np.ndarray:
+                   free: bool) -> np.ndarray:
     """The grading of problem=lqr as it was: every penalty on the whole batch."""
     from penaltyrun.problems.lqr.problem import HARD_FACTOR
 
     ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
     tol = self.params.settle_tol
-    if tol is not None:
+    if tol is not None and not free:
         codes[(codes == "converged") & ~(ratio <= tol)] = "not_settled"
     codes[(codes == "converged") & (excess > 0)] = "constraint"
     P = self.penalty
@@ -211,7 +211,8 @@ def _graded_before(self: Any, J: np.ndarray, t_end: np.ndarray, x_final: np.ndar
         cost = np.where(codes == "not_settled", J + P * (1.0 + ratio / (1.0 + ratio)), J)
         graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
         cost = np.where(codes == "constraint", J + P * (1.0 + graded), cost)
-        late = (self.t_max - t_end) / self.t_max
+        run_t = float(self.params.free_time_cap) if free else self.t_max
+        late = (run_t - t_end) / run_t
         cost = np.where(np.isin(codes, ("diverged", "step_failure")), J + P * (2.0 + late),
                         cost)
     finite_J = np.where(np.isfinite(J), J, 0.0)

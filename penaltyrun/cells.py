@@ -106,8 +106,10 @@ def cell_spec(cfg: DictConfig) -> Any:
     """The cell's :class:`~penaltyrun.api.core.CellSpec` (what the run core needs) from
     the composed config: its nodes as plain data, ``config_hash``'s input and the YAML."""
     from penaltyrun.api.core import CellSpec
+    from penaltyrun.problems.criteria import hashed_node
 
-    hashed = {"problem": plain(cfg.problem), "case": cfg.case, "param": plain(cfg.param),
+    hashed = {"problem": hashed_node(plain(cfg.problem)), "case": cfg.case,
+              "param": plain(cfg.param),
               "optimizer": plain(cfg.optimizer), "seed": cfg.runner.seed}
     return CellSpec(
         problem=cfg.problem.name, case=cfg.case, param=cfg.param.name,

@@ -121,7 +121,7 @@ def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
         os.rmdir(tempfile.mkdtemp(prefix=".penaltyrun-check-", dir=anchor))
     except OSError as exc:
         raise ConfigError(key, f"cannot create {path}: {exc.strerror or exc} in "
-                               f"{anchor}") from None
+                               f"{anchor}; choose a folder you can write to") from None
 
 
 def check_output_dir(path: str | Path | None, key: str = "report.output") -> None:

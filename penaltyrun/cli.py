@@ -357,6 +357,9 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("--plant-module", metavar="MODULE", action="append", default=[],
                         help="import MODULE for an LQR plant or dynamics the results name "
                              "(module:function), to draw its figures (repeatable)")
+    parser.add_argument("--basin-points", metavar="N", type=int, default=None,
+                        help="grid points per axis of the basin-of-attraction maps of the "
+                             "best diagonal and full gains (default 16; 0: no maps)")
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
     if argv is None:
         ensure_utf8_mode(sys.argv)
@@ -387,7 +390,11 @@ def report_main(argv: list[str] | None = None) -> None:
             problems.trust.allow_module(module_path)
         out = Path(args.output) if args.output else \
             (src.parent if src.is_file() else src) / "report"
-        report.build_report(src, out, paper=not args.no_paper)
+        maps = {} if args.basin_points is None else {"basin_points": args.basin_points}
+        if maps and not (maps["basin_points"] == 0 or 2 <= maps["basin_points"] <= 200):
+            raise ConfigError("--basin-points", f"must be 0 (no maps) or 2 to 200, got "
+                              f"{args.basin_points}")
+        report.build_report(src, out, paper=not args.no_paper, **maps)
         print(f"report written to {out}")
         if args.export:
             _export(src, Path(args.export))

@@ -101,21 +101,27 @@ class EnvironmentProblemError(OSError):
 
 def free_space(path: Any) -> str:
     """Free space of the file system holding ``path`` (or its first existing parent),
-    e.g. ``"12.3 MB free"``; ``"free space unknown"`` when it cannot be read."""
-    import shutil
+    e.g. ``"12.3 MB free"``; ``"no free inodes (12.3 MB free)"`` when the file system has
+    room but no file can be created on it; ``"free space unknown"`` when it cannot be read."""
+    import os
     from pathlib import Path
 
     here = Path(path)
     while not here.exists() and here != here.parent:
         here = here.parent
     try:
-        free = shutil.disk_usage(here).free
+        fs = os.statvfs(here)
     except OSError:
         return "free space unknown"
+    free = fs.f_bavail * fs.f_frsize
+    text = f"{free} bytes free"
     for unit, size in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if free >= size:
-            return f"{free / size:.1f} {unit} free"
-    return f"{free} bytes free"
+            text = f"{free / size:.1f} {unit} free"
+            break
+    if fs.f_files > 0 and fs.f_favail == 0:  # out of inodes (0 files: not counted)
+        return f"no free inodes ({text})"
+    return text
 
 
 def describe_os_error(exc: OSError, path: Any = None, doing: str = "write") -> str:
@@ -134,10 +140,13 @@ def describe_os_error(exc: OSError, path: Any = None, doing: str = "write") -> s
     """
     import errno
 
-    where = path if path is not None else (exc.filename or "a file")
+    where = path if path is not None else exc.filename
     reason = exc.strerror or str(exc) or type(exc).__name__
-    line = f"cannot {doing} {where}: {reason}"
+    line = f"cannot {doing} {where if where is not None else 'a file'}: {reason}"
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-        line += f" ({free_space(where)}); free some space and rerun with runner.resume=true " \
+        # the free space of the failed path's own file system; with no path known, none
+        # (the current folder may be on another disk)
+        space = f" ({free_space(where)})" if where is not None else ""
+        line += f"{space}; free some space and rerun with runner.resume=true " \
                 f"(finished jobs are kept)"
     return line

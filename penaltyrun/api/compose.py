@@ -19,6 +19,7 @@ import yaml
 from penaltyrun import yamlsafe
 from penaltyrun.api.core import CellSpec
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems.criteria import hashed_node
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 #: ``runner.*`` values the API uses where the command line's defaults differ: no report
@@ -147,6 +148,7 @@ def cell_spec(config: Mapping[str, Any]) -> CellSpec:
     """The :class:`CellSpec` of a composed config (as the command line builds it from its
     Hydra config, :func:`penaltyrun.cells.cell_spec`)."""
     hashed = {k: config[k] for k in ("problem", "case", "param", "optimizer")}
+    hashed["problem"] = hashed_node(config["problem"])
     hashed["seed"] = config["runner"]["seed"]
     prob = config["problem"]
     params = {k: v for k, v in (prob.get("params") or {}).items() if v is not None}

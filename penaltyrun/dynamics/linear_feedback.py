@@ -19,7 +19,10 @@ A row ends with status
 * ``NONFINITE`` (non-finite values that step-size reduction cannot remove),
 * ``STEP_FAILURE`` (step-size underflow or more than ``max_steps`` trial steps),
 * ``CUTOFF`` (exact cutoff: the summed J of a group of rows exceeded its threshold at the
-  end of an accepted step; J only grows, so that sum is a lower bound of the final one).
+  end of an accepted step; J only grows, so that sum is a lower bound of the final one),
+* ``SETTLED`` (optional settling event: ‖x‖ fell to the row's level; checked at the end of
+  every accepted step, the first crossing inside that step located by bisection on
+  re-taken steps from its start, to 1e-13 of the time).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ STEP_FAILURE = integrate.STEP_FAILURE
 NONFINITE = integrate.NONFINITE
 CUTOFF = integrate.CUTOFF
 DIVERGED = 5
+SETTLED = 6
 
 _A, _B, _C, _E, _ = (np.asarray(a) for a in integrate._tableau())
 
@@ -56,12 +60,45 @@ def _augmented(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
     return out
 
 
+def _step(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray, Wx: np.ndarray,
+          Wu: np.ndarray, u_max: np.ndarray | None, y: np.ndarray, f0: np.ndarray,
+          hh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One Dormand–Prince 5(4) step of size ``hh`` (per row) from ``y`` with slope ``f0``:
+    the new state and the seven stages (7, R, n + 1)."""
+    stages = np.empty((7, *y.shape))
+    stages[0] = f0
+    for s in range(1, 6):
+        y_s = y + hh[:, None] * np.tensordot(_A[s, :s], stages[:s], axes=1)
+        stages[s] = _augmented(f, K, Wx, Wu, u_max, y_s)
+    y_new = y + hh[:, None] * np.tensordot(_B, stages[:6], axes=1)
+    stages[6] = _augmented(f, K, Wx, Wu, u_max, y_new)
+    return y_new, stages
+
+
+def _settle_time(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
+                 Wx: np.ndarray, Wu: np.ndarray, u_max: np.ndarray | None, y: np.ndarray,
+                 f0: np.ndarray, hh: np.ndarray, level: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """First s ∈ (0, hh] with ‖x‖ ≤ level after a step of size s from ``y`` (the step of
+    size hh ends there): bisection to 1e-13 of hh. Returns (s, state there)."""
+    n = y.shape[1] - 1
+    lo, hi = np.zeros_like(hh), hh.copy()
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        below = np.linalg.norm(_step(f, K, Wx, Wu, u_max, y, f0, mid)[0][:, :n], axis=1) \
+            <= level
+        hi, lo = np.where(below, mid, hi), np.where(below, lo, mid)
+        if np.all(hi - lo <= 1e-13 * hh):
+            break
+    return hi, _step(f, K, Wx, Wu, u_max, y, f0, hi)[0]
+
+
 def simulate(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
              X0: np.ndarray, Wx: np.ndarray, Wu: np.ndarray, u_max: np.ndarray | None,
              t_max: float, rtol: float = 1e-10, atol: float = 1e-12,
              max_steps: int = 100_000, x_bound: float = np.inf,
-             groups: np.ndarray | None = None, group_cut: np.ndarray | None = None
-             ) -> dict[str, np.ndarray]:
+             groups: np.ndarray | None = None, group_cut: np.ndarray | None = None,
+             settle: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Integrate R closed-loop rows from t = 0 to ``t_max``.
 
     Parameters
@@ -89,6 +126,9 @@ def simulate(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
     group_cut : ndarray, shape (G,), optional
         The rows of group g stop with ``CUTOFF`` once the sum of their J exceeds
         ``group_cut[g]`` (``inf``: never).
+    settle : ndarray, shape (R,), optional
+        Settling levels: a row stops with ``SETTLED`` at the first time ‖x‖ ≤ its level
+        (see the module docstring); ``None``: no event.
 
     Returns
     -------
@@ -105,6 +145,10 @@ def simulate(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
     steps = np.zeros(n_rows, dtype=int)
     running = np.ones(n_rows, dtype=bool)
     cut_on = groups is not None and group_cut is not None and np.any(np.isfinite(group_cut))
+    if settle is not None:
+        at_start = np.linalg.norm(Y[:, :n], axis=1) <= settle
+        status[at_start] = SETTLED
+        running[at_start] = False
     with np.errstate(all="ignore"):
         F0 = _augmented(f, K, Wx, Wu, u_max, Y)
         d0 = np.sqrt(np.mean((Y / (atol + rtol * np.abs(Y))) ** 2, axis=1))
@@ -114,13 +158,7 @@ def simulate(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
         while running.any():
             idx = np.flatnonzero(running)
             y, k_r, hh = Y[idx], K[idx], np.minimum(h[idx], t_max - t[idx])
-            stages = np.empty((7, idx.size, n + 1))
-            stages[0] = F0[idx]
-            for s in range(1, 6):
-                y_s = y + hh[:, None] * np.tensordot(_A[s, :s], stages[:s], axes=1)
-                stages[s] = _augmented(f, k_r, Wx, Wu, u_max, y_s)
-            y_new = y + hh[:, None] * np.tensordot(_B, stages[:6], axes=1)
-            stages[6] = _augmented(f, k_r, Wx, Wu, u_max, y_new)
+            y_new, stages = _step(f, k_r, Wx, Wu, u_max, y, F0[idx], hh)
             scale = atol + rtol * np.maximum(np.abs(y), np.abs(y_new))
             err_vec = hh[:, None] * np.tensordot(_E, stages, axes=1) / scale
             err = np.sqrt(np.mean(err_vec ** 2, axis=1))
@@ -128,6 +166,14 @@ def simulate(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
             steps[idx] += 1
             ok = finite & (err <= 1.0)
             acc = idx[ok]
+            if settle is not None and acc.size:
+                hit = ok & (np.linalg.norm(y_new[:, :n], axis=1) <= settle[idx])
+                if hit.any():
+                    rows = idx[hit]
+                    hh[hit], y_new[hit] = _settle_time(f, k_r[hit], Wx, Wu, u_max, y[hit],
+                                                       stages[0][hit], hh[hit], settle[rows])
+                    status[rows] = SETTLED
+                    running[rows] = False
             Y[acc], F0[acc] = y_new[ok], stages[6][ok]
             t[acc] = np.where(hh[ok] >= t_max - t[acc], t_max, t[acc] + hh[ok])
             grow = np.where(err[ok] == 0.0, 10.0, np.minimum(10.0, 0.9 * err[ok] ** -0.2))
@@ -156,5 +202,5 @@ def simulate(f: Callable[[np.ndarray, np.ndarray], np.ndarray], K: np.ndarray,
             "status": status, "n_steps": steps}
 
 
-__all__ = ["CUTOFF", "DIVERGED", "HORIZON", "NONFINITE", "STEP_FAILURE", "feedback_input",
-           "simulate"]
+__all__ = ["CUTOFF", "DIVERGED", "HORIZON", "NONFINITE", "SETTLED", "STEP_FAILURE",
+           "feedback_input", "simulate"]

@@ -65,6 +65,40 @@ class DecisionLayout:
         scalars = {name: Z[:, pos + i].copy() for i, (name, _) in enumerate(self.scalars)}
         return mats, scalars
 
+    def vjp(self, z: np.ndarray, mat_grads: dict[str, np.ndarray],
+            scalar_grads: dict[str, float] | None = None) -> np.ndarray:
+        """Gradient with respect to the whole decision vector z (dim,).
+
+        Parameters
+        ----------
+        z : ndarray, shape (dim,)
+        mat_grads : dict of str to ndarray (N, N)
+            ∂f/∂K for each matrix, in the convention of
+            :meth:`~penaltyrun.penalty.maps.Parameterization.vjp`; a missing name counts as 0.
+        scalar_grads : dict of str to float, optional
+            ∂f/∂s for the extra scalars (missing → 0).
+
+        Returns
+        -------
+        ndarray, shape (dim,)
+
+        Raises
+        ------
+        NotDifferentiableError
+            If one of the maps has no derivative at its block of z.
+        """
+        z = np.asarray(z, float)
+        if z.shape != (self.dim,):
+            raise ValueError(f"expected z of shape ({self.dim},), got {z.shape}")
+        parts, pos = [], 0
+        for name, p in self.matrices:
+            G = mat_grads.get(name)
+            parts.append(np.zeros(p.dim) if G is None else p.vjp(z[pos:pos + p.dim], G))
+            pos += p.dim
+        parts.append(np.array([float((scalar_grads or {}).get(name, 0.0))
+                               for name, _ in self.scalars]))
+        return np.concatenate(parts)
+
     def join(self, mats: dict[str, np.ndarray], scalars: dict[str, float] | None = None
              ) -> np.ndarray:
         """Encode single matrices (N, N) and scalars into one decision vector (dim,)."""

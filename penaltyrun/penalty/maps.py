@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.penalty import derivatives as deriv
 from penaltyrun.penalty import orthogonal as orth
 
 KINDS = ("diagonal", "full", "geagsp", "givens", "cayley", "cayley_tan")
@@ -104,9 +105,56 @@ class Parameterization:
             K = lam[:, :, None] * np.eye(self.n)[None]
         else:
             Q = self.orthogonal(Zb)
-            K = np.einsum("bij,bj,bkj->bik", Q, lam, Q)
+            K = (Q * lam[:, None, :]) @ np.transpose(Q, (0, 2, 1))
             K = 0.5 * (K + np.transpose(K, (0, 2, 1)))
         return K[0] if single else K
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        """Exact Jacobian of the decode at one decision vector.
+
+        Parameters
+        ----------
+        z : ndarray, shape (dim,)
+
+        Returns
+        -------
+        ndarray, shape (dim, N, N)
+            Slice i is ∂K/∂z_i (symmetric): q_i q_iᵀ for an eigenvalue, Q(Ω Λ − Λ Ω)Qᵀ
+            with Ω = Qᵀ ∂Q/∂z_i for an angle (see :mod:`penaltyrun.penalty.derivatives`).
+
+        Raises
+        ------
+        NotDifferentiableError
+            GEAGSP at (or within a factor 2 of) a skipped Gram–Schmidt vector, where the
+            map is discontinuous. The other maps are differentiable on the whole box.
+        """
+        return deriv.jacobian(self, z)
+
+    def vjp(self, z: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """Gradient with respect to z of a scalar f(K) from G = ∂f/∂K.
+
+        Computes ``grad_i = Σ_ab G_ab ∂K_ab/∂z_i`` without forming the Jacobian (O(N³)
+        for Givens and Cayley, O(N⁴) for GEAGSP, O(N) for diagonal).
+
+        Parameters
+        ----------
+        z : ndarray, shape (dim,)
+        G : ndarray, shape (N, N)
+            ∂f/∂K_ab with all N² entries of K treated as independent. G need not be
+            symmetric: only (G + Gᵀ)/2 matters, since K is symmetric. A gradient with
+            respect to the N(N+1)/2 free entries of a symmetric K must first be turned
+            into this form (halve the off-diagonal entries, mirror them).
+
+        Returns
+        -------
+        ndarray, shape (dim,)
+
+        Raises
+        ------
+        NotDifferentiableError
+            As for :meth:`jacobian`.
+        """
+        return deriv.vjp(self, z, G)
 
     def encode(self, K: np.ndarray) -> np.ndarray:
         """A decision vector z with decode(z) = K (inverse map).

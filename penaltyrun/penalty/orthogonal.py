@@ -121,13 +121,17 @@ def geagsp_batch(angles, n):
 
 @njit(cache=True)
 def givens_batch(angles, n):
-    """Givens map for a batch: angles (B, M) → Q = G_1 ⋯ G_M, shape (B, n, n)."""
+    """Givens map for a batch: angles (B, M) → Q = G_1 ⋯ G_M, shape (B, n, n).
+
+    Works on Qᵀ (each rotation mixes two contiguous rows) and transposes at the end.
+    """
     B = angles.shape[0]
     Q = np.zeros((B, n, n))
+    Qt = np.empty((n, n))
     for b in range(B):
-        Qb = Q[b]
         for m in range(n):
-            Qb[m, m] = 1.0
+            for j in range(n):
+                Qt[m, j] = 1.0 if m == j else 0.0
         pos = 0
         for j in range(n - 1):
             for i in range(j + 1, n):
@@ -135,10 +139,13 @@ def givens_batch(angles, n):
                 s = np.sin(angles[b, pos])
                 pos += 1
                 for m in range(n):
-                    a_j = Qb[m, j]
-                    a_i = Qb[m, i]
-                    Qb[m, j] = c * a_j - s * a_i
-                    Qb[m, i] = s * a_j + c * a_i
+                    a_j = Qt[j, m]
+                    a_i = Qt[i, m]
+                    Qt[j, m] = c * a_j - s * a_i
+                    Qt[i, m] = s * a_j + c * a_i
+        for m in range(n):
+            for j in range(n):
+                Q[b, m, j] = Qt[j, m]
     return Q
 
 

@@ -42,6 +42,7 @@ from penaltyrun.problems.base import (
     ScalarSpec,
     check_spd,
 )
+from penaltyrun.problems.basins import BasinAxes, arrival_times
 from penaltyrun.problems.multiscenario import TrainingParams
 
 logger = logging.getLogger(__name__)
@@ -320,6 +321,24 @@ class Zermelo:
         K = check_spd("matrices.K", mats["K"], 2)
         return ClosedLoop(-K.T, "continuous", gain=K.T.copy(), state_names=("x", "y"),
                           input_names=("u1", "u2"))
+
+    def basin_axes(self) -> BasinAxes:
+        """Start positions (x, y) in a square around the target that holds the training
+        start and every held-out circle (1.2 times the largest radius)."""
+        p = self.params
+        radius = 1.2 * max([float(np.hypot(*p.x0)), *(float(r) for r in p.holdout_radii)])
+        return BasinAxes(("x", "y"), (-radius, -radius), (radius, radius), "",
+                         (float(p.x0[0]), float(p.x0[1])))
+
+    def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
+                   points: np.ndarray) -> dict[str, Any]:
+        """One K from the start positions ``points`` (P, 2) at the held-out horizon."""
+        p = self.params
+        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap)
+        runs = horizon.at_horizon(self, long_t)._holdout_runs(mats, {"x0": points})
+        return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
+                "arrival_time": arrival_times(runs["converged"], runs["t_final"])}
 
 
 def make_problem(case: str, overrides: Mapping[str, Any]) -> Zermelo:

@@ -118,31 +118,6 @@ def reference(bk: pd.DataFrame, problem: str, case: str, problem_variant: str,
     return float(sel["best_known"].iloc[0]) if len(sel) else float("nan")
 
 
-def improvement(bk: pd.DataFrame) -> pd.DataFrame:
-    """Best-known full vs best-known diagonal per problem × case × problem variant.
-
-    ``improvement_pct`` = (diagonal − full) / diagonal · 100 (positive: full is lower). It is
-    a claim about the maps only as far as the diagonal value is certified.
-    """
-    rows = []
-    if bk.empty:
-        return pd.DataFrame(rows)
-    for key, g in bk.groupby(KEY, sort=True):
-        fams = {r["family"]: r for _, r in g.iterrows()}
-        if set(FAMILIES) - set(fams):
-            continue
-        d, f = fams["diagonal"], fams["full"]
-        rows.append({**dict(zip(KEY, key)),
-                     "diagonal_best_known": d["best_known"], "diagonal_by": d["optimizer"],
-                     "diagonal_certified": d["certified"], "diagonal_evidence": d["evidence"],
-                     "full_best_known": f["best_known"], "full_by": f"{f['optimizer']} / "
-                     f"{f['param']}", "full_certified": f["certified"],
-                     "full_evidence": f["evidence"],
-                     "improvement_pct": 100.0 * (d["best_known"] - f["best_known"])
-                     / d["best_known"]})
-    return pd.DataFrame(rows)
-
-
 def shortfall(df: pd.DataFrame, bk: pd.DataFrame) -> pd.DataFrame:
     """Each cell's distance to its family's best-known value (converged starts only).
 

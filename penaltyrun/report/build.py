@@ -19,6 +19,7 @@ from penaltyrun.io import read_results
 from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (
+    basins,
     controllers,
     figures,
     holdout,
@@ -31,7 +32,7 @@ from penaltyrun.report import (
 from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
-from penaltyrun.report.stats import MIN_N_TEST, add_variant, cell_summary
+from penaltyrun.report.stats import BCA_MAX_N, MIN_N_TEST, add_variant, cell_summary
 from penaltyrun.report.tables import (
     StemBook,
     fmt,
@@ -103,8 +104,10 @@ def methods() -> str:
         "starts only** (a diverged start carries a graded penalty, a search aid, not a "
         "cost); the success rate stands beside them. Budget = `max_evals` (none: the "
         "optimizer's own limits) and the mean evaluations spent. Intervals: 95 % BCa "
-        "bootstrap (scipy.stats.bootstrap, 9999 resamples, seeded) of the median; none for "
-        "n < 3 or a constant sample. Best-known evidence: *certified* = reached by the grid "
+        "bootstrap (scipy.stats.bootstrap, 9999 resamples, seeded) of the median; above "
+        f"{BCA_MAX_N} converged starts the order-statistic interval of the median and "
+        "Student's t interval of the mean; none for n < 3 or a constant sample. "
+        "Best-known evidence: *certified* = reached by the grid "
         f"optimizer (grid + local search) within {CERTIFY_RTOL:g} relative; *agreement* = "
         f"k ≥ 2 different optimizers within {CERTIFY_RTOL:g}; else *single optimizer*. "
         "Equal budget: equal `max_evals` and mean evaluations spent within "
@@ -207,6 +210,9 @@ def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]
     steps = [("figures", lambda: _figures(g, ctx["bk"], out, stem, plain, info, paper)),
              ("problem plots", lambda: sections.plots_section(g, out, stem)),
              ("tuned controllers", lambda: controllers.section(g, out, stem)),
+             ("basins of attraction", lambda: basins.section(g, out, stem,
+                                                             ctx["basin_points"])
+              if ctx["basin_points"] > 0 else []),
              ("paper values", lambda: sections.paper_section(g, ctx["paper"])
               if paper else []),
              ("held-out", lambda: holdout.problem_section(g, ctx["held"], ctx["imps"], out)
@@ -245,7 +251,8 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
 
 
 def build_report(src: Path, out: Path, paper: bool = True,
-                 source_label: str | None = None) -> Path:
+                 source_label: str | None = None,
+                 basin_points: int = basins.REPORT_POINTS) -> Path:
     """Write tables (CSV + Markdown), figures (PNG), ``report.md`` and ``report.html``.
 
     Every file is first written into a temporary folder inside ``out`` and renamed into
@@ -266,6 +273,9 @@ def build_report(src: Path, out: Path, paper: bool = True,
     source_label : str, optional
         How the report names its source (default ``src`` as given), e.g. a path relative
         to a repository, so that a committed report does not carry a machine's path.
+    basin_points : int
+        Grid points per axis of the basin-of-attraction maps (0: no maps); each map runs
+        ``basin_points²`` starts of the best diagonal and the best full gain of a case.
 
     Raises
     ------
@@ -279,14 +289,16 @@ def build_report(src: Path, out: Path, paper: bool = True,
     with trust.reading_results():
         df = add_variant(read_results(src))
         outdir.write_into(out, "report.output",
-                          lambda tmp: _write_report(source_label or str(src), df, tmp, paper),
+                          lambda tmp: _write_report(source_label or str(src), df, tmp, paper,
+                                                   basin_points),
                           lambda folder: outdir.report_files(
                               folder, [*TABLES, "summary", "comparison"]))
     logger.info("report: %s", out / "report.md")
     return out
 
 
-def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
+def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool,
+                  basin_points: int = basins.REPORT_POINTS) -> None:
     """Write every file of the report into ``out`` (see :func:`build_report`)."""
     summary = cell_summary(df)
     summary.to_csv(out / "summary.csv", index=False, encoding="utf-8")
@@ -303,7 +315,7 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool) -> None:
         held.to_csv(out / "holdout.csv", index=False, encoding="utf-8")
     verdict = verdict_rows(df, bk, comp, held)
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
-           "stems": StemBook(),
+           "stems": StemBook(), "basin_points": int(basin_points),
            "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
     _write_csv(ctx["paper"], out, "paper")
     if paper:

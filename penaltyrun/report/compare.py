@@ -187,16 +187,3 @@ def a12_intervals(df: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:
                                        "a12_b_beats_a", "a12_lo", "a12_hi", "ci_note"])
 
 
-def full_worse_rows(comp: pd.DataFrame) -> pd.DataFrame:
-    """Diagonal-vs-full rows where the best full start is worse than the best diagonal start.
-
-    The diagonal set is contained in every full set, so such a row is an optimizer
-    shortfall at that budget, not a property of the map. Columns for
-    :func:`penaltyrun.report.build.why_full_worse`: ``full_map``, ``full_best``,
-    ``diag_best``.
-    """
-    if comp.empty:
-        return comp
-    sel = comp[(comp["map_a"] == "diagonal") & (comp["best_b"] > comp["best_a"] * (1 + 1e-9))]
-    return sel.rename(columns={"map_b": "full_map", "best_b": "full_best",
-                               "best_a": "diag_best"})

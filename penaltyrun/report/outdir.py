@@ -4,6 +4,8 @@
   ``report`` link pointing anywhere): :func:`prepare` refuses it with one line.
 * Every file is written into a fresh temporary folder inside it and renamed into place
   (:func:`publish`); a rename replaces a link of the same name instead of writing through it.
+* A temporary folder left by a report that was killed (``<prefix><pid>-XXXX`` of a process
+  that no longer runs) is removed by the next report into the same folder.
 * Files a previous report (or export) in the same folder wrote and the new one does not are
   removed, so tables of two reports never stand side by side. Only files the previous one
   owned go: its known table names, the figures its ``report.md`` shows (or the files its
@@ -22,7 +24,7 @@ import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from penaltyrun.errors import ConfigError
+from penaltyrun.errors import ConfigError, EnvironmentProblemError, describe_os_error
 
 logger = logging.getLogger(__name__)
 
@@ -92,20 +94,58 @@ def export_files(out: Path) -> set[str]:
     return names
 
 
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` runs (a process of another user counts as running)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # no permission: it exists
+        return True
+    return True
+
+
+def remove_abandoned(out: Path, prefix: str) -> list[str]:
+    """Remove the temporary folders ``<prefix><pid>-*`` in ``out`` whose process no longer
+    runs (a report or export killed before it could clean up); their names."""
+    pattern = re.compile(re.escape(prefix) + r"(\d+)-")
+    removed = []
+    for item in out.iterdir():
+        match = pattern.match(item.name)
+        if (match and item.is_dir() and not item.is_symlink()
+                and not _alive(int(match.group(1)))):
+            shutil.rmtree(item, ignore_errors=True)
+            removed.append(item.name)
+    if removed:
+        logger.info("removed %d temporary folder(s) of killed reports in %s", len(removed), out)
+    return removed
+
+
 def write_into(out: Path, key: str, write: Callable[[Path], None],
                owned: Callable[[Path], set[str]], prefix: str = ".report-") -> list[Path]:
-    """Run ``write(tmp)`` in a fresh folder ``<prefix>XXXX`` inside ``out``, then move its
-    files into ``out`` and remove the files ``owned(out)`` names that the new set does not.
+    """Run ``write(tmp)`` in a fresh folder ``<prefix><pid>-XXXX`` inside ``out``, then move
+    its files into ``out`` and remove the files ``owned(out)`` names that the new set does
+    not (and the temporary folders of killed reports, :func:`remove_abandoned`).
 
     Returns
     -------
     list of Path
         The files now in ``out``, in name order.
+
+    Raises
+    ------
+    EnvironmentProblemError
+        Writing failed (e.g. a full disk): one line naming the folder (and the free space);
+        nothing of the new output is left in ``out``.
     """
     out = prepare(out, key)
-    tmp = Path(tempfile.mkdtemp(prefix=prefix, dir=out))
+    remove_abandoned(out, prefix)
+    tmp = Path(tempfile.mkdtemp(prefix=f"{prefix}{os.getpid()}-", dir=out))
     try:
-        write(tmp)
+        try:
+            write(tmp)
+        except OSError as exc:  # a full disk or a failing device: one line naming the folder
+            raise EnvironmentProblemError(describe_os_error(exc, exc.filename or out)) from None
         previous = owned(out)
         new = sorted(item.name for item in tmp.iterdir())
         for name in new:
@@ -125,4 +165,5 @@ def write_into(out: Path, key: str, write: Callable[[Path], None],
     return [out / name for name in new]
 
 
-__all__ = ["export_files", "plain_name", "prepare", "report_files", "write_into"]
+__all__ = ["export_files", "plain_name", "prepare", "remove_abandoned", "report_files",
+           "write_into"]

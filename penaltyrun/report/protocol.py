@@ -41,6 +41,7 @@ def reset() -> None:
     _SIMULATIONS.clear()
     _module.cache_clear()
     _info.cache_clear()
+    _rebuilt.cache_clear()
 
 
 def warn(text: str) -> None:
@@ -150,9 +151,9 @@ def simulate(row: pd.Series) -> dict[str, np.ndarray] | None:
 
 
 def _simulate(row: pd.Series) -> dict[str, np.ndarray] | None:
-    if module(row["problem"]) is None:
+    prob = rebuild(row["problem"], row["case"], row.get("problem_params"))
+    if prob is None:
         return None
-    prob = make(row["problem"], row["case"], row.get("problem_params"))
     mats = {k: np.asarray(v, float) for k, v in (decode_json(row["matrices"]) or {}).items()}
     return prob.simulate(mats, decode_json(row.get("scalars")) or None)
 
@@ -171,16 +172,36 @@ def make(problem: str, case: str, params: Any = None) -> Any:
         return problems.make(str(problem), str(case), params_of(params))
 
 
-def bounds_of(row: pd.Series) -> dict[str, tuple[float, float]] | None:
-    """Eigenvalue bounds per matrix name of a job's problem (None when unknown)."""
-    if module(row["problem"]) is None:
+@cache
+def _rebuilt(problem: str, case: str, params_json: str) -> Any:
+    if module(problem) is None:
         return None
     try:
-        prob = make(row["problem"], row["case"], row.get("problem_params"))
-    except Exception:  # old parameters, or a plant named by module: no bound check
+        return make(problem, case, params_json)
+    except Exception as exc:  # an unknown case, old or damaged parameters, a plant not allowed
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        warn(f"problem {problem!r}, case {case!r}: cannot be rebuilt from the stored "
+             f"parameters ({reason}); its sections use only the stored columns")
+        return None
+
+
+def rebuild(problem: str, case: str, params: Any = None) -> Any:
+    """The problem instance of stored results, or None (with one warning per problem, case
+    and parameters) when it cannot be rebuilt: its module not imported (see :func:`module`),
+    a case this version does not know, parameters it does not accept. One instance per
+    problem, case and parameters for this report."""
+    text = params if isinstance(params, str) else json.dumps(params or {}, sort_keys=True,
+                                                            default=str)
+    return _rebuilt(str(problem), str(case), text or "{}")
+
+
+def bounds_of(row: pd.Series) -> dict[str, tuple[float, float]] | None:
+    """Eigenvalue bounds per matrix name of a job's problem (None when unknown)."""
+    prob = rebuild(row["problem"], row["case"], row.get("problem_params"))
+    if prob is None:
         return None
     return {m.name: tuple(float(b) for b in m.eig_bounds) for m in prob.matrices}
 
 
 __all__ = ["WARNINGS", "bounds_of", "info", "info_of", "jobs_of", "make", "module",
-           "params_of", "reset", "simulate", "warn"]
+           "params_of", "rebuild", "reset", "simulate", "warn"]

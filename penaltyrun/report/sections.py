@@ -58,7 +58,8 @@ def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
     best diagonal and best full start over every optimizer, and of the paper's matrices."""
     first = g.iloc[0]
     mod = protocol.module(first["problem"])
-    if mod is None:
+    prob = protocol.rebuild(first["problem"], first["case"], first.get("problem_params"))
+    if mod is None or prob is None:
         return []
     info = protocol.info_of(g)
     sims: dict[str, Any] = {}
@@ -67,7 +68,6 @@ def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
              f"{with_unit(float(row['best_cost']), info.cost_unit, 4)})"] = \
             protocol.simulate(row)
     if info.paper is not None and sims:
-        prob = protocol.make(first["problem"], first["case"], first.get("problem_params"))
         for name, mats in info.paper.matrices.items():
             sims[f"paper {name}"] = prob.simulate(dict(mats))
     figures = report_hooks.plots(mod, sims, first["case"],
@@ -101,7 +101,9 @@ def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
     if info.paper is None or not info.paper.matrices:
         return pd.DataFrame()
     first = g.iloc[0]
-    prob = protocol.make(first["problem"], first["case"], first.get("problem_params"))
+    prob = protocol.rebuild(first["problem"], first["case"], first.get("problem_params"))
+    if prob is None:
+        return pd.DataFrame()
     ok = g[converged(g) & (g["optimizer"] != "baseline")]
     rows = []
     for name, ref in info.paper.matrices.items():

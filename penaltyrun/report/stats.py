@@ -25,6 +25,16 @@ CELL = ["problem", "case", "variant", "optimizer", "param"]
 MIN_N_TEST = 10
 #: Relative spread below which a sample is treated as constant (no interval, no test).
 DEGENERATE_RTOL = 1e-9
+#: Largest sample with BCa bootstrap intervals. BCa's jackknife alone evaluates the
+#: statistic on n samples of n − 1; beyond this n the intervals are the distribution-free
+#: order-statistic interval of the median and Student's t interval of the mean
+#: (:func:`large_sample_ci`), which BCa approaches as n grows.
+BCA_MAX_N = 5000
+#: Above this n the bootstrap resamples are drawn in batches of at most
+#: :data:`BOOTSTRAP_BATCH_BYTES` (the unbatched draw of 9999 × n indices is 80 MB here).
+BOOTSTRAP_BATCH_MIN_N = 1000
+#: Memory one batch of bootstrap resamples may take (bytes).
+BOOTSTRAP_BATCH_BYTES = 64 * 2**20
 #: |A12 − 0.5| thresholds of the magnitude labels (Vargha & Delaney 2000).
 A12_THRESHOLDS = ((0.21, "large"), (0.14, "medium"), (0.06, "small"))
 
@@ -136,7 +146,9 @@ def converged(df: pd.DataFrame) -> pd.Series:
 
 def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
            n_resamples: int = 9999, seed: int = 0) -> tuple[float, float, str]:
-    """BCa bootstrap confidence interval (:func:`scipy.stats.bootstrap`, ``method='BCa'``).
+    """BCa bootstrap confidence interval (:func:`scipy.stats.bootstrap`, ``method='BCa'``);
+    for more than :data:`BCA_MAX_N` values, :func:`large_sample_ci`. Memory stays bounded:
+    resamples of large samples are drawn in batches (:data:`BOOTSTRAP_BATCH_BYTES`).
 
     Parameters
     ----------
@@ -163,11 +175,16 @@ def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
         return float("nan"), float("nan"), f"n = {x.size} < 3: no CI"
     if np.ptp(x) <= DEGENERATE_RTOL * max(1.0, float(np.max(np.abs(x)))):
         return float("nan"), float("nan"), "constant sample: no CI"
+    if x.size > BCA_MAX_N:
+        return large_sample_ci(x, statistic, level)
     func = {"median": np.median, "mean": np.mean}[statistic]
+    batch = (None if x.size <= BOOTSTRAP_BATCH_MIN_N
+             else max(1, BOOTSTRAP_BATCH_BYTES // (8 * x.size)))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = stats.bootstrap((x,), func, n_resamples=n_resamples, confidence_level=level,
-                              method="BCa", vectorized=True, rng=np.random.default_rng(seed))
+                              method="BCa", vectorized=True, batch=batch,
+                              rng=np.random.default_rng(seed))
     lo, hi = float(res.confidence_interval.low), float(res.confidence_interval.high)
     if not (np.isfinite(lo) and np.isfinite(hi)):
         reason = str(caught[0].message).split(".")[0] if caught else "degenerate bootstrap"
@@ -212,6 +229,43 @@ def holm(p_values: np.ndarray) -> np.ndarray:
     scaled = np.minimum(1.0, (m - np.arange(m)) * p[order])
     out[order] = np.maximum.accumulate(scaled)
     return out
+
+
+def large_sample_ci(values: np.ndarray, statistic: str = "median",
+                    level: float = 0.95) -> tuple[float, float, str]:
+    """Confidence interval of a large sample without resampling.
+
+    The median's is the distribution-free order-statistic interval [x₍ⱼ₎, x₍ₙ₋ⱼ₊₁₎] with
+    the largest j such that 2 P(B ≤ j − 1) ≤ 1 − level, B ~ Binomial(n, ½) (coverage at
+    least ``level`` for any continuous distribution); the mean's is Student's t interval
+    x̄ ± t_{n−1} s / √n.
+
+    Parameters
+    ----------
+    values : ndarray, shape (n,)
+        One sample, n ≥ 3.
+    statistic : {"median", "mean"}
+    level : float
+        Confidence level.
+
+    Returns
+    -------
+    lo, hi : float
+        Interval bounds.
+    note : str
+        ``""``.
+    """
+    x = np.sort(np.asarray(values, float))
+    n = x.size
+    alpha = 1.0 - level
+    if statistic == "mean":
+        half = stats.t.ppf(1.0 - alpha / 2, n - 1) * np.std(x, ddof=1) / np.sqrt(n)
+        return float(np.mean(x) - half), float(np.mean(x) + half), ""
+    k = int(stats.binom.ppf(alpha / 2, n, 0.5))  # smallest k with P(B <= k) >= alpha/2
+    if stats.binom.cdf(k, n, 0.5) > alpha / 2:
+        k -= 1
+    k = max(k, 0)  # j - 1 = k: P(B <= j - 1) <= alpha/2
+    return float(x[k]), float(x[n - 1 - k]), ""
 
 
 def cell_summary(df: pd.DataFrame, seed: int = 0) -> pd.DataFrame:

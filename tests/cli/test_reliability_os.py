@@ -146,3 +146,77 @@ def test_disk_full_while_writing_the_parquet_is_one_line(tmp_path, small_tmpfs):
     assert "No space left on device" in one_error_line(proc)
     assert not [p for p in run.rglob("*.tmp")]
     filler.unlink()
+
+
+def _mount_tmpfs(mnt: Path, options: str) -> None:
+    mnt.mkdir()
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a tmpfs needs root")
+    ok = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(mnt)],
+                        capture_output=True)
+    if ok.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs: {ok.stderr.decode(errors='replace').strip()}")
+
+
+def test_a_read_only_run_dir_is_one_line_before_any_job(tmp_path):
+    """A folder on a read-only file system is refused with the other bad run folders: one
+    line naming it and the fix, exit code 2, before any job runs."""
+    mnt = tmp_path / "ro"
+    _mount_tmpfs(mnt, "ro,size=64k")
+    try:
+        proc = cli(*FAST_JOBS, f"hydra.run.dir={mnt / 'run'}", cwd=tmp_path, timeout=120)
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+    assert proc.returncode == 2
+    line = one_error_line(proc)
+    assert "hydra.run.dir" in line and str(mnt / "run") in line
+    assert "Read-only file system" in line and "choose a folder you can write to" in line
+
+
+def test_out_of_inodes_is_said_so_not_as_megabytes_free(tmp_path):
+    """A file system with room but no free inodes fails with ENOSPC too; the line says
+    there are no free inodes instead of pointing at the megabytes left."""
+    import errno
+
+    from penaltyrun.errors import describe_os_error, free_space
+
+    mnt = tmp_path / "few_inodes"
+    _mount_tmpfs(mnt, "size=4m,nr_inodes=16")
+    try:
+        with pytest.raises(OSError) as full:
+            for k in range(100):
+                (mnt / f"f{k}").write_bytes(b"")
+        assert full.value.errno == errno.ENOSPC
+        assert free_space(mnt).startswith("no free inodes (")
+        line = describe_os_error(full.value)
+        assert str(mnt) in line and "no free inodes" in line
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+def test_a_disk_full_error_without_a_path_names_no_other_disk():
+    """An ENOSPC of a write to an open file carries no path: the line gives no free space
+    (the current folder may be on another disk) rather than a wrong one."""
+    import errno
+
+    from penaltyrun.errors import describe_os_error
+
+    line = describe_os_error(OSError(errno.ENOSPC, "No space left on device"))
+    assert line.startswith("cannot write a file: No space left on device;")
+    assert " free)" not in line and "runner.resume=true" in line
+
+
+@pytest.mark.slow  # about 10 s: a run, its report and an export onto a full disk
+def test_an_export_onto_a_full_disk_is_one_line_and_leaves_no_file(tmp_path, small_tmpfs):
+    run = tmp_path / "run"
+    assert cli(*FAST_JOBS, "runner.n_starts=2", f"hydra.run.dir={run}",
+               cwd=tmp_path).returncode == 0
+    exported = small_tmpfs / "export"
+    exported.mkdir()
+    filler = _fill(small_tmpfs, 0)
+    proc = report(str(run), "-o", str(tmp_path / "rep"), "--export", str(exported))
+    filler.unlink()
+    assert proc.returncode == EXIT_ENVIRONMENT, proc.stderr
+    line = one_error_line(proc)
+    assert "No space left on device" in line and str(exported) in line
+    assert list(exported.iterdir()) == []  # no empty JSON, no temporary folder

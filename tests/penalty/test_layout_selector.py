@@ -156,3 +156,26 @@ def test_selected_quadratic_batched_errors():
     out = selected_quadratic(E, K, mask)
     assert out.shape == (4, 5)
     np.testing.assert_allclose(out[2, 3], selected_quadratic(E[2, 3], K, mask))
+
+
+def test_layout_vjp_is_the_gradient_of_a_function_of_all_blocks(layout):
+    """f = tr(A K) + tr(B P)² + 3 η, against central differences through ``split``."""
+    rng = np.random.default_rng(0)
+    A, Bm = rng.normal(size=(3, 3)), rng.normal(size=(2, 2))
+    lb, ub = layout.bounds()
+    z = lb + (ub - lb) * rng.uniform(0.1, 0.9, layout.dim)
+
+    def f(zz):
+        mats, sc = layout.split(zz)
+        return np.trace(A @ mats["K"][0]) + np.trace(Bm @ mats["P"][0]) ** 2 + 3 * sc["eta"][0]
+
+    mats, _ = layout.split(z)
+    g = layout.vjp(z, {"K": A, "P": 2 * np.trace(Bm @ mats["P"][0]) * Bm}, {"eta": 3.0})
+    h = 1e-6
+    fd = np.array([(f(z + h * e) - f(z - h * e)) / (2 * h) for e in np.eye(layout.dim)])
+    np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-7)
+    # a block without a gradient contributes zeros
+    g0 = layout.vjp(z, {"K": A})
+    assert np.all(g0[3 + 3:] == 0.0)
+    with pytest.raises(ValueError, match="expected z of shape"):
+        layout.vjp(z[:-1], {})

@@ -166,6 +166,17 @@ def test_givens_matches_product_of_plane_rotations(n):
         assert np.linalg.det(q) == pytest.approx(1.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("n", (16, 32))
+def test_givens_and_cayley_match_their_definitions_at_large_n(n):
+    rng = np.random.default_rng(n)
+    A = rng.uniform(-np.pi, np.pi, (3, orth.n_angles(n)))
+    for a, q in zip(A, orth.givens_batch(A, n)):
+        np.testing.assert_allclose(q, ref_givens(a, n), atol=1e-12)
+    E = rng.uniform(-3, 3, (3, orth.n_angles(n)))
+    for e, q in zip(E, orth.cayley_batch(E, n)):
+        np.testing.assert_allclose(q, ref_cayley(e, n), atol=1e-11)
+
+
 def test_givens_single_plane_sign_convention():
     """G_jj = G_ii = cos θ, G_ji = sin θ, G_ij = −sin θ (j < i)."""
     th = 0.4

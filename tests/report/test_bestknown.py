@@ -1,4 +1,4 @@
-"""Best-known optima: converged starts only, certification rules, improvement, shortfall."""
+"""Best-known optima: converged starts only, certification rules, shortfall."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import pytest
 from penaltyrun.report.bestknown import (
     best_known,
     family,
-    improvement,
     reference,
     shortfall,
     within,
@@ -89,16 +88,6 @@ def test_problem_variants_have_their_own_best_known_but_budgets_do_not():
     bk = best_known(df)
     assert bk_row(bk, "diagonal")["best_known"] == 4.0
     assert bk_row(bk, "diagonal", "t_max=500")["best_known"] == 9.0
-
-
-def test_improvement_is_best_known_full_vs_best_known_diagonal():
-    df = pd.DataFrame([job("diagonal", "grid", 4.0), job("diagonal", "pso", 4.5),
-                       job("geagsp", "pso", 3.0)])
-    imp = improvement(best_known(df)).iloc[0]
-    assert imp["improvement_pct"] == pytest.approx(25.0)
-    assert imp["diagonal_certified"] and not imp["full_certified"]
-    assert imp["full_by"] == "pso / geagsp"
-    assert improvement(best_known(pd.DataFrame([job("diagonal", "pso", 1.0)]))).empty
 
 
 def test_shortfall_is_the_gap_to_the_family_best_known():

@@ -13,7 +13,6 @@ from scipy import stats as sps
 from penaltyrun.report.compare import (
     a12_interval,
     a12_intervals,
-    full_worse_rows,
     map_order,
     pairwise,
 )
@@ -101,13 +100,6 @@ def test_enough_starts_are_not_underpowered_and_one_start_is_no_test():
     assert math.isnan(grid["p_mwu"]) and math.isnan(grid["p_holm"])
     assert "no test" in grid["note"]
     assert pso["p_holm"] == pytest.approx(pso["p_mwu"])  # a family of one test
-
-
-def test_full_worse_rows_name_the_full_map(frame):
-    worse = full_worse_rows(pairwise(frame))
-    # best givens 5.0 > best diagonal 4.0; best geagsp 1.0 and cayley 2.0 are lower
-    assert worse["full_map"].tolist() == ["givens"]
-    assert (worse["full_best"].iloc[0], worse["diag_best"].iloc[0]) == (5.0, 4.0)
 
 
 def _brunner_munzel_direct(x, y, level):

@@ -315,3 +315,19 @@ def test_report_cli_takes_the_current_folder_off_sys_path(tmp_path, monkeypatch)
     monkeypatch.setenv("PYTHONPATH", ".")  # the user put it there: kept
     report_cli._drop_current_folder()
     assert sys.path == [str(tmp_path), "/lib"]
+
+
+def test_an_unknown_case_is_reported_from_its_stored_columns(tmp_path):
+    """A case this version does not know (renamed, or from a newer version) costs one
+    warning; its cell keeps its tables, the other cells their whole report."""
+    folder = tmp_path / "received"
+    write(folder / "a", rows(problem="zermelo", case="default"))
+    write(folder / "b", rows(problem="zermelo", case="no_such_case", config_hash="h2"))
+    out = build_report(folder, tmp_path / "report")
+    text = (out / "report.md").read_text(encoding="utf-8")
+    plain = text.replace("\\_", "_")
+    assert "## zermelo / default" in plain and "## zermelo / no_such_case" in plain
+    warned = [line for line in plain.splitlines() if "cannot be rebuilt" in line]
+    assert len(warned) == 1 and "no_such_case" in warned[0]
+    assert list(out.glob("zermelo_default_phase_plane*.png"))  # the known case's figures
+    assert not list(out.glob("zermelo_no_such_case*phase_plane*.png"))

@@ -59,3 +59,33 @@ def test_report_html_embeds_only_regular_png_files_of_its_folder(tmp_path):
     page = to_html(f"![a]({secret})\n\n![b](../secret.png)\n\n![c](link.png)\n\n"
                    "![d](secret.txt)\n\n![e](own.png)\n", folder)
     assert page.count("data:image/png;base64,") == 1 and page.count("missing figure") == 4
+
+
+def test_temporary_folders_of_killed_reports_are_removed_by_the_next_one(tmp_path):
+    """A report killed with SIGKILL leaves its ``.report-<pid>-XXXX`` folder; the next report
+    into the folder removes the folders of processes that no longer run, and only those."""
+    import subprocess
+    import sys
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    dead_pid = int(dead.stdout)
+    abandoned = tmp_path / f".report-{dead_pid}-k1ll3d"
+    abandoned.mkdir()
+    (abandoned / "summary.csv").write_text("half written", encoding="utf-8")
+    running = tmp_path / f".report-{os.getpid()}-busy"  # a report still writing
+    running.mkdir()
+    mine = tmp_path / ".report-notes"  # not a report's temporary folder
+    mine.mkdir()
+    other_prefix = tmp_path / f".export-{dead_pid}-k1ll3d"
+    other_prefix.mkdir()
+
+    def write(tmp):
+        (tmp / "report.md").write_text("# r\n", encoding="utf-8")
+
+    outdir.write_into(tmp_path, "report.output", write, lambda out: set())
+    assert not abandoned.exists()
+    assert running.is_dir() and mine.is_dir() and other_prefix.is_dir()
+    assert (tmp_path / "report.md").is_file()
+    assert not [p for p in tmp_path.iterdir()
+                if p.name.startswith(f".report-{os.getpid()}-") and p != running]

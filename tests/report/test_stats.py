@@ -12,6 +12,9 @@ from hypothesis import strategies as st
 from scipy import stats as sps
 
 from penaltyrun.report.stats import (
+    BCA_MAX_N,
+    BOOTSTRAP_BATCH_BYTES,
+    BOOTSTRAP_BATCH_MIN_N,
     a12,
     a12_magnitude,
     add_variant,
@@ -19,6 +22,7 @@ from penaltyrun.report.stats import (
     cell_summary,
     converged,
     holm,
+    large_sample_ci,
 )
 from penaltyrun.report.tables import fmt, markdown, write_table
 
@@ -125,6 +129,57 @@ def test_bca_small_and_constant_samples_are_nan_with_a_note():
                          ([3.0, 3.0, 3.0, 3.0], "constant sample: no CI")):
         lo, hi, text = bca_ci(np.array(values))
         assert math.isnan(lo) and math.isnan(hi) and text == note
+
+
+def test_order_statistic_interval_of_the_median_is_the_binomial_one():
+    """[x_(j), x_(n-j+1)] with the largest j such that 2 P(B <= j - 1) <= 0.05: checked
+    against the binomial coverage computed directly."""
+    n = 6001
+    x = np.random.default_rng(4).permutation(np.arange(n, dtype=float))
+    lo, hi, note = large_sample_ci(x, "median")
+    j = int(lo) + 1  # x holds 0 .. n-1: x_(j) = j - 1
+    assert hi == n - j and note == ""
+    cover = 1 - 2 * sps.binom.cdf(j - 1, n, 0.5)
+    assert cover >= 0.95 and 1 - 2 * sps.binom.cdf(j, n, 0.5) < 0.95
+
+
+def test_large_sample_intervals_cover_at_their_level():
+    """Coverage of the median's and the mean's interval over 400 lognormal samples of
+    6000 (the true median 1, the true mean e^{1/8}): within binomial error of 95 %."""
+    rng = np.random.default_rng(5)
+    hits = {"median": 0, "mean": 0}
+    truth = {"median": 1.0, "mean": math.exp(0.125)}
+    for _ in range(400):
+        x = rng.lognormal(0.0, 0.5, 6000)
+        for statistic in hits:
+            lo, hi, _ = large_sample_ci(x, statistic)
+            hits[statistic] += lo <= truth[statistic] <= hi
+    for statistic, k in hits.items():
+        assert 0.92 <= k / 400 <= 0.985, (statistic, k)
+
+
+def test_bca_of_a_large_cell_takes_the_large_sample_interval_and_bounded_memory():
+    """L3: a cell of 100 000 starts asked for one 7.45 GiB array of bootstrap indices; now
+    BCa stops at BCA_MAX_N (its resamples in batches) and the large-sample interval
+    allocates a few copies of the sample."""
+    import tracemalloc
+
+    rng = np.random.default_rng(6)
+    big = rng.lognormal(0.0, 0.5, 100_000)
+    assert bca_ci(big, "median") == large_sample_ci(big, "median")
+    mid = rng.lognormal(0.0, 0.5, 3000)  # unbatched: about 590 MB
+    tracemalloc.start()
+    try:
+        lo, hi, note = bca_ci(mid, "median")
+        bca_ci(big, "mean")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert note == "" and lo < np.median(mid) < hi
+    assert BOOTSTRAP_BATCH_MIN_N < BCA_MAX_N
+    assert peak < 6 * BOOTSTRAP_BATCH_BYTES, peak / 2**20
+    ref_lo, ref_hi, _ = large_sample_ci(mid, "median")
+    assert abs(lo - ref_lo) < 0.05 and abs(hi - ref_hi) < 0.05  # BCa ~ order statistics
 
 
 # --------------------------------------------------------------------------- A12, Holm

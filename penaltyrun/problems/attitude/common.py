@@ -26,6 +26,10 @@ The optimizer minimizes this cost or, with ``objective_form: neg_reciprocal``, t
 companion study's −1/J (:mod:`~penaltyrun.problems.attitude.objective`); thresholds are
 converted to J before the kernel sees them, and records keep the cost above.
 
+That is the paper's criterion (``criterion: deadline``, the default). The well-posed
+criteria ``time_energy`` (free final time) and ``terminal`` (fixed horizon, terminal
+penalty) are in :mod:`~penaltyrun.problems.attitude.criteria`.
+
 The pieces live in :mod:`~penaltyrun.problems.attitude.params` (parameters, cases),
 :mod:`~penaltyrun.problems.attitude.frames` (attitude representations, held-out states),
 :mod:`~penaltyrun.problems.attitude.reference` (scipy references) and
@@ -44,6 +48,8 @@ import numpy as np
 from penaltyrun.dynamics import attitude as kernel
 from penaltyrun.dynamics import integrate
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import criteria
+from penaltyrun.problems.attitude import criteria as attitude_criteria
 from penaltyrun.problems.attitude.frames import (
     ATTITUDE_TYPES,
     attitude_to_quaternion,
@@ -162,7 +168,8 @@ class AttitudeProblem(AttitudeScenarios):
         self.d0 = float(params.event_distance(self.y0))
 
     def run(self, G: np.ndarray, y0: np.ndarray | None = None,
-            cutoff: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+            cutoff: np.ndarray | None = None, t_max: float | None = None
+            ) -> tuple[np.ndarray, ...]:
         """Raw kernel runs (see :func:`penaltyrun.dynamics.attitude.simulate_batch`).
 
         Parameters
@@ -173,6 +180,8 @@ class AttitudeProblem(AttitudeScenarios):
             Initial states (default: the problem's); B or S may be 1 (broadcast).
         cutoff : ndarray, shape (max(B, S),), optional
             Kernel cutoff on J per run (``inf``: none).
+        t_max : float, optional
+            Horizon cap (s); default the parameter ``t_max``.
 
         Returns
         -------
@@ -182,7 +191,8 @@ class AttitudeProblem(AttitudeScenarios):
         y0 = self.y0[None] if y0 is None else y0
         return kernel.simulate_batch(
             np.ascontiguousarray(G, dtype=float), np.ascontiguousarray(y0, dtype=float),
-            self.inertia, self.inertia_inv, float(p.t_max), float(p.tol), p.saturation(),
+            self.inertia, self.inertia_inv, float(p.t_max if t_max is None else t_max),
+            float(p.tol), p.saturation(),
             float(p.rtol), float(p.atol), float(p.max_step), float(p.event_spacing),
             int(p.n_event_samples),
             int(p.max_steps), *p.event_weights(),
@@ -196,14 +206,21 @@ class AttitudeProblem(AttitudeScenarios):
         if thresholds is not None:
             cutoff = kernel_cutoffs(cost_thresholds(form, thresholds), ok,
                                     HARD_FAILURE_FACTOR * self.params.failure_penalty)
-        t_end, energy, dist, status = self.run(np.where(ok[:, None, None], G, 0.0), y0,
-                                               cutoff)
+        G = np.where(ok[:, None, None], G, 0.0)
+        if self.params.criterion == criteria.DEADLINE:
+            t_end, energy, dist, status = self.run(G, y0, cutoff)
+            cost = graded_cost(energy, dist, d0, status, self.params.failure_penalty)
+            term = np.zeros_like(energy)
+        else:
+            res = attitude_criteria.finish(self, G, ok, y0, d0, cutoff)
+            t_end, energy, dist, status, cost, term = (res[k] for k in (
+                "t_final", "energy", "final_distance", "status", "cost", "terminal_cost"))
         ok_full = np.broadcast_to(ok, (n,))
-        cost = graded_cost(energy, dist, d0, status, self.params.failure_penalty)
         cost = np.where(ok_full, cost, HARD_FAILURE_FACTOR * self.params.failure_penalty)
         converged = ok_full & (status == integrate.EVENT)
         return {"cost": cost, "converged": converged, "status": status_strings(status, ok_full),
                 "energy": energy, "t_final": t_end, "final_distance": dist,
+                "terminal_cost": term,
                 "objective": optimizer_values(form, cost, energy, dist, self.params.tol,
                                               status, ok_full)}
 
@@ -256,7 +273,9 @@ class AttitudeProblem(AttitudeScenarios):
             ``problem``, ``case``, ``cost`` (objective), ``energy`` (J at the end, N²·m²·s),
             ``converged``, ``status``, ``t_final`` (s), ``t_max`` (s), ``final_distance``,
             ``initial_distance``, ``gain`` (3×6 nested list, u = −gain·(q_v, ω)),
-            ``objective_form`` and ``objective`` (the value the optimizer saw).
+            ``objective_form`` and ``objective`` (the value the optimizer saw); under a
+            well-posed criterion also the keys of
+            :func:`~penaltyrun.problems.attitude.criteria.detail`.
         """
         checked = self._check(mats)
         G, ok = self.gains({k: v[None] for k, v in checked.items()})
@@ -278,6 +297,7 @@ class AttitudeProblem(AttitudeScenarios):
             "objective_form": self.params.objective_form,
             "objective": float(res["cost"][0] if res["objective"] is None
                                else res["objective"][0]),
+            **attitude_criteria.detail(self.params, res),
         }
 
     def simulate(
@@ -297,7 +317,7 @@ class AttitudeProblem(AttitudeScenarios):
             ``q``, ``w``, ``u``) and ``limits`` (``u``: ±``u_max`` when saturated).
         """
         G = self.gain(mats)
-        t_end = float(self.run(G[None])[0][0])
+        t_end = float(self._finish(G[None], np.ones(1, dtype=bool), None, self.d0)["t_final"][0])
         out = trajectory(G, self.params, t_end, n_points, self.y0)
         u_max = self.params.saturation()
         out["channels"] = {"q": ["q0", "q1", "q2", "q3"], "w": list(OMEGA_NAMES),
@@ -346,6 +366,7 @@ class AttitudeProblem(AttitudeScenarios):
         d0 = self.params.event_distance(y0)
         res = self._finish(G[None], np.ones(1, dtype=bool), y0, d0)
         res.pop("objective")
+        res.pop("terminal_cost")
         res.update({"initial_distance": d0, "y0": y0})
         return res
 

@@ -60,6 +60,26 @@ def euler_to_quaternion(angles_deg: Any) -> np.ndarray:
     return normalize_quaternion(q)
 
 
+def quaternion_to_euler(q: Any) -> np.ndarray:
+    """Intrinsic Z-Y-X Euler angles (yaw, pitch, roll) in degrees of scalar-first
+    quaternions, the inverse of :func:`euler_to_quaternion` for pitch in (−90°, 90°).
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Yaw and roll in (−180°, 180°], pitch in [−90°, 90°].
+    """
+    w, x, y, z = np.moveaxis(normalize_quaternion(q), -1, 0)
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
+    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    return np.degrees(np.stack([yaw, pitch, roll], axis=-1))
+
+
 def mrp_to_quaternion(sigma: Any) -> np.ndarray:
     """Quaternion of modified Rodrigues parameters, normalized to q0 ≥ 0.
 
@@ -163,5 +183,6 @@ __all__ = [
     "normalize_quaternion",
     "perturbed_states",
     "quaternion_product",
+    "quaternion_to_euler",
     "robustness_grid",
 ]

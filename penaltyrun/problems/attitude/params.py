@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import horizon
+from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.attitude.frames import ATTITUDE_TYPES, attitude_to_quaternion
 from penaltyrun.problems.attitude.objective import OBJECTIVE_FORMS
 from penaltyrun.problems.base import ParamsMixin
@@ -56,7 +56,7 @@ CASE_PARAMS: dict[str, dict[str, Any]] = {
 
 
 @dataclass(frozen=True)
-class Params(ParamsMixin, TrainingParams):
+class Params(ParamsMixin, TrainingParams, criteria.CriterionParams):
     """Attitude problem parameters (SI units).
 
     Attributes
@@ -124,6 +124,18 @@ class Params(ParamsMixin, TrainingParams):
         up to ~5 000 s from held-out attitudes.
     train_scenarios, train_aggregate
         Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
+    criterion : str
+        ``deadline`` (the paper's: energy to the event before ``t_max``), ``time_energy``
+        (free final time: energy + ρ · arrival time) or ``terminal`` (energy to ``t_max``
+        plus x(T)ᵀ S x(T), x = (q_v, ω), no event); see
+        :mod:`penaltyrun.problems.attitude.criteria`.
+    rho : float
+        ρ of ``time_energy``, N²·m² (the energy one second is worth); default 1e-3.
+    terminal_weight : tuple or None
+        S of ``terminal`` (6 diagonal entries or a 6×6 symmetric PSD matrix, N²·m²·s per
+        unit of (q_v, ω)²); ``None``: diag(w_qv² I₃, w_ω² I₃) / tol².
+    free_time_cap : float
+        Long horizon of ``time_energy`` (s; default 10 000): no arrival by then is a failure.
     """
 
     HOLDOUT_OFF: ClassVar[Mapping[str, Any]] = MappingProxyType(
@@ -156,8 +168,11 @@ class Params(ParamsMixin, TrainingParams):
     holdout_seed: int = 20250422
     holdout_horizon_factor: float = 50.0
     holdout_t_max_cap: float = 10_000.0
+    rho: float = 1e-3
+    free_time_cap: float = 10_000.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "terminal_weight", criteria.freeze(self.terminal_weight))
         inertia = self.inertia
         if len(inertia) == 3 and all(np.ndim(row) == 1 for row in inertia):
             object.__setattr__(self, "inertia", tuple(tuple(float(v) for v in row)
@@ -258,6 +273,12 @@ def validate(params: Params) -> Params:
         if not (isinstance(value, Real) and 0 <= value):
             raise ConfigError(f"problem.{key}", f"must be a number >= 0, got {value!r}")
     horizon.check_settings(params, "problem")
+    criteria.check(params, "problem")
+    if params.criterion != criteria.DEADLINE and params.objective_form != "cost":
+        raise ConfigError("problem.objective_form", f"criterion {params.criterion} is "
+                          "minimized as it is: use objective_form=cost")
+    if params.terminal_weight is not None:
+        criteria.terminal_matrix(params.terminal_weight, 6, "problem.terminal_weight")
     return params
 
 
@@ -272,6 +293,9 @@ def build_params(cls: type[Params], case: str, overrides: Mapping[str, Any]) -> 
     if case not in CASES:
         raise ConfigError("case", f"unknown case {case!r}", allowed=CASES)
     merged = {**CASE_PARAMS[case], **dict(overrides)}
+    if merged.get("criterion", criteria.DEADLINE) != criteria.DEADLINE \
+            and "objective_form" not in overrides:
+        merged["objective_form"] = "cost"  # a case's companion form belongs to its deadline
     return validate(cls.from_mapping(merged))
 
 

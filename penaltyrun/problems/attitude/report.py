@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
+from penaltyrun.problems import criteria
 from penaltyrun.problems.attitude.params import CASE_PARAMS, Params
 from penaltyrun.problems.attitude.plots import plot_histories
 from penaltyrun.problems.base import PaperValues, ReportInfo, ReportSection
@@ -80,8 +81,12 @@ def hooks(law: str) -> tuple[Callable[..., ReportInfo], Callable[..., dict[str, 
             paper = PaperValues(source="authors' companion study (MATLAB particleswarm)",
                                 summaries=COMPANION[case], runs=COMPANION_RUNS,
                                 evaluations=COMPANION_EVALS.get(case, {}))
-        return ReportInfo(cost_name="J = ∫½‖u‖² dt", cost_unit="N²·m²·s",
-                          holdout_description=holdout_description(p), paper=paper)
+        if p.criterion != criteria.DEADLINE:
+            paper = None   # the published values are of the deadline criterion
+        return ReportInfo(cost_name=criteria.report_name(p, "J = ∫½‖u‖² dt", "∫₀^t_f ½‖u‖² dt",
+                                                         "∫₀ᵀ ½‖u‖² dt"),
+                          cost_unit="N²·m²·s", holdout_description=holdout_description(p),
+                          paper=paper)
 
     def report_plots(sims: Mapping[str, Mapping[str, np.ndarray]], case: str,
                      params: Mapping[str, Any]) -> dict[str, Any]:

@@ -16,12 +16,14 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import horizon
+from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.attitude.frames import (
     euler_to_quaternion,
     perturbed_states,
+    quaternion_to_euler,
     robustness_grid,
 )
+from penaltyrun.problems.basins import BasinAxes, arrival_times
 
 logger = logging.getLogger(__name__)
 
@@ -99,7 +101,9 @@ class AttitudeScenarios:
         :meth:`holdout_scenarios`) at the training deadline ``t_max`` and at the held-out
         horizon (``holdout_horizon_factor``, ``holdout_t_max_cap``; see
         :mod:`penaltyrun.problems.horizon`); inertia, event and tolerances are this
-        problem's.
+        problem's. Under a well-posed criterion the held-out set is judged by the same
+        criterion once, at its own horizon (``free_time_cap`` or ``t_max``), which is then
+        both ``horizon`` and ``training_horizon``.
 
         Returns
         -------
@@ -116,20 +120,42 @@ class AttitudeScenarios:
         if not len(sc["scenario"]):
             return None
         p = self.params
+        train_t = criteria.run_horizon(p)
         long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap)
+                                         p.holdout_t_max_cap) \
+            if criteria.judges_at_deadline(p) else train_t
         try:
             short = self.evaluate_states(mats, sc["y0"])
             res = horizon.at_horizon(self, long_t).evaluate_states(mats, sc["y0"]) \
-                if long_t > p.t_max else dict(short)
+                if long_t > train_t else dict(short)
         except ConfigError as exc:
             logger.warning("no held-out evaluation: %s", exc)
             return None
         y0 = res.pop("y0")
-        res = horizon.combine(short, res, p.t_max, long_t)
+        res = horizon.combine(short, res, train_t, long_t)
         res.update({"scenario": sc["scenario"], "attitudes_deg": sc["attitudes_deg"],
                     "q_init": y0[:, :4], "omega_init": y0[:, 4:7]})
         return res
+
+    def basin_axes(self) -> BasinAxes:
+        """Initial attitudes over yaw and pitch (roll 0, degrees), the case's initial
+        rates; the training attitude is marked when its roll is 0."""
+        yaw, pitch, roll = quaternion_to_euler(self.y0[:4])
+        marker = (float(yaw), float(pitch)) if abs(roll) < 1e-6 else None
+        return BasinAxes(("yaw (deg)", "pitch (deg)"), (-180.0, -89.0), (180.0, 89.0),
+                         "s", marker)
+
+    def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
+                   points: np.ndarray) -> dict[str, Any]:
+        """One candidate from the attitudes (yaw, pitch) ``points`` (P, 2), roll 0, at the
+        held-out horizon."""
+        p = self.params
+        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap)
+        att = np.column_stack([points, np.zeros(len(points))])
+        runs = horizon.at_horizon(self, long_t).evaluate_grid(mats, att)
+        return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
+                "arrival_time": arrival_times(runs["converged"], runs["t_final"])}
 
 
 __all__ = ["AttitudeScenarios"]

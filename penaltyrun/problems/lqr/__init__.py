@@ -82,7 +82,11 @@ def report_info(case: str, params: Mapping[str, Any]) -> Any:
         holdout = ""
     name = ("J = mean over x0 of Σ_k<T/dt (x[k]ᵀW_x x[k] + u[k]ᵀW_u u[k])" if p.dt is not None
             else "J = mean over x0 of ∫₀ᵀ (xᵀW_x x + uᵀW_u u) dt")
-    return ReportInfo(cost_name=name,
+    from penaltyrun.problems.criteria import report_name
+
+    free = ("mean over x0 of Σ_k<k_s (x[k]ᵀW_x x[k] + u[k]ᵀW_u u[k])" if p.dt is not None
+            else "mean over x0 of ∫₀^t_s (xᵀW_x x + uᵀW_u u) dt")
+    return ReportInfo(cost_name=report_name(p, name, free, name.removeprefix("J = ")),
                       cost_unit=_params.cost_unit(p, p.dt is not None),
                       holdout_description=holdout)
 

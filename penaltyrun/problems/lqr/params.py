@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import horizon
+from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.lqr import expr
 from penaltyrun.problems.multiscenario import TrainingParams
@@ -35,7 +35,8 @@ NOT_SETUP = ("holdout_x0", "holdout_n", "holdout_seed", "holdout_horizon_factor"
              "train_sample", "train_seed", "setup", "constants")
 #: Keys whose strings are not arithmetic (names, paths, units, training scenarios).
 NOT_ARITHMETIC = ("plant_file", "plant", "dynamics", "cost_unit", "constants",
-                  "train_scenarios", "train_aggregate", "train_sample", "train_seed")
+                  "train_scenarios", "train_aggregate", "train_sample", "train_seed",
+                  "criterion")
 
 #: The known-answer set-up (used when no plant is given).
 KNOWN_ANSWER: dict[str, Any] = {
@@ -58,7 +59,7 @@ def _nested(value: Any) -> Any:
 
 
 @dataclass(frozen=True)
-class Params(ParamsMixin, TrainingParams):
+class Params(ParamsMixin, TrainingParams, criteria.CriterionParams):
     """``problem=lqr`` parameters (units are the user's: state unit, input unit, time unit).
 
     Attributes
@@ -93,7 +94,21 @@ class Params(ParamsMixin, TrainingParams):
         W_x (n × n, symmetric positive semi-definite) and W_u (m × m, positive definite) of
         the performance cost; a flat list is a diagonal; ``None``: identity.
     settle_tol : float or None
-        A run with ‖x(T)‖ > settle_tol·‖x0‖ is ``not_settled`` (graded penalty).
+        A run with ‖x(T)‖ > settle_tol·‖x0‖ is ``not_settled`` (graded penalty); under
+        ``criterion: time_energy`` the settling level (default 0.01).
+    criterion : str
+        ``deadline`` (the cost above, default), ``terminal`` (plus x(T)ᵀ S x(T) per start)
+        or ``time_energy`` (the cost to the settling time plus ρ times it); see
+        :mod:`penaltyrun.problems.lqr.criteria`.
+    rho : float
+        ρ of ``time_energy`` (cost units per time unit; default 0.01).
+    terminal_weight : tuple or None
+        S of ``terminal`` (n diagonal entries or n × n symmetric PSD, n the loop's state
+        size incl. integrator states; cost units per squared state unit); ``None``: the
+        Riccati solution P* of (A, B, W_x, W_u).
+    free_time_cap : float
+        Long horizon of ``time_energy`` (time unit; default 1 000): not settled by then is
+        ``not_settled``.
     cost_unit : str
         Unit of the cost, shown in reports (the default reads "summed over steps" instead
         of "× time" for a discrete-time plant).
@@ -193,6 +208,8 @@ class Params(ParamsMixin, TrainingParams):
     response_points: int = 1001
     margin_points: int = 400
     setup: str = ""
+    rho: float = 0.01
+    free_time_cap: float = 1000.0
 
 
 #: Reports split cells by :attr:`Params.setup` alone (one short label per plant and cost
@@ -207,8 +224,8 @@ def setup_label(values: Mapping[str, Any]) -> str:
     import hashlib
     import json
 
-    defining = {k: v for k, v in values.items() if k not in NOT_SETUP}
-    if defining == {k: v for k, v in _known_answer_values().items() if k not in NOT_SETUP}:
+    defining = _defining(values)
+    if defining == _defining(_known_answer_values()):
         return ""
     digest = hashlib.sha256(json.dumps(defining, sort_keys=True, default=str).encode())
     if values.get("dynamics") is not None:
@@ -220,6 +237,14 @@ def setup_label(values: Mapping[str, Any]) -> str:
     else:
         source = "A,B"
     return f"{source}#{digest.hexdigest()[:8]}"
+
+
+def _defining(values: Mapping[str, Any]) -> dict[str, Any]:
+    """The objective-defining values; criterion settings count only when not at their
+    defaults (so labels of set-ups from before the criteria existed do not change)."""
+    defaults = Params()
+    return {k: v for k, v in values.items() if k not in NOT_SETUP
+            and not (k in criteria.SETTINGS and v == getattr(defaults, k))}
 
 
 def _known_answer_values() -> dict[str, Any]:
@@ -351,6 +376,7 @@ def scalars(p: Params) -> None:
             raise ConfigError(f"{PREFIX}.{key}", f"must be an integer >= {low}, got "
                               f"{value!r}")
     horizon.check_settings(p, PREFIX)
+    criteria.check(p, PREFIX)
     if not isinstance(p.cost_unit, str):
         raise ConfigError(f"{PREFIX}.cost_unit", f"must be a string, got {p.cost_unit!r}")
 

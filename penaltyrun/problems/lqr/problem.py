@@ -20,13 +20,19 @@ Cost of one start (P = the failure penalty scale, r = ‖x(T)‖ / ‖x0‖):
   the summed relative excess): J + P (1 + v / (1 + v));
 * ``not_settled`` (``settle_tol`` set and r > settle_tol): J + P (1 + r / (1 + r));
 * ``diverged`` (‖x‖ > ``x_bound``) or ``step_failure`` at time t_f:
-  J(t_f) + P (2 + (T − t_f) / T) (the earlier, the worse);
+  J(t_f) + P (2 + (T − t_f) / T) (the earlier, the worse; T is ``free_time_cap`` under
+  ``criterion: time_energy``);
 * ``nonfinite``: 10 P + the finite part of J;
 * ``care_failure`` (no stabilizing Riccati solution): 10 P (1 + s / (1 + s)), s the
   relative residual of the best solution found (monotone in the failure's size);
 * ``cutoff`` (exact cutoff, integrated loops only): the partial J of a start stopped once
   the sum of its candidate's J over the starts exceeded the number of starts × the
   threshold.
+
+Criteria (``criterion``, :mod:`~penaltyrun.problems.lqr.criteria`): ``terminal`` adds
+x(T)ᵀ S x(T) to each start's J; ``time_energy`` replaces J by the performance cost to the
+settling time plus ρ times that time, ``not_settled`` where the start has not settled by
+``free_time_cap``.
 
 Every graded cost is at least the start's J, so a cut candidate's mean cost is above its
 threshold and at most its uncut cost. A candidate's cost is the mean over its starts, its
@@ -46,7 +52,7 @@ import numpy as np
 from penaltyrun.dynamics import linear_feedback as loop
 from penaltyrun.dynamics.linear import quadratic_cost
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import horizon
+from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
@@ -54,7 +60,9 @@ from penaltyrun.problems.base import (
     ScalarSpec,
     check_spd,
 )
+from penaltyrun.problems.basins import BasinAxes
 from penaltyrun.problems.lqr import constraints as cons
+from penaltyrun.problems.lqr import criteria as lqr_criteria
 from penaltyrun.problems.lqr import discrete
 from penaltyrun.problems.lqr import params as pm
 from penaltyrun.problems.lqr.plant import Plant
@@ -125,6 +133,10 @@ class LQRProblem:
         self.penalty = float(p.failure_penalty) if p.failure_penalty is not None else \
             1000.0 * (self.optimum if np.isfinite(self.optimum) and self.optimum > 0 else 1.0)
         self.holdout_states()  # validate the held-out set now (bad input: exit 2)
+        self.S = lqr_criteria.terminal_weight(self) \
+            if p.criterion == criteria.TERMINAL or p.terminal_weight is not None else None
+        if p.criterion != criteria.TERMINAL:
+            self.S = None   # validated above, used by the terminal criterion only
 
     @property
     def cost_unit(self) -> str:
@@ -180,9 +192,18 @@ class LQRProblem:
         x_final = np.zeros((n_c, n_k, self.plant.n_states))
         codes = np.full((n_c, n_k), "converged", dtype=object)
         good = np.flatnonzero(ok)
-        steps = cand = None
+        steps = None
         history = self.limits.needs_history(metrics)
-        if good.size and self.dt is not None and self.plant.linear and self.u_max is None \
+        free = self.params.criterion == criteria.TIME_ENERGY
+        if good.size and free:
+            J[good], t_end[good], x_final[good], codes[good] = lqr_criteria.free_time(
+                self, K[good], X0)
+            if self.dt is not None and history:  # the constraints' responses to t_max
+                steps = discrete.simulate(
+                    self.plant.A, self.plant.B, np.repeat(K[good], n_k, 0),
+                    np.tile(X0, (good.size, 1)), self.Wx, self.Wu, self.u_max,
+                    discrete.n_steps(self.t_max, self.dt), self._bound(X0), history=True)
+        elif good.size and self.dt is not None and self.plant.linear and self.u_max is None \
                 and not history:
             A_cl = self.plant.A - self.plant.B @ K[good]
             W = self.Wx + np.swapaxes(K[good], 1, 2) @ self.Wu @ K[good]
@@ -220,9 +241,10 @@ class LQRProblem:
             x_final[good] = run["x_final"].reshape(good.size, n_k, -1)
             codes[good] = np.asarray([_LOOP_STATUS[int(s)] for s in run["status"]],
                                      dtype=object).reshape(good.size, n_k)
+        if self.S is not None:
+            J = J + criteria.terminal_cost(x_final, self.S)
         measures = self.limits.measure(K, ok, X0, self.t_max, steps, metrics)
-        cost = self._graded(J, t_end, x_final, X0, codes, measures.pop("violation"),
-                            simulated=steps is not None or cand is not None)
+        cost = self._graded(J, t_end, x_final, X0, codes, measures.pop("violation"), free)
         if not ok.all():
             finite = np.isfinite(failure)
             size = np.ones_like(failure)
@@ -233,34 +255,43 @@ class LQRProblem:
                 "K": K, "ok": ok, **measures}
 
     def _graded(self, J: np.ndarray, t_end: np.ndarray, x_final: np.ndarray,
-                X0: np.ndarray, codes: np.ndarray, excess: np.ndarray, simulated: bool
+                X0: np.ndarray, codes: np.ndarray, excess: np.ndarray, free: bool
                 ) -> np.ndarray:
-        """Graded costs (C, k) of the runs; marks ``not_settled`` and ``constraint`` runs
-        in ``codes``. Each penalty is computed only where its status occurs (a batch of
-        converged runs costs a few array operations). ``simulated``: the codes come from
-        an integrator (``diverged``, ``step_failure``, ``nonfinite`` possible)."""
+        """Graded costs (C, k) of the runs (see the module docstring); marks
+        ``not_settled`` (``settle_tol``, not under ``time_energy``: ``free``) and
+        ``constraint`` runs in ``codes``. Each penalty is computed only where its status
+        occurs: a batch of converged runs costs a few array operations."""
         P = self.penalty
         converged = codes == "converged"
-        cost = J.copy()
+        tol = self.params.settle_tol
+        ratio = None
         with np.errstate(all="ignore"):
-            tol = self.params.settle_tol
-            if tol is not None:
+            if tol is not None and not free:
                 ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
                 unsettled = converged & ~(ratio <= tol)
                 if unsettled.any():
                     codes[unsettled] = "not_settled"
                     converged &= ~unsettled
-                    cost[unsettled] = (J + P * (1.0 + ratio / (1.0 + ratio)))[unsettled]
             violated = converged & (excess > 0)
             if violated.any():
                 codes[violated] = "constraint"
-                graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
-                cost[violated] = (J + P * (1.0 + graded))[violated]
+                converged &= ~violated
+            cost = J.copy()
             keep = np.isfinite(cost)
-            if simulated:
+            if not converged.all():
+                unsettled = codes == "not_settled"
+                if unsettled.any():
+                    if ratio is None:
+                        ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
+                    cost[unsettled] = (J + P * (1.0 + ratio / (1.0 + ratio)))[unsettled]
+                if violated.any():
+                    graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
+                    cost[violated] = (J + P * (1.0 + graded))[violated]
                 failed = (codes == "diverged") | (codes == "step_failure")
-                late = (self.t_max - t_end) / self.t_max
-                cost[failed] = (J + P * (2.0 + late))[failed]
+                if failed.any():
+                    run_t = float(self.params.free_time_cap) if free else self.t_max
+                    late = (run_t - t_end) / run_t
+                    cost[failed] = (J + P * (2.0 + late))[failed]
                 keep = np.isfinite(cost) & (codes != "nonfinite")
         if not keep.all():
             cost = np.where(keep, cost, HARD_FACTOR * P + np.where(np.isfinite(J), J, 0.0))
@@ -488,14 +519,44 @@ class LQRProblem:
             return None
         Q, R = self._check(mats)
         p = self.params
+        train_t = criteria.run_horizon(p)
         long_t = horizon.holdout_horizon(self.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap)
+                                         p.holdout_t_max_cap) \
+            if criteria.judges_at_deadline(p) else train_t
         short = self._holdout_runs(Q, R, sc["x0"])
         long = horizon.at_horizon(self, long_t, t_max=long_t)._holdout_runs(Q, R, sc["x0"]) \
-            if long_t > self.t_max else short
-        out = horizon.combine(short, long, self.t_max, long_t)
-        out["arrival_time"] = np.full(len(sc["scenario"]), np.nan)
+            if long_t > train_t else short
+        out = horizon.combine(short, long, train_t, long_t)
+        if p.criterion != criteria.TIME_ENERGY:   # no target event: no arrival time
+            out["arrival_time"] = np.full(len(sc["scenario"]), np.nan)
         return {**sc, **out}
+
+    def basin_axes(self) -> BasinAxes | None:
+        """Starts in the plane of the first two plant states (the others 0), ±2 times the
+        mean size of the training starts; None for a one-state plant."""
+        if self.n_plant < 2:
+            return None
+        radius = 2.0 * float(np.mean(np.linalg.norm(self.x0[:, :self.n_plant], axis=1)))
+        first = self.x0[0]
+        marker = (float(first[0]), float(first[1])) \
+            if not np.any(first[2:]) and len(self.x0) == 1 else None
+        return BasinAxes(self.channel_names()[0][:2], (-radius, -radius), (radius, radius),
+                         "", marker)
+
+    def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
+                   points: np.ndarray) -> dict[str, Any]:
+        """One (Q, R) from the starts ``points`` (P, 2) at the held-out horizon. The cost
+        has no target event: ``converged`` means the run neither diverged nor broke a
+        constraint or the settling rule, and ``arrival_time`` is NaN."""
+        Q, R = self._check(mats)
+        p = self.params
+        long_t = horizon.holdout_horizon(self.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap)
+        X0 = np.zeros((len(points), self.plant.n_states))
+        X0[:, :2] = points
+        runs = horizon.at_horizon(self, long_t, t_max=long_t)._holdout_runs(Q, R, X0)
+        return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
+                "arrival_time": np.full(len(points), np.nan)}
 
     def _holdout_runs(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray
                       ) -> dict[str, np.ndarray]:

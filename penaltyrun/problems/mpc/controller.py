@@ -176,6 +176,8 @@ class LoopResult:
         DAQP iterations summed over the steps.
     states, inputs : ndarray or None
         Histories (steps + 1, 6) and (steps, 3) when recorded.
+    energy : float
+        Σ ½ ‖u_k‖² Tₛ over the applied steps (m²/s³), the discrete control energy.
     """
 
     status: str
@@ -185,6 +187,7 @@ class LoopResult:
     qp_iterations: int
     states: np.ndarray | None = None
     inputs: np.ndarray | None = None
+    energy: float = 0.0
 
 
 def closed_loop(H: np.ndarray, F: np.ndarray, plant: Any, s0: np.ndarray, n_steps: int,
@@ -229,7 +232,7 @@ def closed_loop(H: np.ndarray, F: np.ndarray, plant: Any, s0: np.ndarray, n_step
     s = plant.reset(s0)
     model.setup(H, F @ s, np.zeros((0, mn)), ones, -ones)
     model.settings = settings
-    dv, iters, status, k = 0.0, 0, HORIZON, 0
+    dv, energy, iters, status, k = 0.0, 0.0, 0, HORIZON, 0
     states = [s.copy()] if record else None
     inputs: list[np.ndarray] = []
     umax = np.asarray(u_max, dtype=float)
@@ -248,7 +251,9 @@ def closed_loop(H: np.ndarray, F: np.ndarray, plant: Any, s0: np.ndarray, n_step
             status = QP_FAILURE
             break
         u = umax * np.clip(x[:3], -1.0, 1.0)
-        dv += dt * math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+        uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2]
+        dv += dt * math.sqrt(uu)
+        energy += 0.5 * dt * uu
         s = plant.step(u)
         if record:
             states.append(s.copy())
@@ -263,7 +268,7 @@ def closed_loop(H: np.ndarray, F: np.ndarray, plant: Any, s0: np.ndarray, n_step
             break
     return LoopResult(status, dv, k, np.array(s, dtype=float), iters,
                       np.asarray(states) if record else None,
-                      np.asarray(inputs).reshape(-1, 3) if record else None)
+                      np.asarray(inputs).reshape(-1, 3) if record else None, energy)
 
 
 __all__ = ["CONVERGED", "CUTOFF", "HORIZON", "NONFINITE", "QP_FAILURE", "KeplerianPlant",

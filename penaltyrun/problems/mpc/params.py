@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import horizon
+from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.multiscenario import TrainingParams
 from penaltyrun.typed import is_int, is_number
@@ -40,7 +40,7 @@ PLANTS = ("cw", "keplerian")
 
 
 @dataclass(frozen=True)
-class Params(ParamsMixin, TrainingParams):
+class Params(ParamsMixin, TrainingParams, criteria.CriterionParams):
     """Rendezvous MPC parameters (SI units unless stated).
 
     Attributes
@@ -102,6 +102,17 @@ class Params(ParamsMixin, TrainingParams):
         gain of the rendezvous study converges from every held-out start within 12 000 s.
     train_scenarios, train_aggregate, train_sample, train_seed
         Multi-scenario tuning (see :mod:`penaltyrun.problems.multiscenario`).
+    criterion : str
+        ``deadline`` (Δv to convergence before ``t_max``, default), ``time_energy``
+        (Σ (½‖u_k‖² + ρ) Tₛ to convergence) or ``terminal`` (Σ ½‖u_k‖² Tₛ over t_max plus
+        s_Nᵀ S s_N); see :mod:`penaltyrun.problems.mpc.criteria`.
+    rho : float
+        ρ of ``time_energy`` (m²/s⁴; default 1e-5).
+    terminal_weight : tuple or None
+        S of ``terminal`` (6 diagonal entries or 6×6 symmetric PSD, m²/s³ per m² and per
+        (m/s)²); ``None``: 0.01 · diag(I₃/pos_tol_m², I₃/vel_tol_m_s²).
+    free_time_cap : float
+        Long horizon of ``time_energy`` (s, whole samples; default 12 000).
     """
 
     HOLDOUT_OFF: ClassVar[Mapping[str, Any]] = MappingProxyType(
@@ -135,6 +146,11 @@ class Params(ParamsMixin, TrainingParams):
     holdout_thrust_scales: tuple[float, ...] = (0.95, 1.05)
     holdout_horizon_factor: float = 4.0
     holdout_t_max_cap: float = 12_000.0
+    rho: float = 1e-5
+    free_time_cap: float = 12_000.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "terminal_weight", criteria.freeze(self.terminal_weight))
 
     @property
     def n_steps(self) -> int:
@@ -234,6 +250,9 @@ def validate(p: Params) -> Params:
         if len(set(values)) != len(values):
             raise ConfigError(_key(name), f"lists a value twice: {values}")
     horizon.check_settings(p, "problem.params")
+    criteria.check(p, "problem.params")
+    if p.terminal_weight is not None:
+        criteria.terminal_matrix(p.terminal_weight, 6, _key("terminal_weight"))
     return p
 
 

@@ -19,6 +19,10 @@ e(s) = max(‖r‖ / pos_tol_m, ‖v‖ / vel_tol_m_s) (converged ⇔ e ≤ 1):
   :data:`CUT_MARGIN`, costing that Δv; Δv never decreases and every other outcome costs at
   least Δv, so the bound is exact.
 
+That is the paper-style criterion (``criterion: deadline``, the default); the well-posed
+criteria ``time_energy`` and ``terminal`` (control energy Σ ½‖u_k‖² Tₛ plus the price of
+time, or plus a terminal penalty) are in :mod:`~penaltyrun.problems.mpc.criteria`.
+
 The MPC is invariant to a common scaling of Q and R (P scales with them).
 """
 
@@ -27,12 +31,13 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import horizon
+from penaltyrun.problems import criteria, horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
@@ -40,8 +45,11 @@ from penaltyrun.problems.base import (
     ScalarSpec,
     check_spd,
 )
+from penaltyrun.problems.basins import BasinAxes, arrival_times
 from penaltyrun.problems.mpc import controller as ctl
+from penaltyrun.problems.mpc import criteria as mpc_criteria
 from penaltyrun.problems.mpc import scenarios as scen
+from penaltyrun.problems.mpc.criteria import report_info
 from penaltyrun.problems.mpc.model import cw_continuous, mean_motion, solve_dare_batch, zoh
 from penaltyrun.problems.mpc.params import (
     CASE_PARAMS,
@@ -135,10 +143,13 @@ class RendezvousMPC:
         (default: the training scenario)."""
         p = self.params
         sc = sc or scen.training(p)
-        return ctl.closed_loop(H, F, self.plant_for(sc), np.asarray(sc.s0, dtype=float),
-                               p.n_steps, float(p.sample_time_s), self.u_max,
-                               float(p.pos_tol_m), float(p.vel_tol_m_s), p.daqp_settings(),
-                               cutoff, record)
+        res = ctl.closed_loop(H, F, self.plant_for(sc), np.asarray(sc.s0, dtype=float),
+                              mpc_criteria.run_steps(p), float(p.sample_time_s), self.u_max,
+                              mpc_criteria.position_tolerance(p), float(p.vel_tol_m_s),
+                              p.daqp_settings(), cutoff, record)
+        if p.criterion == criteria.TERMINAL and res.status == ctl.HORIZON:
+            res = replace(res, status=ctl.CONVERGED)  # no target event: T reached is done
+        return res
 
     def error(self, s: Any) -> float:
         """Normalized error e(s) = max(‖r‖ / pos_tol_m, ‖v‖ / vel_tol_m_s)."""
@@ -149,11 +160,12 @@ class RendezvousMPC:
     def graded(self, res: ctl.LoopResult, s0: Any) -> float:
         """Cost of one run (see the module docstring)."""
         fp = float(self.params.failure_penalty)
+        value = mpc_criteria.value(res, self.params, float(self.params.sample_time_s))
         if res.status in (ctl.CONVERGED, ctl.CUTOFF):
-            return float(res.delta_v)
+            return value
         if res.status == ctl.HORIZON:
             e0 = max(self.error(s0), 1.0)
-            cost = res.delta_v + fp * (1.0 + self.error(res.final_state) / e0)
+            cost = value + fp * (1.0 + self.error(res.final_state) / e0)
             if math.isfinite(cost):
                 return float(cost)
         return HARD_FAILURE_FACTOR * fp
@@ -172,7 +184,7 @@ class RendezvousMPC:
         nb = H.shape[0]
         hard = HARD_FAILURE_FACTOR * float(self.params.failure_penalty)
         cut = np.full(nb, math.inf)
-        if thresholds is not None:
+        if thresholds is not None and self.params.criterion == criteria.DEADLINE:
             thr = np.asarray(thresholds, dtype=float).reshape(nb)
             allowed = thr < hard   # NaN: False
             cut = np.where(allowed, thr + CUT_MARGIN * np.abs(thr), math.inf)
@@ -230,14 +242,30 @@ class RendezvousMPC:
             ``problem``, ``case``, ``cost`` (m/s), ``delta_v`` (m/s), ``converged``,
             ``status``, ``t_final`` (s), ``t_max`` (s), ``final_distance`` (m),
             ``final_speed`` (m/s), ``qp_iterations``, ``cost_unit``, ``terminal_weight``
-            (P, 6×6 nested list, SI units).
+            (P, 6×6 nested list, SI units). Under a well-posed criterion also
+            ``criterion``, ``horizon`` (s), ``energy`` (m²/s³), and ``rho`` with
+            ``arrival_time`` (s) or ``terminal_S`` (S) with ``terminal_cost``; the cost
+            unit is then m²/s³.
         """
         H, F, P, ok = self.controller(mats)
         sc = scen.training(self.params)
         out = {"problem": self.name, "case": self.case}
-        out.update(self._summary(self.run(H, F, sc) if ok else None, sc))
+        res = self.run(H, F, sc) if ok else None
+        out.update(self._summary(res, sc))
         out.update({"t_max": float(self.params.t_max), "cost_unit": COST_UNIT,
                     "terminal_weight": P.tolist()})
+        p = self.params
+        if p.criterion != criteria.DEADLINE:
+            out.update({"criterion": p.criterion, "cost_unit": mpc_criteria.COST_UNIT,
+                        "horizon": mpc_criteria.run_horizon(p),
+                        "energy": float(res.energy) if res else math.nan})
+            if p.criterion == criteria.TIME_ENERGY:
+                out.update({"rho": float(p.rho), "arrival_time": out["t_final"]
+                            if out["converged"] else math.nan})
+            else:
+                S = mpc_criteria.terminal_weight(p)
+                out.update({"terminal_S": S.tolist(), "terminal_cost": float(
+                    criteria.terminal_cost(res.final_state, S)) if res else math.nan})
         return out
 
     def simulate(self, mats: Mapping[str, Any],
@@ -335,14 +363,41 @@ class RendezvousMPC:
         if not scenarios:
             return None
         p = self.params
+        train_t = mpc_criteria.run_horizon(p)
         long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap, p.sample_time_s)
+                                         p.holdout_t_max_cap, p.sample_time_s) \
+            if criteria.judges_at_deadline(p) else train_t
         short = self._holdout_runs(mats, scenarios)
         long = horizon.at_horizon(self, long_t)._holdout_runs(mats, scenarios) \
-            if long_t > p.t_max else short
+            if long_t > train_t else short
         out = self.holdout_scenarios()
-        out.update(horizon.combine(short, long, p.t_max, long_t))
+        out.update(horizon.combine(short, long, train_t, long_t))
         return out
+
+    def basin_axes(self) -> BasinAxes:
+        """Starts at rest in the orbital plane: along-track y × radial x (m), a square of
+        1.5 times the training start's distance; z as in the training start."""
+        s0 = np.asarray(self.params.s0, float)
+        reach = 1.5 * float(np.linalg.norm(s0[:3]))
+        marker = (float(s0[1]), float(s0[0])) if not np.any(s0[3:]) else None
+        return BasinAxes(("along-track y (m)", "radial x (m)"), (-reach, -reach),
+                         (reach, reach), "s", marker)
+
+    def basin_runs(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
+                   points: np.ndarray) -> dict[str, Any]:
+        """One candidate from the starts (y, x) ``points`` (P, 2), at rest, on the training
+        plant, at the held-out horizon."""
+        p = self.params
+        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
+                                         p.holdout_t_max_cap, p.sample_time_s)
+        base = scen.training(p)
+        starts = [scen.Scenario(f"basin:{k}", "basin", (float(x), float(y), base.s0[2],
+                                                        0.0, 0.0, 0.0),
+                                base.plant, base.eccentricity, base.thrust_scale)
+                  for k, (y, x) in enumerate(points)]
+        runs = horizon.at_horizon(self, long_t)._holdout_runs(mats, starts)
+        return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
+                "arrival_time": arrival_times(runs["converged"], runs["t_final"])}
 
     def _holdout_runs(self, mats: Mapping[str, Any], scenarios: list[scen.Scenario]
                       ) -> dict[str, np.ndarray]:
@@ -373,4 +428,4 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> RendezvousMPC:
 
 __all__ = ["CASES", "CASE_PARAMS", "COST_LABEL", "COST_UNIT", "CUT_MARGIN", "DARE_FAILURE",
            "DEFAULT_CASE", "HARD_FAILURE_FACTOR", "NAME", "VARIANT_IGNORE", "Params",
-           "RendezvousMPC", "make_problem", "plot_inputs", "plot_trajectory"]
+           "RendezvousMPC", "make_problem", "plot_inputs", "plot_trajectory", "report_info"]

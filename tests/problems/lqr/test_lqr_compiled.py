@@ -93,13 +93,13 @@ def test_problem_costs_and_statuses_unchanged(monkeypatch):
 # ---------------------------------------------------- grading of the runs (rows' tail)
 
 
-def _graded_before(prob, J, t_end, x_final, X0, codes, excess):
+def _graded_before(prob, J, t_end, x_final, X0, codes, excess, free):
     """The grading as it was computed before, every penalty on the whole batch."""
     from penaltyrun.problems.lqr.problem import HARD_FACTOR
 
     ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
     tol = prob.params.settle_tol
-    if tol is not None:
+    if tol is not None and not free:
         codes[(codes == "converged") & ~(ratio <= tol)] = "not_settled"
     codes[(codes == "converged") & (excess > 0)] = "constraint"
     P = prob.penalty
@@ -107,7 +107,8 @@ def _graded_before(prob, J, t_end, x_final, X0, codes, excess):
         cost = np.where(codes == "not_settled", J + P * (1.0 + ratio / (1.0 + ratio)), J)
         graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
         cost = np.where(codes == "constraint", J + P * (1.0 + graded), cost)
-        late = (prob.t_max - t_end) / prob.t_max
+        run_t = float(prob.params.free_time_cap) if free else prob.t_max
+        late = (run_t - t_end) / run_t
         cost = np.where(np.isin(codes, ("diverged", "step_failure")), J + P * (2.0 + late),
                         cost)
     finite_J = np.where(np.isfinite(J), J, 0.0)
@@ -124,11 +125,12 @@ def _aggregate_before(res):
 
 
 @pytest.mark.parametrize("settle_tol", [None, 0.05])
-@pytest.mark.parametrize("simulated", [False, True])
+@pytest.mark.parametrize(("simulated", "free"), [(False, False), (True, False), (True, True)])
 @pytest.mark.parametrize("seed", range(4))
-def test_grading_is_the_one_before(settle_tol, simulated, seed):
+def test_grading_is_the_one_before(settle_tol, simulated, free, seed):
     """Graded costs and statuses bit for bit as before, on runs of every status with
-    finite, infinite and NaN costs and violations."""
+    finite, infinite and NaN costs and violations; ``free`` (the time_energy criterion)
+    brings its own not_settled runs and its own horizon for late failures."""
     from penaltyrun import problems
     from penaltyrun.problems.lqr.problem import STATUSES, LQRProblem
 
@@ -143,12 +145,13 @@ def test_grading_is_the_one_before(settle_tol, simulated, seed):
     x_final = rng.normal(size=(n_c, n_k, n)) * 10.0 ** rng.integers(-4, 1, (n_c, n_k, 1))
     excess = np.where(rng.random((n_c, n_k)) < 0.7, 0.0, rng.exponential(size=(n_c, n_k)))
     excess[rng.random(excess.shape) < 0.05] = np.inf
-    pool = [s for s in STATUSES if s not in ("care_failure", "not_settled", "constraint")]
+    pool = [s for s in STATUSES if s not in ("care_failure", "constraint")
+            and (free or s != "not_settled")]
     codes = np.asarray(rng.choice(pool if simulated else ["converged"], (n_c, n_k)),
                        dtype=object)
     codes_before = codes.copy()
-    cost = prob._graded(J, t_end, x_final, X0, codes, excess, simulated)
-    before = _graded_before(prob, J, t_end, x_final, X0, codes_before, excess)
+    cost = prob._graded(J, t_end, x_final, X0, codes, excess, free)
+    before = _graded_before(prob, J, t_end, x_final, X0, codes_before, excess, free)
     assert codes.tolist() == codes_before.tolist()
     np.testing.assert_array_equal(cost, before)
     res = {"cost": cost, "status": codes}

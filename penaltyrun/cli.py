@@ -23,14 +23,9 @@ import signal
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import hydra
-from hydra.core.hydra_config import HydraConfig
-from hydra.errors import HydraException
-from omegaconf import DictConfig
-
-from penaltyrun import __version__, cells, checks, cliargs, clihelp, userconf
+from penaltyrun import __version__, cells, checks, cliargs, clihelp, quickcheck, userconf
 from penaltyrun.errors import (
     ConfigError,
     EnvironmentProblemError,
@@ -53,6 +48,9 @@ from penaltyrun.streams import (
     stdout_error_line,
     watch_stdout,
 )
+
+if TYPE_CHECKING:
+    from omegaconf import DictConfig
 
 logger = logging.getLogger("penaltyrun")
 
@@ -90,6 +88,8 @@ problem_params, problem_module, _setup = cells.problem_params, cells.problem_mod
 def run_optimize(cfg: DictConfig) -> Path:
     """Plan and run the jobs of one cell (:func:`penaltyrun.api.core.run_cell`), then print
     the run's summary line."""
+    from hydra.core.hydra_config import HydraConfig
+
     from penaltyrun.api import core
 
     spec = cells.cell_spec(cfg)
@@ -137,6 +137,8 @@ def summarize(path: Path, run_dir: Path) -> dict[str, int]:
 def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
     """Evaluate the matrices given in ``matrices.*`` (or the decision vector ``z``; with
     ``+gradient=true`` also d cost / d z) and print one JSON line."""
+    from hydra.core.hydra_config import HydraConfig
+
     from penaltyrun import problems
     from penaltyrun.api.evaluation import evaluate_candidate
 
@@ -188,8 +190,8 @@ def _guard(func: Callable[[], Any]) -> Any:
     and exit code 128 + signal number (finished jobs are on disk already)."""
     try:
         return func()
-    except HydraException:  # (MissingConfigException is an OSError): one line by cliargs
-        raise
+    except _hydra_exception():  # (MissingConfigException is an OSError): one line by
+        raise  # cliargs.hydra_errors
     except (ConfigError, FileNotFoundError, ResultsUnreadableError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         sys.exit(EXIT_USAGE)
@@ -214,6 +216,16 @@ def _guard(func: Callable[[], Any]) -> Any:
         sys.exit(128 + signum)
 
 
+class _NoHydraError(Exception):
+    """Stands for Hydra's exception class while Hydra is not imported (none can be raised)."""
+
+
+def _hydra_exception() -> type[Exception]:
+    """Hydra's ``HydraException`` if Hydra is imported, else :class:`_NoHydraError`."""
+    errors = sys.modules.get("hydra.errors")
+    return errors.HydraException if errors is not None else _NoHydraError
+
+
 def install_signal_handlers() -> None:
     """Handle SIGTERM and SIGHUP like Ctrl-C: raise :class:`SignalInterrupt` in the main
     thread, so workers are stopped, finished jobs kept and one line printed."""
@@ -229,6 +241,8 @@ def _discard_run_dir() -> None:
     (it holds only Hydra's ``.hydra/`` and the log), so a mistake leaves nothing behind.
     A directory without ``.hydra/`` is not Hydra's own, e.g. the current directory of an
     evaluation that writes nothing: it is never touched."""
+    from hydra.core.hydra_config import HydraConfig
+
     try:
         out = Path(HydraConfig.get().runtime.output_dir)
     except (ValueError, AttributeError):
@@ -239,8 +253,17 @@ def _discard_run_dir() -> None:
         shutil.rmtree(out, ignore_errors=True)
 
 
-@hydra.main(version_base="1.3", config_path="conf", config_name="config")
-def _hydra_main(cfg: DictConfig) -> None:
+def _hydra_main() -> None:
+    """Run the Hydra app (:func:`_task` on the config Hydra composes from ``sys.argv``).
+    Hydra is imported here, after the checks that need no config
+    (:mod:`penaltyrun.quickcheck`)."""
+    import hydra
+
+    hydra.main(version_base="1.3", config_path="conf", config_name="config")(_task)()
+
+
+def _task(cfg: DictConfig) -> None:
+    """Hydra's task: run the mode of the composed config ``cfg``."""
     def dispatch() -> Any:
         if cfg.mode not in MODES:
             raise ConfigError("mode", f"unknown mode {cfg.mode!r}", allowed=MODES)
@@ -298,6 +321,7 @@ def main() -> None:
         return print_for_reader(clihelp.render(argv))
     install_signal_handlers()
     argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(argv)))
+    _guard(lambda: quickcheck.check_plain_values(argv))
     args = _guard(lambda: cliargs.check_options(argv))
     parsed = _guard(lambda: cliargs.check_sweeps(args.overrides, args.multirun))
     with cliargs.hydra_errors():  # Hydra's errors, also from the preflight's composition

@@ -168,7 +168,7 @@ def run_cell(spec: CellSpec, run_dir: Path, progress: ProgressFactory | None = N
     RunInterruptedError, RunAbortedError, EnvironmentProblemError
         As :func:`penaltyrun.runner.execute`; finished jobs stay on disk for a resume.
     """
-    from penaltyrun import io, report, runner
+    from penaltyrun import io, runner
     from penaltyrun.runner import lock
 
     prob, _, _ = spec.build()
@@ -189,6 +189,8 @@ def run_cell(spec: CellSpec, run_dir: Path, progress: ProgressFactory | None = N
         raise
     path = io.collect(run_dir, [job.job_id for job in jobs])
     if rc.get("report", False):
+        from penaltyrun import report  # matplotlib, scipy.stats: only when a report is written
+
         trust_own_modules(spec.problem, spec.problem_module, spec.problem_params)
         out = Path(spec.report_output) if spec.report_output else run_dir / "report"
         report.build_report(path, out, paper=bool(spec.report_paper))

@@ -26,6 +26,11 @@ import numpy as np
 
 #: Largest condition number of the eigenvector matrix accepted on the eigendecomposition path.
 COND_MAX = 1e4
+#: Loops of at most this many states take the eigendecomposition route in one compiled call
+#: (:func:`penaltyrun.dynamics.small_linear.quadratic_eig`), larger ones in batched numpy
+#: calls (:func:`_eig_batch`): for a few states the numpy calls cost more than their
+#: arithmetic.
+COMPILED_MAX_STATES = 8
 
 
 def _eig_route(lam: np.ndarray, V: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
@@ -62,6 +67,24 @@ def _scipy_route(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
     return np.einsum("ki,ij,kj->k", X0, M, X0), X0 @ E.T
 
 
+def _eig_batch(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float,
+               cost: np.ndarray, x_final: np.ndarray) -> np.ndarray:
+    """The eigendecomposition route for the whole batch in numpy calls: fills ``cost`` and
+    ``x_final`` of the loops it takes; returns which (the others take the second route)."""
+    with np.errstate(all="ignore"):
+        try:
+            lam, V = np.linalg.eig(A_cl)
+            cond = np.linalg.cond(V)
+            good = np.isfinite(cond) & (cond < COND_MAX) & np.all(np.isfinite(lam), axis=1)
+        except np.linalg.LinAlgError:
+            good = np.zeros(A_cl.shape[0], dtype=bool)
+    idx = np.flatnonzero(good)
+    if idx.size:
+        c, xf = _eig_route(lam[idx], V[idx], W[idx], X0[idx], t_max)
+        cost[idx], x_final[idx] = c, xf
+    return good
+
+
 def quadratic_cost(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
                    ) -> tuple[np.ndarray, np.ndarray]:
     """Cost ∫₀ᵀ xᵀ W x dt and final state of ẋ = A_cl x for a batch of loops and starts.
@@ -94,20 +117,20 @@ def quadratic_cost(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
     x_final = np.empty(X0.shape)
     if n_b == 0:
         return cost, x_final
-    with np.errstate(all="ignore"):
+    if A_cl.shape[1] <= COMPILED_MAX_STATES:
+        from penaltyrun.dynamics.small_linear import quadratic_eig
+
         try:
-            lam, V = np.linalg.eig(A_cl)
-            cond = np.linalg.cond(V)
-            good = np.isfinite(cond) & (cond < COND_MAX) & np.all(np.isfinite(lam), axis=1)
-        except np.linalg.LinAlgError:
-            good = np.zeros(n_b, dtype=bool)
-    idx = np.flatnonzero(good)
-    if idx.size:
-        c, xf = _eig_route(lam[idx], V[idx], W[idx], X0[idx], float(t_max))
-        cost[idx], x_final[idx] = c, xf
+            cost, x_final, good = quadratic_eig(A_cl, np.ascontiguousarray(W),
+                                                np.ascontiguousarray(X0), float(t_max),
+                                                COND_MAX)
+        except np.linalg.LinAlgError:  # an SVD or solve that failed: the numpy batch
+            good = _eig_batch(A_cl, W, X0, float(t_max), cost, x_final)
+    else:
+        good = _eig_batch(A_cl, W, X0, float(t_max), cost, x_final)
     for b in np.flatnonzero(~good):
         cost[b], x_final[b] = _scipy_route(A_cl[b], W[b], X0[b], float(t_max))
     return cost, x_final
 
 
-__all__ = ["COND_MAX", "quadratic_cost"]
+__all__ = ["COMPILED_MAX_STATES", "COND_MAX", "quadratic_cost"]

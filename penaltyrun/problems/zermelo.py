@@ -188,6 +188,7 @@ class Zermelo:
 
     def _graded(self, t_end: np.ndarray, cost: np.ndarray, dist: np.ndarray,
                 status: np.ndarray, d0: float | np.ndarray) -> BatchEvaluation:
+        """Graded costs; ``d0``: the start's distance ‖x0‖ (one, or one per run)."""
         converged = status == integrate.EVENT
         with np.errstate(over="ignore", invalid="ignore"):
             penalty = cost + self.params.failure_penalty * (1.0 + dist / d0)

@@ -126,8 +126,31 @@ def test_jobs_run_with_one_blas_thread(monkeypatch):
         return {"status": "ok"}
 
     monkeypatch.setattr(job_module, "_run_job", fake)
+    before = [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
     assert job_module.run_job(None) == {"status": "ok"}
     assert seen["threads"] <= {job_module.BLAS_THREADS}
+    controller = job_module._CONTROLLER[0]
+    assert job_module.run_job(None) == {"status": "ok"}  # the second job reuses it
+    assert job_module._CONTROLLER[0] is controller
+    assert seen["threads"] <= {job_module.BLAS_THREADS}
+    assert [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"] == before
+
+
+def test_blas_limit_finds_the_libraries_again_after_new_imports(monkeypatch):
+    """A module imported after the controller was made may load another BLAS: the next
+    job's limit is taken from a new controller."""
+    import sys
+    import types
+
+    from penaltyrun.runner import job as job_module
+
+    with job_module.blas_limit():
+        pass
+    first = job_module._CONTROLLER[0]
+    monkeypatch.setitem(sys.modules, "penaltyrun_test_new_module", types.ModuleType("x"))
+    with job_module.blas_limit():
+        pass
+    assert job_module._CONTROLLER[0] is not first
 
 
 # ------------------------------------------------------------------ the record's fields

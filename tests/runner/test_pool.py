@@ -101,3 +101,26 @@ def _alive(pid):
         return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
     except psutil.NoSuchProcess:
         return False
+
+
+def test_an_optimizers_heavy_imports_happen_once_before_the_fork():
+    """``import cma`` is done in the parent (forked workers share it), only when a job
+    runs CMA-ES; a module that cannot be imported is left to the job."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import sys
+        from types import SimpleNamespace as J
+        from penaltyrun.runner import pool
+        assert pool.import_shared([J(optimizer="pso")]) == [] and "cma" not in sys.modules
+        assert pool.import_shared([J(optimizer="pso"), J(optimizer="cmaes")]) == ["cma"]
+        assert "cma" in sys.modules
+        pool.SHARED_IMPORTS["pso"] = ("penaltyrun_no_such_module",)
+        assert pool.import_shared([J(optimizer="pso")]) == []
+        print("ok")
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.stdout.strip() == "ok", proc.stderr

@@ -76,6 +76,7 @@ logger = logging.getLogger(__name__)
 #: candidate with a start cut by the exact cutoff is ``cutoff`` (its cost is a bound).
 STATUSES = ("converged", "constraint", "not_settled", "diverged", "step_failure", "nonfinite",
             "care_failure", "cutoff")
+_RANK = {status: rank for rank, status in enumerate(STATUSES)}
 HARD_FACTOR = 10.0
 #: Relative margin by which the summed J must exceed a threshold before a candidate is cut.
 CUT_MARGIN = 1e-9
@@ -242,39 +243,66 @@ class LQRProblem:
             x_final[good] = run["x_final"].reshape(good.size, n_k, -1)
             codes[good] = np.asarray([_LOOP_STATUS[int(s)] for s in run["status"]],
                                      dtype=object).reshape(good.size, n_k)
-        ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
         if self.S is not None:
             J = J + criteria.terminal_cost(x_final, self.S)
-        tol = self.params.settle_tol
-        if tol is not None and not free:
-            codes[(codes == "converged") & ~(ratio <= tol)] = "not_settled"
         measures = self.limits.measure(K, ok, X0, self.t_max, steps, metrics)
-        excess = measures.pop("violation")
-        codes[(codes == "converged") & (excess > 0)] = "constraint"
-        P = self.penalty
-        with np.errstate(all="ignore"):
-            cost = np.where(codes == "not_settled", J + P * (1.0 + ratio / (1.0 + ratio)), J)
-            graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
-            cost = np.where(codes == "constraint", J + P * (1.0 + graded), cost)
-            run_t = float(self.params.free_time_cap) if free else self.t_max
-            late = (run_t - t_end) / run_t
-            cost = np.where(np.isin(codes, ("diverged", "step_failure")),
-                            J + P * (2.0 + late), cost)
-        finite_J = np.where(np.isfinite(J), J, 0.0)
-        cost = np.where(np.isfinite(cost) & (codes != "nonfinite"), cost,
-                        HARD_FACTOR * P + finite_J)
-        finite = np.isfinite(failure)
-        size = np.ones_like(failure)
-        size[finite] = failure[finite] / (1.0 + failure[finite])
-        cost[~ok] = (HARD_FACTOR * P * (1.0 + size[~ok]))[:, None]
-        codes[~ok] = "care_failure"
+        cost = self._graded(J, t_end, x_final, X0, codes, measures.pop("violation"), free)
+        if not ok.all():
+            finite = np.isfinite(failure)
+            size = np.ones_like(failure)
+            size[finite] = failure[finite] / (1.0 + failure[finite])
+            cost[~ok] = (HARD_FACTOR * self.penalty * (1.0 + size[~ok]))[:, None]
+            codes[~ok] = "care_failure"
         return {"cost": cost, "J": J, "status": codes, "t_final": t_end, "x_final": x_final,
                 "K": K, "ok": ok, **measures}
 
+    def _graded(self, J: np.ndarray, t_end: np.ndarray, x_final: np.ndarray,
+                X0: np.ndarray, codes: np.ndarray, excess: np.ndarray, free: bool
+                ) -> np.ndarray:
+        """Graded costs (C, k) of the runs (see the module docstring); marks
+        ``not_settled`` (``settle_tol``, not under ``time_energy``: ``free``) and
+        ``constraint`` runs in ``codes``. Each penalty is computed only where its status
+        occurs: a batch of converged runs costs a few array operations."""
+        P = self.penalty
+        converged = codes == "converged"
+        tol = self.params.settle_tol
+        ratio = None
+        with np.errstate(all="ignore"):
+            if tol is not None and not free:
+                ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
+                unsettled = converged & ~(ratio <= tol)
+                if unsettled.any():
+                    codes[unsettled] = "not_settled"
+                    converged &= ~unsettled
+            violated = converged & (excess > 0)
+            if violated.any():
+                codes[violated] = "constraint"
+                converged &= ~violated
+            cost = J.copy()
+            keep = np.isfinite(cost)
+            if not converged.all():
+                unsettled = codes == "not_settled"
+                if unsettled.any():
+                    if ratio is None:
+                        ratio = np.linalg.norm(x_final, axis=2) / np.linalg.norm(X0, axis=1)
+                    cost[unsettled] = (J + P * (1.0 + ratio / (1.0 + ratio)))[unsettled]
+                if violated.any():
+                    graded = np.where(np.isfinite(excess), excess / (1.0 + excess), 1.0)
+                    cost[violated] = (J + P * (1.0 + graded))[violated]
+                failed = (codes == "diverged") | (codes == "step_failure")
+                if failed.any():
+                    run_t = float(self.params.free_time_cap) if free else self.t_max
+                    late = (run_t - t_end) / run_t
+                    cost[failed] = (J + P * (2.0 + late))[failed]
+                keep = np.isfinite(cost) & (codes != "nonfinite")
+        if not keep.all():
+            cost = np.where(keep, cost, HARD_FACTOR * P + np.where(np.isfinite(J), J, 0.0))
+        return cost
+
     @staticmethod
     def _aggregate(res: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        rank = np.vectorize(STATUSES.index, otypes=[int])(res["status"])
-        worst = np.asarray([STATUSES[r] for r in rank.max(axis=1)], dtype=object)
+        worst = np.asarray([STATUSES[max(_RANK[s] for s in row)] for row in res["status"]],
+                           dtype=object)
         return res["cost"].mean(axis=1), worst == "converged", worst
 
     def evaluate_batch(self, mats: Mapping[str, np.ndarray],

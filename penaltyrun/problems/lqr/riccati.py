@@ -27,6 +27,12 @@ logger = logging.getLogger(__name__)
 RESIDUAL_TOL = 1e-10
 #: Closed-loop poles must have real part below −STABILITY_MARGIN·max(1, ‖A‖) (1/time unit).
 STABILITY_MARGIN = 1e-9
+#: Largest condition number of the stable eigenvector block X1 of the Hamiltonian accepted.
+COND_MAX = 1e12
+#: Plants of at most this many states (integrators included) take the compiled candidate
+#: loop (:func:`hamiltonian_compiled`), larger ones the batched numpy path
+#: (:func:`hamiltonian_solutions`).
+COMPILED_MAX_STATES = 8
 
 
 def residual(A: np.ndarray, S: np.ndarray, Q: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -41,6 +47,75 @@ def residual(A: np.ndarray, S: np.ndarray, Q: np.ndarray, P: np.ndarray) -> np.n
 def _stabilizing(A: np.ndarray, S: np.ndarray, P: np.ndarray) -> np.ndarray:
     margin = STABILITY_MARGIN * max(1.0, float(np.linalg.norm(A)))
     return np.max(np.linalg.eigvals(A - S @ P).real, axis=-1) < -margin
+
+
+def hamiltonian_solutions(A: np.ndarray, S: np.ndarray, Q: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Riccati solutions of a batch from the stable invariant subspace of the Hamiltonian,
+    by one batched eigendecomposition (see the module docstring).
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+    S : ndarray, shape (C, n, n)
+        B R⁻¹ Bᵀ of each candidate.
+    Q : ndarray, shape (C, n, n)
+
+    Returns
+    -------
+    P : ndarray, shape (C, n, n)
+        Symmetrized X2 X1⁻¹ (zero where no finite, well-conditioned solution was found).
+    res : ndarray, shape (C,)
+        Relative residual (``inf`` where none was found).
+    ok : ndarray of bool, shape (C,)
+        Residual below :data:`RESIDUAL_TOL` and A − SP Hurwitz.
+    """
+    n_c, n = Q.shape[0], A.shape[0]
+    H = np.zeros((n_c, 2 * n, 2 * n))
+    H[:, :n, :n] = A
+    H[:, :n, n:] = -S
+    H[:, n:, :n] = -Q
+    H[:, n:, n:] = -A.T
+    P = np.zeros((n_c, n, n))
+    ok = np.zeros(n_c, dtype=bool)
+    res = np.full(n_c, np.inf)
+    with np.errstate(all="ignore"):
+        try:
+            lam, V = np.linalg.eig(H)
+            order = np.argsort(lam.real, axis=1)[:, :n]
+            stable = np.take_along_axis(lam.real, order, axis=1) < 0.0
+            X = np.take_along_axis(V, order[:, None, :], axis=2)
+            X1, X2 = X[:, :n, :], X[:, n:, :]
+            cond = np.linalg.cond(X1)
+            good = stable.all(axis=1) & np.isfinite(cond) & (cond < COND_MAX)
+            X1[~good] = np.eye(n)
+            P = np.real(X2 @ np.linalg.inv(X1))
+            P = 0.5 * (P + np.swapaxes(P, 1, 2))
+            good &= np.all(np.isfinite(P), axis=(1, 2))
+            P = np.where(good[:, None, None], P, 0.0)
+            res = np.where(good, residual(A, S, Q, P), np.inf)
+            ok = good & (res < RESIDUAL_TOL) & _stabilizing(A, S, P)
+        except np.linalg.LinAlgError:
+            ok[:] = False
+    return P, res, ok
+
+
+def hamiltonian_compiled(A: np.ndarray, S: np.ndarray, Q: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`hamiltonian_solutions` in one compiled call, candidate by candidate, with the
+    same LAPACK routines (:func:`penaltyrun.dynamics.small_linear.care_hamiltonian`): for
+    small plants, whose numpy batch costs more in per-call overhead than in arithmetic.
+    A candidate with non-finite entries fails alone here (numpy's batch sends them all to
+    the fallback)."""
+    from penaltyrun.dynamics.small_linear import care_hamiltonian
+
+    try:
+        return care_hamiltonian(np.ascontiguousarray(A, dtype=float),
+                                np.ascontiguousarray(S, dtype=float),
+                                np.ascontiguousarray(Q, dtype=float), COND_MAX, RESIDUAL_TOL,
+                                STABILITY_MARGIN)
+    except np.linalg.LinAlgError:  # an SVD or LU that did not converge: the numpy batch
+        return hamiltonian_solutions(A, S, Q)
 
 
 def lqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray
@@ -70,35 +145,12 @@ def lqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray
 
     Q = np.asarray(Q, dtype=float)
     R = np.asarray(R, dtype=float)
-    n_c, n = Q.shape[0], A.shape[0]
     R_inv = np.linalg.inv(R)
     S = B @ R_inv @ B.T
-    H = np.zeros((n_c, 2 * n, 2 * n))
-    H[:, :n, :n] = A
-    H[:, :n, n:] = -S
-    H[:, n:, :n] = -Q
-    H[:, n:, n:] = -A.T
-    P = np.zeros((n_c, n, n))
-    ok = np.zeros(n_c, dtype=bool)
-    res = np.full(n_c, np.inf)
+    solve = hamiltonian_compiled if A.shape[0] <= COMPILED_MAX_STATES else \
+        hamiltonian_solutions
     with np.errstate(all="ignore"):
-        try:
-            lam, V = np.linalg.eig(H)
-            order = np.argsort(lam.real, axis=1)[:, :n]
-            stable = np.take_along_axis(lam.real, order, axis=1) < 0.0
-            X = np.take_along_axis(V, order[:, None, :], axis=2)
-            X1, X2 = X[:, :n, :], X[:, n:, :]
-            cond = np.linalg.cond(X1)
-            good = stable.all(axis=1) & np.isfinite(cond) & (cond < 1e12)
-            X1[~good] = np.eye(n)
-            P = np.real(X2 @ np.linalg.inv(X1))
-            P = 0.5 * (P + np.swapaxes(P, 1, 2))
-            good &= np.all(np.isfinite(P), axis=(1, 2))
-            P = np.where(good[:, None, None], P, 0.0)
-            res = np.where(good, residual(A, S, Q, P), np.inf)
-            ok = good & (res < RESIDUAL_TOL) & _stabilizing(A, S, P)
-        except np.linalg.LinAlgError:
-            ok[:] = False
+        P, res, ok = solve(A, S, Q)
         for c in np.flatnonzero(~ok):
             try:
                 Pc = solve_continuous_are(A, B, Q[c], R[c])
@@ -202,5 +254,6 @@ def dlqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
     return K, ok, np.where(ok, 0.0, res)
 
 
-__all__ = ["RESIDUAL_TOL", "STABILITY_MARGIN", "discrete_residual", "dlqr_gains", "lqr_gains",
-           "residual"]
+__all__ = ["COMPILED_MAX_STATES", "COND_MAX", "RESIDUAL_TOL", "STABILITY_MARGIN",
+           "discrete_residual", "dlqr_gains", "hamiltonian_compiled", "hamiltonian_solutions",
+           "lqr_gains", "residual"]

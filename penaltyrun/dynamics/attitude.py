@@ -16,7 +16,16 @@ default weights (1, 1, 1) give the main set-up's ‖(q0 − 1, q_v, ω)‖; the 
 
 Kernel parameter vector ``p`` (length :data:`N_PRM`): ``p[0:9]`` I row-major, ``p[9:18]``
 I⁻¹ row-major, ``p[18:36]`` G row-major, ``p[36]`` u_max, ``p[37]`` tol, ``p[38:41]``
-event weights (w_q0, w_qv, w_ω), ``p[41:44]`` the saturation mode of each axis.
+event weights (w_q0, w_qv, w_ω), ``p[41:44]`` the saturation mode of each axis, ``p[44]``
+the divergence bound on ‖ω‖ (rad/s).
+
+Divergence guard: a run whose body rates leave the ball ‖ω‖ ≤ ω_b with
+ω_b = max(:data:`OMEGA_GUARD_MIN`, :data:`OMEGA_GUARD_FACTOR` · ‖ω(0)‖) (100 rad/s, or 100
+times the initial rate) stops at the end of that integration step with status ``DIVERGED``
+(:mod:`penaltyrun.dynamics.integrate`). Large gains (LQR with R at its lower eigenvalue
+bound) can make the nonlinear loop blow up (gyroscopic term and unwinding) although its
+linearization is stable; without the guard such a run spent the whole step budget while ω
+grew to 1e8 rad/s. A run inside the ball is unchanged by the guard.
 
 Integration: Dormand–Prince 8(5,3) (:mod:`penaltyrun.dynamics.dop853`). With saturation the
 torque has kinks where an axis enters or leaves the limit; the integrator locates them as
@@ -36,9 +45,13 @@ from penaltyrun.dynamics.dop853 import make_dop853
 #: Number of states (quaternion 4, rates 3, cost 1).
 N_STATE = 8
 #: Length of the kernel parameter vector.
-N_PRM = 44
+N_PRM = 45
 #: Mode value of an axis whose torque is clamped on every evaluation (not frozen).
 AUTO = 2.0
+#: Smallest divergence bound on ‖ω‖ (rad/s); see the module docstring.
+OMEGA_GUARD_MIN = 100.0
+#: Divergence bound as a multiple of the initial ‖ω‖.
+OMEGA_GUARD_FACTOR = 100.0
 _I = 0
 _IINV = 9
 _G = 18
@@ -46,6 +59,7 @@ _UMAX = 36
 _TOL = 37
 _W = 38
 _MODE = 41
+_WB = 44
 
 
 @njit(cache=True)
@@ -246,12 +260,26 @@ def switch_slope(v, p):
     return out
 
 
-_integrate = make_dop853(rhs, event, event_slope, switch, switch_slope, set_mode)
+@njit(cache=True)
+def diverged(y, p):
+    """Divergence guard: ‖ω‖ beyond the bound ``p[44]`` (rad/s)."""
+    return y[4] * y[4] + y[5] * y[5] + y[6] * y[6] > p[_WB] * p[_WB]
+
+
+@njit(cache=True)
+def omega_bound(y0):
+    """Divergence bound on ‖ω‖ (rad/s) of a run from (q, ω) = ``y0`` (shape (≥7,))."""
+    w = np.sqrt(y0[4] * y0[4] + y0[5] * y0[5] + y0[6] * y0[6])
+    return max(OMEGA_GUARD_MIN, OMEGA_GUARD_FACTOR * w)
+
+
+_integrate = make_dop853(rhs, event, event_slope, switch, switch_slope, set_mode, diverged)
 """Dormand–Prince 8(5,3) bound to this closed loop (callers are cacheable)."""
 
 
 @njit(cache=True)
-def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=1.0):
+def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=1.0,
+                w_bound=np.inf):
     """Fill the kernel parameter vector ``p`` (shape (N_PRM,)).
 
     Parameters
@@ -268,6 +296,9 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=
         Output.
     w_q0, w_qv, w_w : float, optional
         Event weights on (q0 − 1), q_v and ω (default 1: the unweighted distance).
+    w_bound : float, optional
+        Divergence bound on ‖ω‖ (rad/s; default ``inf``: no guard; the runs of this module
+        use :func:`omega_bound`).
     """
     for i in range(3):
         for j in range(3):
@@ -282,6 +313,7 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=
     p[_W + 2] = w_w
     for i in range(3):
         p[_MODE + i] = AUTO
+    p[_WB] = w_bound
 
 
 @njit(cache=True)
@@ -332,7 +364,8 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
     dist : ndarray, shape (R,)
         Weighted (event) distance to the target at ``t_end``.
     status : ndarray of int64, shape (R,)
-        Integrator status codes (see :mod:`penaltyrun.dynamics.integrate`).
+        Integrator status codes (see :mod:`penaltyrun.dynamics.integrate`; ``DIVERGED``
+        from the divergence guard of the module docstring).
     """
     B = G.shape[0]
     S = y0.shape[0]
@@ -346,9 +379,10 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
     for r in range(R):
         b = r if B > 1 else 0
         s = r if S > 1 else 0
-        pack_params(inertia, inertia_inv, G[b], u_max, tol, p, w_q0, w_qv, w_w)
         for i in range(7):
             y[i] = y0[s, i]
+        pack_params(inertia, inertia_inv, G[b], u_max, tol, p, w_q0, w_qv, w_w,
+                    omega_bound(y))
         y[7] = 0.0
         if cutoff is None:
             t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
@@ -381,10 +415,10 @@ def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_
         Integrator status code.
     """
     p = np.empty(N_PRM)
-    pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0, w_qv, w_w)
     y = np.zeros(N_STATE)
     for i in range(7):
         y[i] = y0[i]
+    pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0, w_qv, w_w, omega_bound(y))
     t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
                               n_event_samples, max_steps)
     return t, yf, st

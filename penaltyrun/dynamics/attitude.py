@@ -27,6 +27,15 @@ bound) can make the nonlinear loop blow up (gyroscopic term and unwinding) altho
 linearization is stable; without the guard such a run spent the whole step budget while ω
 grew to 1e8 rad/s. A run inside the ball is unchanged by the guard.
 
+Stiff runs: without saturation, a run whose gain makes the loop stiff — the bound
+:func:`stiffness` on the spectral radius of its linearization at the target exceeds
+:data:`STIFF_RATE` — is integrated by the L-stable Rosenbrock method RODAS4
+(:mod:`penaltyrun.dynamics.rosenbrock`, exact Jacobian :func:`jacobian`), whose step follows
+the slow dynamics; the explicit method would need thousands of stability-limited steps
+(LQR gains near the eigenvalue bounds give closed-loop poles down to ≈ −1 800 1/s). Both
+methods keep the first-crossing event, the exact cutoff and the guard, and agree with
+``solve_ivp`` (Radau, tight tolerances) to the integration tolerance.
+
 Integration: Dormand–Prince 8(5,3) (:mod:`penaltyrun.dynamics.dop853`). With saturation the
 torque has kinks where an axis enters or leaves the limit; the integrator locates them as
 switch points and integrates each smooth piece with the axis modes frozen (−1: at −u_max,
@@ -41,6 +50,7 @@ import numpy as np
 from numba import njit
 
 from penaltyrun.dynamics.dop853 import make_dop853
+from penaltyrun.dynamics.rosenbrock import make_rodas
 
 #: Number of states (quaternion 4, rates 3, cost 1).
 N_STATE = 8
@@ -52,6 +62,9 @@ AUTO = 2.0
 OMEGA_GUARD_MIN = 100.0
 #: Divergence bound as a multiple of the initial ‖ω‖.
 OMEGA_GUARD_FACTOR = 100.0
+#: Runs without saturation whose stiffness bound (:func:`stiffness`) exceeds this rate
+#: (1/s) are integrated by RODAS4 instead of DOP853 (see the module docstring).
+STIFF_RATE = 500.0
 _I = 0
 _IINV = 9
 _G = 18
@@ -278,6 +291,106 @@ _integrate = make_dop853(rhs, event, event_slope, switch, switch_slope, set_mode
 
 
 @njit(cache=True)
+def jacobian(t, y, p, out):
+    """∂f/∂y (shape (8, 8)) of the unsaturated closed loop :func:`rhs` into ``out``."""
+    out[:, :] = 0.0
+    q0, q1, q2, q3 = y[0], y[1], y[2], y[3]
+    w0, w1, w2 = y[4], y[5], y[6]
+    # kinematics: ∂q̇/∂q = ½ Ω(ω), ∂q̇/∂ω
+    out[0, 1] = -0.5 * w0
+    out[0, 2] = -0.5 * w1
+    out[0, 3] = -0.5 * w2
+    out[1, 0] = 0.5 * w0
+    out[1, 2] = 0.5 * w2
+    out[1, 3] = -0.5 * w1
+    out[2, 0] = 0.5 * w1
+    out[2, 1] = -0.5 * w2
+    out[2, 3] = 0.5 * w0
+    out[3, 0] = 0.5 * w2
+    out[3, 1] = 0.5 * w1
+    out[3, 2] = -0.5 * w0
+    out[0, 4] = -0.5 * q1
+    out[0, 5] = -0.5 * q2
+    out[0, 6] = -0.5 * q3
+    out[1, 4] = 0.5 * q0
+    out[1, 5] = -0.5 * q3
+    out[1, 6] = 0.5 * q2
+    out[2, 4] = 0.5 * q3
+    out[2, 5] = 0.5 * q0
+    out[2, 6] = -0.5 * q1
+    out[3, 4] = -0.5 * q2
+    out[3, 5] = 0.5 * q1
+    out[3, 6] = 0.5 * q0
+    # dynamics: I ω̇ = −G x − ω × (I ω); ∂(ω × h)/∂ω = [ω]× I − [h]×
+    h0 = p[_I + 0] * w0 + p[_I + 1] * w1 + p[_I + 2] * w2
+    h1 = p[_I + 3] * w0 + p[_I + 4] * w1 + p[_I + 5] * w2
+    h2 = p[_I + 6] * w0 + p[_I + 7] * w1 + p[_I + 8] * w2
+    M = np.empty((3, 6))
+    for j in range(3):
+        c0 = p[_I + j]
+        c1 = p[_I + 3 + j]
+        c2 = p[_I + 6 + j]
+        M[0, 3 + j] = w1 * c2 - w2 * c1
+        M[1, 3 + j] = w2 * c0 - w0 * c2
+        M[2, 3 + j] = w0 * c1 - w1 * c0
+    M[0, 4] += h2
+    M[0, 5] -= h1
+    M[1, 3] -= h2
+    M[1, 5] += h0
+    M[2, 3] += h1
+    M[2, 4] -= h0
+    u = np.empty(3)
+    for i in range(3):
+        u[i] = _linear(y, p, i)
+        for j in range(3):
+            M[i, j] = -p[_G + 6 * i + j]
+            M[i, 3 + j] = -p[_G + 6 * i + 3 + j] - M[i, 3 + j]
+    for i in range(3):
+        for j in range(6):
+            out[4 + i, 1 + j] = (p[_IINV + 3 * i] * M[0, j] + p[_IINV + 3 * i + 1] * M[1, j]
+                                 + p[_IINV + 3 * i + 2] * M[2, j])
+    # cost rate ½ uᵀu: ∂/∂x = −uᵀ G
+    for j in range(6):
+        out[7, 1 + j] = -(u[0] * p[_G + j] + u[1] * p[_G + 6 + j] + u[2] * p[_G + 12 + j])
+
+
+@njit(cache=True)
+def stiffness(p):
+    """Bound on the spectral radius of the loop linearized at the target (1/s).
+
+    The row-sum norm of A − B G (x = (q_v, ω), A = [[0, ½I₃], [0, 0]], B = [[0], [I⁻¹]]):
+    max(½, max_i Σ_j |(I⁻¹ G)_ij|); ``inf`` with saturation (the stiff path is off).
+    """
+    if np.isfinite(p[_UMAX]):
+        return np.inf
+    out = 0.5
+    for i in range(3):
+        acc = 0.0
+        for j in range(6):
+            acc += abs(p[_IINV + 3 * i] * p[_G + j] + p[_IINV + 3 * i + 1] * p[_G + 6 + j]
+                       + p[_IINV + 3 * i + 2] * p[_G + 12 + j])
+        out = max(out, acc)
+    return out
+
+
+_integrate_stiff = make_rodas(rhs, jacobian, event, event_slope, diverged)
+"""RODAS4 bound to this closed loop, for unsaturated stiff runs (callers are cacheable)."""
+
+
+@njit(cache=True)
+def _run(y, p, t_max, rtol, atol, max_step, event_spacing, n_event_samples, max_steps,
+         cut_value, stiff_rate):
+    """One run by the integrator chosen from :func:`stiffness` (see the module docstring)."""
+    cut_index = -1 if cut_value == np.inf else 7
+    rho = stiffness(p)
+    if np.isfinite(rho) and rho > stiff_rate:
+        return _integrate_stiff(y, p, t_max, rtol, atol, max_step, event_spacing,
+                                n_event_samples, max_steps, cut_index, cut_value)
+    return _integrate(y, p, t_max, rtol, atol, max_step, event_spacing, n_event_samples,
+                      max_steps, cut_index, cut_value)
+
+
+@njit(cache=True)
 def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=1.0,
                 w_bound=np.inf):
     """Fill the kernel parameter vector ``p`` (shape (N_PRM,)).
@@ -319,7 +432,7 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=
 @njit(cache=True)
 def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
                    event_spacing, n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0,
-                   cutoff=None):
+                   cutoff=None, stiff_rate=STIFF_RATE):
     """Closed-loop runs for a batch of gains and/or initial states.
 
     Gains and initial states are paired run by run; a batch of size 1 on either side is
@@ -354,6 +467,9 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
         Exact cutoff per run (N²·m²·s; ``inf``: none): a run stops with status
         ``CUTOFF`` at the end of the first accepted step where J exceeds it (see
         :mod:`penaltyrun.dynamics.integrate`); its J is then a value above the cutoff.
+    stiff_rate : float, optional
+        Stiffness bound (1/s) above which an unsaturated run uses RODAS4 (default
+        :data:`STIFF_RATE`; ``inf``: DOP853 for every run).
 
     Returns
     -------
@@ -384,12 +500,9 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
         pack_params(inertia, inertia_inv, G[b], u_max, tol, p, w_q0, w_qv, w_w,
                     omega_bound(y))
         y[7] = 0.0
-        if cutoff is None:
-            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
-                                      n_event_samples, max_steps)
-        else:
-            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
-                                      n_event_samples, max_steps, 7, cutoff[r])
+        cut = np.inf if cutoff is None else cutoff[r]
+        t, yf, st, _ = _run(y, p, t_max, rtol, atol, max_step, event_spacing,
+                            n_event_samples, max_steps, cut, stiff_rate)
         t_end[r] = t
         cost[r] = yf[7]
         dist[r] = weighted_distance(yf, p)
@@ -399,7 +512,8 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
 
 @njit(cache=True)
 def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
-                event_spacing, n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
+                event_spacing, n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0,
+                stiff_rate=STIFF_RATE):
     """One closed-loop run returning the full state at its end.
 
     Parameters are those of :func:`simulate_batch` for one run (``G`` shape (3, 6),
@@ -419,6 +533,6 @@ def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_
     for i in range(7):
         y[i] = y0[i]
     pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0, w_qv, w_w, omega_bound(y))
-    t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
-                              n_event_samples, max_steps)
+    t, yf, st, _ = _run(y, p, t_max, rtol, atol, max_step, event_spacing, n_event_samples,
+                        max_steps, np.inf, stiff_rate)
     return t, yf, st

@@ -321,37 +321,40 @@ def jacobian(t, y, p, out):
     out[3, 4] = -0.5 * q2
     out[3, 5] = 0.5 * q1
     out[3, 6] = 0.5 * q0
-    # dynamics: I ω̇ = −G x − ω × (I ω); ∂(ω × h)/∂ω = [ω]× I − [h]×
+    # dynamics: I ω̇ = −G x − ω × (I ω), with ∂(ω × h)/∂ω = [ω]× I − [h]×; the rows of
+    # I ω̇'s Jacobian are stored in out[4:7, 1:7] first, then multiplied by I⁻¹ in place
     h0 = p[_I + 0] * w0 + p[_I + 1] * w1 + p[_I + 2] * w2
     h1 = p[_I + 3] * w0 + p[_I + 4] * w1 + p[_I + 5] * w2
     h2 = p[_I + 6] * w0 + p[_I + 7] * w1 + p[_I + 8] * w2
-    M = np.empty((3, 6))
     for j in range(3):
         c0 = p[_I + j]
         c1 = p[_I + 3 + j]
         c2 = p[_I + 6 + j]
-        M[0, 3 + j] = w1 * c2 - w2 * c1
-        M[1, 3 + j] = w2 * c0 - w0 * c2
-        M[2, 3 + j] = w0 * c1 - w1 * c0
-    M[0, 4] += h2
-    M[0, 5] -= h1
-    M[1, 3] -= h2
-    M[1, 5] += h0
-    M[2, 3] += h1
-    M[2, 4] -= h0
-    u = np.empty(3)
-    for i in range(3):
-        u[i] = _linear(y, p, i)
-        for j in range(3):
-            M[i, j] = -p[_G + 6 * i + j]
-            M[i, 3 + j] = -p[_G + 6 * i + 3 + j] - M[i, 3 + j]
+        out[4, 4 + j] = -(w1 * c2 - w2 * c1)
+        out[5, 4 + j] = -(w2 * c0 - w0 * c2)
+        out[6, 4 + j] = -(w0 * c1 - w1 * c0)
+    out[4, 5] -= h2
+    out[4, 6] += h1
+    out[5, 4] += h2
+    out[5, 6] -= h0
+    out[6, 4] -= h1
+    out[6, 5] += h0
     for i in range(3):
         for j in range(6):
-            out[4 + i, 1 + j] = (p[_IINV + 3 * i] * M[0, j] + p[_IINV + 3 * i + 1] * M[1, j]
-                                 + p[_IINV + 3 * i + 2] * M[2, j])
+            out[4 + i, 1 + j] -= p[_G + 6 * i + j]
+    for j in range(1, 7):
+        m0 = out[4, j]
+        m1 = out[5, j]
+        m2 = out[6, j]
+        for i in range(3):
+            out[4 + i, j] = (p[_IINV + 3 * i] * m0 + p[_IINV + 3 * i + 1] * m1
+                             + p[_IINV + 3 * i + 2] * m2)
     # cost rate ½ uᵀu: ∂/∂x = −uᵀ G
+    u0 = _linear(y, p, 0)
+    u1 = _linear(y, p, 1)
+    u2 = _linear(y, p, 2)
     for j in range(6):
-        out[7, 1 + j] = -(u[0] * p[_G + j] + u[1] * p[_G + 6 + j] + u[2] * p[_G + 12 + j])
+        out[7, 1 + j] = -(u0 * p[_G + j] + u1 * p[_G + 6 + j] + u2 * p[_G + 12 + j])
 
 
 @njit(cache=True)

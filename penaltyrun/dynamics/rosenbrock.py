@@ -147,7 +147,8 @@ def make_rodas(rhs, jac, event, event_slope, guard=no_guard):
         solution in ``y_out`` and the error estimate in ``err``; False when the iteration
         matrix is singular."""
         n = y.shape[0]
-        g = 1.0 / (GAMMA * h)
+        inv_h = 1.0 / h
+        g = inv_h / GAMMA
         for i in range(n):
             for j in range(n):
                 W[i, j] = -Jm[i, j]
@@ -168,7 +169,7 @@ def make_rodas(rhs, jac, event, event_slope, guard=no_guard):
                 for i in range(n):
                     acc = K[s, i]
                     for j in range(s):
-                        acc += _C[s, j] * K[j, i] / h
+                        acc += _C[s, j] * inv_h * K[j, i]
                     K[s, i] = acc
             _solve(W, piv, K[s])
         for i in range(n):

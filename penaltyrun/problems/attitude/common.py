@@ -14,7 +14,7 @@ Cost of a candidate (always finite):
   more than ``failure_penalty`` and failures are ranked by how close they got;
   ``diverged`` is the kernel's divergence guard (‖ω‖ beyond its bound, see
   :mod:`penaltyrun.dynamics.attitude`): t_end is where the run left the bound, so its
-  d(t_end) is large and it ranks behind the failures that stayed bounded;
+  d(t_end) ≥ w_ω · bound is large and it ranks behind most failures that stayed bounded;
 * non-finite results (``nonfinite``) and LQR gains whose Riccati equation has no
   stabilizing solution (``care_failure``): ``cost = 1000 · failure_penalty``.
 * exact cutoff (``evaluate_batch(..., thresholds=...)``, status ``cutoff``): the run stopped

@@ -16,7 +16,25 @@ default weights (1, 1, 1) give the main set-up's ‖(q0 − 1, q_v, ω)‖; the 
 
 Kernel parameter vector ``p`` (length :data:`N_PRM`): ``p[0:9]`` I row-major, ``p[9:18]``
 I⁻¹ row-major, ``p[18:36]`` G row-major, ``p[36]`` u_max, ``p[37]`` tol, ``p[38:41]``
-event weights (w_q0, w_qv, w_ω), ``p[41:44]`` the saturation mode of each axis.
+event weights (w_q0, w_qv, w_ω), ``p[41:44]`` the saturation mode of each axis, ``p[44]``
+the divergence bound on ‖ω‖ (rad/s).
+
+Divergence guard: a run whose body rates leave the ball ‖ω‖ ≤ ω_b with
+ω_b = max(:data:`OMEGA_GUARD_MIN`, :data:`OMEGA_GUARD_FACTOR` · ‖ω(0)‖) (100 rad/s, or 100
+times the initial rate) stops at the end of that integration step with status ``DIVERGED``
+(:mod:`penaltyrun.dynamics.integrate`). Large gains (LQR with R at its lower eigenvalue
+bound) can make the nonlinear loop blow up (gyroscopic term and unwinding) although its
+linearization is stable; without the guard such a run spent the whole step budget while ω
+grew to 1e8 rad/s. A run inside the ball is unchanged by the guard.
+
+Stiff runs: without saturation, a run whose gain makes the loop stiff — the bound
+:func:`stiffness` on the spectral radius of its linearization at the target exceeds
+:data:`STIFF_RATE` — is integrated by the L-stable Rosenbrock method RODAS4
+(:mod:`penaltyrun.dynamics.rosenbrock`, exact Jacobian :func:`jacobian`), whose step follows
+the slow dynamics; the explicit method would need thousands of stability-limited steps
+(LQR gains near the eigenvalue bounds give closed-loop poles down to ≈ −1 800 1/s). Both
+methods keep the first-crossing event, the exact cutoff and the guard, and agree with
+``solve_ivp`` (Radau, tight tolerances) to the integration tolerance.
 
 Integration: Dormand–Prince 8(5,3) (:mod:`penaltyrun.dynamics.dop853`). With saturation the
 torque has kinks where an axis enters or leaves the limit; the integrator locates them as
@@ -32,13 +50,23 @@ import numpy as np
 from numba import njit
 
 from penaltyrun.dynamics.dop853 import make_dop853
+from penaltyrun.dynamics.rosenbrock import make_rodas
 
 #: Number of states (quaternion 4, rates 3, cost 1).
 N_STATE = 8
 #: Length of the kernel parameter vector.
-N_PRM = 44
+N_PRM = 45
 #: Mode value of an axis whose torque is clamped on every evaluation (not frozen).
 AUTO = 2.0
+#: Smallest divergence bound on ‖ω‖ (rad/s); see the module docstring.
+OMEGA_GUARD_MIN = 100.0
+#: Divergence bound as a multiple of the initial ‖ω‖.
+OMEGA_GUARD_FACTOR = 100.0
+#: Runs without saturation whose stiffness bound (:func:`stiffness`) exceeds this rate
+#: (1/s) are integrated by RODAS4 instead of DOP853 (see the module docstring). Below about
+#: 1 000 1/s the two cost about the same; every best candidate of the committed attitude
+#: studies is below this rate, so their evaluations are the DOP853 ones.
+STIFF_RATE = 1200.0
 _I = 0
 _IINV = 9
 _G = 18
@@ -46,6 +74,7 @@ _UMAX = 36
 _TOL = 37
 _W = 38
 _MODE = 41
+_WB = 44
 
 
 @njit(cache=True)
@@ -246,12 +275,129 @@ def switch_slope(v, p):
     return out
 
 
-_integrate = make_dop853(rhs, event, event_slope, switch, switch_slope, set_mode)
+@njit(cache=True)
+def diverged(y, p):
+    """Divergence guard: ‖ω‖ beyond the bound ``p[44]`` (rad/s)."""
+    return y[4] * y[4] + y[5] * y[5] + y[6] * y[6] > p[_WB] * p[_WB]
+
+
+@njit(cache=True)
+def omega_bound(y0):
+    """Divergence bound on ‖ω‖ (rad/s) of a run from (q, ω) = ``y0`` (shape (≥7,))."""
+    w = np.sqrt(y0[4] * y0[4] + y0[5] * y0[5] + y0[6] * y0[6])
+    return max(OMEGA_GUARD_MIN, OMEGA_GUARD_FACTOR * w)
+
+
+_integrate = make_dop853(rhs, event, event_slope, switch, switch_slope, set_mode, diverged)
 """Dormand–Prince 8(5,3) bound to this closed loop (callers are cacheable)."""
 
 
 @njit(cache=True)
-def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=1.0):
+def jacobian(t, y, p, out):
+    """∂f/∂y (shape (8, 8)) of the unsaturated closed loop :func:`rhs` into ``out``."""
+    out[:, :] = 0.0
+    q0, q1, q2, q3 = y[0], y[1], y[2], y[3]
+    w0, w1, w2 = y[4], y[5], y[6]
+    # kinematics: ∂q̇/∂q = ½ Ω(ω), ∂q̇/∂ω
+    out[0, 1] = -0.5 * w0
+    out[0, 2] = -0.5 * w1
+    out[0, 3] = -0.5 * w2
+    out[1, 0] = 0.5 * w0
+    out[1, 2] = 0.5 * w2
+    out[1, 3] = -0.5 * w1
+    out[2, 0] = 0.5 * w1
+    out[2, 1] = -0.5 * w2
+    out[2, 3] = 0.5 * w0
+    out[3, 0] = 0.5 * w2
+    out[3, 1] = 0.5 * w1
+    out[3, 2] = -0.5 * w0
+    out[0, 4] = -0.5 * q1
+    out[0, 5] = -0.5 * q2
+    out[0, 6] = -0.5 * q3
+    out[1, 4] = 0.5 * q0
+    out[1, 5] = -0.5 * q3
+    out[1, 6] = 0.5 * q2
+    out[2, 4] = 0.5 * q3
+    out[2, 5] = 0.5 * q0
+    out[2, 6] = -0.5 * q1
+    out[3, 4] = -0.5 * q2
+    out[3, 5] = 0.5 * q1
+    out[3, 6] = 0.5 * q0
+    # dynamics: I ω̇ = −G x − ω × (I ω), with ∂(ω × h)/∂ω = [ω]× I − [h]×; the rows of
+    # I ω̇'s Jacobian are stored in out[4:7, 1:7] first, then multiplied by I⁻¹ in place
+    h0 = p[_I + 0] * w0 + p[_I + 1] * w1 + p[_I + 2] * w2
+    h1 = p[_I + 3] * w0 + p[_I + 4] * w1 + p[_I + 5] * w2
+    h2 = p[_I + 6] * w0 + p[_I + 7] * w1 + p[_I + 8] * w2
+    for j in range(3):
+        c0 = p[_I + j]
+        c1 = p[_I + 3 + j]
+        c2 = p[_I + 6 + j]
+        out[4, 4 + j] = -(w1 * c2 - w2 * c1)
+        out[5, 4 + j] = -(w2 * c0 - w0 * c2)
+        out[6, 4 + j] = -(w0 * c1 - w1 * c0)
+    out[4, 5] -= h2
+    out[4, 6] += h1
+    out[5, 4] += h2
+    out[5, 6] -= h0
+    out[6, 4] -= h1
+    out[6, 5] += h0
+    for i in range(3):
+        for j in range(6):
+            out[4 + i, 1 + j] -= p[_G + 6 * i + j]
+    for j in range(1, 7):
+        m0 = out[4, j]
+        m1 = out[5, j]
+        m2 = out[6, j]
+        for i in range(3):
+            out[4 + i, j] = (p[_IINV + 3 * i] * m0 + p[_IINV + 3 * i + 1] * m1
+                             + p[_IINV + 3 * i + 2] * m2)
+    # cost rate ½ uᵀu: ∂/∂x = −uᵀ G
+    u0 = _linear(y, p, 0)
+    u1 = _linear(y, p, 1)
+    u2 = _linear(y, p, 2)
+    for j in range(6):
+        out[7, 1 + j] = -(u0 * p[_G + j] + u1 * p[_G + 6 + j] + u2 * p[_G + 12 + j])
+
+
+@njit(cache=True)
+def stiffness(p):
+    """Bound on the spectral radius of the loop linearized at the target (1/s).
+
+    The row-sum norm of A − B G (x = (q_v, ω), A = [[0, ½I₃], [0, 0]], B = [[0], [I⁻¹]]):
+    max(½, max_i Σ_j |(I⁻¹ G)_ij|); ``inf`` with saturation (the stiff path is off).
+    """
+    if np.isfinite(p[_UMAX]):
+        return np.inf
+    out = 0.5
+    for i in range(3):
+        acc = 0.0
+        for j in range(6):
+            acc += abs(p[_IINV + 3 * i] * p[_G + j] + p[_IINV + 3 * i + 1] * p[_G + 6 + j]
+                       + p[_IINV + 3 * i + 2] * p[_G + 12 + j])
+        out = max(out, acc)
+    return out
+
+
+_integrate_stiff = make_rodas(rhs, jacobian, event, event_slope, diverged)
+"""RODAS4 bound to this closed loop, for unsaturated stiff runs (callers are cacheable)."""
+
+
+@njit(cache=True)
+def _run(y, p, t_max, rtol, atol, max_step, event_spacing, n_event_samples, max_steps,
+         cut_value, stiff_rate):
+    """One run by the integrator chosen from :func:`stiffness` (see the module docstring)."""
+    cut_index = -1 if cut_value == np.inf else 7
+    rho = stiffness(p)
+    if np.isfinite(rho) and rho > stiff_rate:
+        return _integrate_stiff(y, p, t_max, rtol, atol, max_step, event_spacing,
+                                n_event_samples, max_steps, cut_index, cut_value)
+    return _integrate(y, p, t_max, rtol, atol, max_step, event_spacing, n_event_samples,
+                      max_steps, cut_index, cut_value)
+
+
+@njit(cache=True)
+def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=1.0,
+                w_bound=np.inf):
     """Fill the kernel parameter vector ``p`` (shape (N_PRM,)).
 
     Parameters
@@ -268,6 +414,9 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=
         Output.
     w_q0, w_qv, w_w : float, optional
         Event weights on (q0 − 1), q_v and ω (default 1: the unweighted distance).
+    w_bound : float, optional
+        Divergence bound on ‖ω‖ (rad/s; default ``inf``: no guard; the runs of this module
+        use :func:`omega_bound`).
     """
     for i in range(3):
         for j in range(3):
@@ -282,12 +431,13 @@ def pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0=1.0, w_qv=1.0, w_w=
     p[_W + 2] = w_w
     for i in range(3):
         p[_MODE + i] = AUTO
+    p[_WB] = w_bound
 
 
 @njit(cache=True)
 def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
                    event_spacing, n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0,
-                   cutoff=None):
+                   cutoff=None, stiff_rate=STIFF_RATE):
     """Closed-loop runs for a batch of gains and/or initial states.
 
     Gains and initial states are paired run by run; a batch of size 1 on either side is
@@ -322,6 +472,9 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
         Exact cutoff per run (N²·m²·s; ``inf``: none): a run stops with status
         ``CUTOFF`` at the end of the first accepted step where J exceeds it (see
         :mod:`penaltyrun.dynamics.integrate`); its J is then a value above the cutoff.
+    stiff_rate : float, optional
+        Stiffness bound (1/s) above which an unsaturated run uses RODAS4 (default
+        :data:`STIFF_RATE`; ``inf``: DOP853 for every run).
 
     Returns
     -------
@@ -332,7 +485,8 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
     dist : ndarray, shape (R,)
         Weighted (event) distance to the target at ``t_end``.
     status : ndarray of int64, shape (R,)
-        Integrator status codes (see :mod:`penaltyrun.dynamics.integrate`).
+        Integrator status codes (see :mod:`penaltyrun.dynamics.integrate`; ``DIVERGED``
+        from the divergence guard of the module docstring).
     """
     B = G.shape[0]
     S = y0.shape[0]
@@ -346,16 +500,14 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
     for r in range(R):
         b = r if B > 1 else 0
         s = r if S > 1 else 0
-        pack_params(inertia, inertia_inv, G[b], u_max, tol, p, w_q0, w_qv, w_w)
         for i in range(7):
             y[i] = y0[s, i]
+        pack_params(inertia, inertia_inv, G[b], u_max, tol, p, w_q0, w_qv, w_w,
+                    omega_bound(y))
         y[7] = 0.0
-        if cutoff is None:
-            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
-                                      n_event_samples, max_steps)
-        else:
-            t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
-                                      n_event_samples, max_steps, 7, cutoff[r])
+        cut = np.inf if cutoff is None else cutoff[r]
+        t, yf, st, _ = _run(y, p, t_max, rtol, atol, max_step, event_spacing,
+                            n_event_samples, max_steps, cut, stiff_rate)
         t_end[r] = t
         cost[r] = yf[7]
         dist[r] = weighted_distance(yf, p)
@@ -365,7 +517,8 @@ def simulate_batch(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, m
 
 @njit(cache=True)
 def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_step,
-                event_spacing, n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0):
+                event_spacing, n_event_samples, max_steps, w_q0=1.0, w_qv=1.0, w_w=1.0,
+                stiff_rate=STIFF_RATE):
     """One closed-loop run returning the full state at its end.
 
     Parameters are those of :func:`simulate_batch` for one run (``G`` shape (3, 6),
@@ -381,10 +534,10 @@ def final_state(G, y0, inertia, inertia_inv, t_max, tol, u_max, rtol, atol, max_
         Integrator status code.
     """
     p = np.empty(N_PRM)
-    pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0, w_qv, w_w)
     y = np.zeros(N_STATE)
     for i in range(7):
         y[i] = y0[i]
-    t, yf, st, _ = _integrate(y, p, t_max, rtol, atol, max_step, event_spacing,
-                              n_event_samples, max_steps)
+    pack_params(inertia, inertia_inv, G, u_max, tol, p, w_q0, w_qv, w_w, omega_bound(y))
+    t, yf, st, _ = _run(y, p, t_max, rtol, atol, max_step, event_spacing, n_event_samples,
+                        max_steps, np.inf, stiff_rate)
     return t, yf, st

@@ -22,6 +22,10 @@ cached on disk as with :func:`penaltyrun.dynamics.integrate.make_dopri5`):
 ``set_mode(t, y, p)``
     Stores in ``p`` the smooth piece the state ``y`` lies in (called at t = 0 and at every
     switch point).
+``guard(y, p) -> bool``
+    Divergence guard: True when the state has left the loop's documented bound. Checked at
+    the end of every accepted step (after the event search, the horizon check and the
+    cutoff); the run then stops with status ``DIVERGED``. Default: never.
 
 First crossing. After every accepted step both watched functions w (event and switch) are
 checked on the step's dense output with a Lipschitz bound S ≥ |dw/dt|: no crossing is
@@ -35,7 +39,8 @@ refined by bisection on the interpolant. At a switch point the state is taken fr
 output, ``set_mode`` selects the new piece, and integration resumes from there.
 
 Statuses, the horizon check and the exact cutoff are those of
-:mod:`penaltyrun.dynamics.integrate` (a step that ends at a switch point is an accepted step).
+:mod:`penaltyrun.dynamics.integrate` (a step that ends at a switch point is an accepted step);
+``DIVERGED`` comes from the guard.
 """
 
 from __future__ import annotations
@@ -45,7 +50,14 @@ from numba import njit
 
 from penaltyrun.dynamics.dop853_stages import dense_rows, error_norms, stage_input
 from penaltyrun.dynamics.dop853_tableau import C
-from penaltyrun.dynamics.integrate import CUTOFF, EVENT, HORIZON, NONFINITE, STEP_FAILURE
+from penaltyrun.dynamics.integrate import (
+    CUTOFF,
+    DIVERGED,
+    EVENT,
+    HORIZON,
+    NONFINITE,
+    STEP_FAILURE,
+)
 
 #: Factor on the stage-derivative slope bound in the quick no-crossing test of a step.
 SLOPE_SAFETY = 2.0
@@ -71,6 +83,12 @@ def no_mode(t, y, p):
 
 
 @njit(cache=True)
+def no_guard(y, p):
+    """Divergence guard that never fires."""
+    return False
+
+
+@njit(cache=True)
 def _dense(y_old, F, x, out):
     """Order-7 dense output at fraction x ∈ [0, 1] of the step (F: 7 × n, includes h)."""
     x1 = 1.0 - x
@@ -93,7 +111,7 @@ def _jump(margin, slope, h):
 
 
 def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope,
-                set_mode=no_mode):
+                set_mode=no_mode, guard=no_guard):
     """Build DOP853 specialized to one closed loop (see the module docstring).
 
     Returns
@@ -286,6 +304,8 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
                     return t, y, HORIZON, steps
                 if cut_index >= 0 and y[cut_index] > cut_value:
                     return t, y, CUTOFF, steps
+                if guard(y, p):
+                    return t, y, DIVERGED, steps
                 continue
             t = t + h
             y[:] = y_new
@@ -296,6 +316,8 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
                 return t, y, HORIZON, steps
             if cut_index >= 0 and y[cut_index] > cut_value:
                 return t, y, CUTOFF, steps
+            if guard(y, p):
+                return t, y, DIVERGED, steps
             factor = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** -0.125)
             h = min(h * factor, max_step)
         return t, y, STEP_FAILURE, steps

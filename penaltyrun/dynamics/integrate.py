@@ -34,7 +34,10 @@ HORIZON = 1
 STEP_FAILURE = 2
 NONFINITE = 3
 CUTOFF = 4
-STATUS_NAMES = ("event", "horizon", "step_failure", "nonfinite", "cutoff")
+#: A divergence guard of the closed loop fired (the state left its documented bound; only
+#: integrators built with a guard return it, e.g. the attitude kernels).
+DIVERGED = 5
+STATUS_NAMES = ("event", "horizon", "step_failure", "nonfinite", "cutoff", "diverged")
 
 @njit(cache=True)
 def _tableau():

@@ -9,9 +9,12 @@ d = ‖(w_q0 (q0 − 1), w_qv q_v, w_ω ω)‖ falls to ``tol`` (default weights
 Cost of a candidate (always finite):
 
 * event fired before ``t_max``: ``cost = J(t_event)``;
-* otherwise (``horizon``, ``step_failure``): the graded penalty
+* otherwise (``horizon``, ``step_failure``, ``diverged``): the graded penalty
   ``cost = J(t_end) + failure_penalty · (1 + d(t_end) / d(0))``, so every failure costs
   more than ``failure_penalty`` and failures are ranked by how close they got;
+  ``diverged`` is the kernel's divergence guard (‖ω‖ beyond its bound, see
+  :mod:`penaltyrun.dynamics.attitude`): t_end is where the run left the bound, so its
+  d(t_end) ≥ w_ω · bound is large and it ranks behind most failures that stayed bounded;
 * non-finite results (``nonfinite``) and LQR gains whose Riccati equation has no
   stabilizing solution (``care_failure``): ``cost = 1000 · failure_penalty``.
 * exact cutoff (``evaluate_batch(..., thresholds=...)``, status ``cutoff``): the run stopped

@@ -1,7 +1,8 @@
 """Independent scipy references of the attitude closed loop (for tests, benches and plots).
 
 Plain numpy right-hand side and ``solve_ivp`` runs with the same (weighted) terminal event,
-tolerances and maximum step as the compiled kernel of :mod:`penaltyrun.dynamics.attitude`.
+divergence guard (a second terminal event ‖ω‖ = ω_b), tolerances and maximum step as the
+compiled kernel of :mod:`penaltyrun.dynamics.attitude`.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.dynamics import integrate
+from penaltyrun.dynamics.attitude import OMEGA_GUARD_FACTOR, OMEGA_GUARD_MIN
 from penaltyrun.problems.attitude.params import Params
 
 #: Cost multiple of ``failure_penalty`` for non-finite runs and Riccati failures.
@@ -77,8 +79,14 @@ def reference_max_step(params: Params) -> float:
     return float(min(params.max_step, params.n_event_samples * params.event_spacing))
 
 
-def reference_run(G: Any, params: Params, y0: Any = None, method: str = "DOP853"
-                  ) -> dict[str, Any]:
+def omega_bound(y0: Any) -> float:
+    """Divergence bound on ‖ω‖ (rad/s) of a run from (q, ω) = ``y0`` (as the kernel's)."""
+    return float(max(OMEGA_GUARD_MIN,
+                     OMEGA_GUARD_FACTOR * np.linalg.norm(np.asarray(y0, float)[4:7])))
+
+
+def reference_run(G: Any, params: Params, y0: Any = None, method: str = "DOP853",
+                  rtol: float | None = None, atol: float | None = None) -> dict[str, Any]:
     """Independent scipy ``solve_ivp`` evaluation of one gain (slow; for tests and benches).
 
     Uses the same event definition and tolerances as the kernel; scipy checks the event sign
@@ -93,12 +101,16 @@ def reference_run(G: Any, params: Params, y0: Any = None, method: str = "DOP853"
         Initial (q, ω); default from ``params``.
     method : str
         scipy integrator.
+    rtol, atol : float, optional
+        Tolerances (default the problem's).
 
     Returns
     -------
     dict
         ``cost`` (graded, as the production path), ``energy``, ``t_final``, ``converged``,
-        ``final_distance``.
+        ``final_distance``, ``status`` (integrator status code; ``DIVERGED`` when ‖ω‖
+        reached the guard's bound first, located on scipy's dense output rather than at a
+        step end as in the kernel).
     """
     from scipy.integrate import solve_ivp
 
@@ -112,22 +124,36 @@ def reference_run(G: Any, params: Params, y0: Any = None, method: str = "DOP853"
 
     hit.terminal = True
     hit.direction = -1.0
-    sol = solve_ivp(rhs, (0.0, params.t_max), np.concatenate([y_init, [0.0]]), events=hit,
-                    rtol=params.rtol, atol=params.atol, method=method,
-                    max_step=reference_max_step(params))
+    w_b = omega_bound(y_init)
+
+    def blow(t: float, y: np.ndarray) -> float:
+        return float(w_b - np.linalg.norm(y[4:7]))
+
+    blow.terminal = True
+    blow.direction = -1.0
+    sol = solve_ivp(rhs, (0.0, params.t_max), np.concatenate([y_init, [0.0]]),
+                    events=(hit, blow), method=method, max_step=reference_max_step(params),
+                    rtol=params.rtol if rtol is None else rtol,
+                    atol=params.atol if atol is None else atol)
     converged = bool(sol.t_events[0].size)
-    y_end = sol.y_events[0][0] if converged else sol.y[:, -1]
-    t_end = float(sol.t_events[0][0]) if converged else float(sol.t[-1])
+    blown = bool(sol.t_events[1].size) and not converged
+    if converged or blown:
+        k = 0 if converged else 1
+        y_end, t_end = sol.y_events[k][0], float(sol.t_events[k][0])
+    else:
+        y_end, t_end = sol.y[:, -1], float(sol.t[-1])
     dist = float(params.event_distance(y_end))
     d0 = float(params.event_distance(y_init))
     status = np.array([integrate.EVENT if converged else integrate.HORIZON])
-    if not converged and sol.status != 0:
+    if blown:
+        status[0] = integrate.DIVERGED
+    elif not converged and sol.status != 0:
         status[0] = integrate.STEP_FAILURE
     energy = float(y_end[7])
     cost = float(graded_cost(np.array([energy]), np.array([dist]), d0, status,
                              params.failure_penalty)[0])
     return {"cost": cost, "energy": energy, "t_final": t_end, "converged": converged,
-            "final_distance": dist}
+            "final_distance": dist, "status": int(status[0])}
 
 
 def trajectory(G: Any, params: Params, t_end: float, n_points: int = 500,
@@ -157,5 +183,5 @@ def trajectory(G: Any, params: Params, t_end: float, n_points: int = 500,
     return {"t": sol.t, "q": y[:, :4], "w": y[:, 4:7], "u": u, "J": y[:, 7], "dist": dist}
 
 
-__all__ = ["HARD_FAILURE_FACTOR", "graded_cost", "reference_max_step", "reference_run",
-           "trajectory"]
+__all__ = ["HARD_FAILURE_FACTOR", "graded_cost", "omega_bound", "reference_max_step",
+           "reference_run", "trajectory"]

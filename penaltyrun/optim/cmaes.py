@@ -60,8 +60,7 @@ class CMAESSettings(CommonSettings):
     tolfun, tolx : float
         Stopping tolerances of one run: function values (the range of a generation and of
         the recent best values) and step sizes (σ √C_ii and σ p_c in every coordinate of
-        the unit cube); the other stopping rules of a run are listed in
-        :mod:`penaltyrun.optim.cma_core`.
+        the unit cube); every stopping rule of a run: docs/explanation/cmaes.md.
     """
 
     sigma0: float = 0.3

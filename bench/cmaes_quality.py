@@ -1,10 +1,11 @@
 """Quality of the vectorized CMA-ES against the former pycma path on committed attitude cells.
 
 For every ``attitude_lyapunov`` CMA-ES cell of ``studies/referee_attitude`` (detumble and
-rest-to-rest × the maps given), the first ``--starts`` committed jobs are run again through
-the production runner (:func:`penaltyrun.runner.run_job`, held-out evaluation off) with the
-committed job seeds and budget (``optimizer.max_evals = 3000``, the ``cmaes`` preset), once
-with the current optimizer and once with the former pycma path (``cmaes_pycma.py``). Per
+rest-to-rest × the maps given), the first ``--starts`` committed jobs are run again with
+the committed job seeds and budget (``optimizer.max_evals = 3000``, the ``cmaes`` preset) on
+the objective the runner builds (:func:`penaltyrun.optim.minimize`, one BLAS thread), once
+with the current optimizer and once with the former pycma path (``cmaes_pycma.py``); a
+start counts as converged when its best candidate converges (the problem's own status). Per
 cell the two samples of converged best costs are compared with the report's own map-vs-map
 comparison (:func:`penaltyrun.report.compare.pairwise`: two-sided Mann–Whitney U, A12, Holm
 over all cells), the two engines standing in for two maps. The committed records' median is
@@ -19,7 +20,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 from datetime import date
 from pathlib import Path
@@ -27,11 +27,13 @@ from pathlib import Path
 import pandas as pd
 from cmaes_pycma import run_pycma
 from machine import machine
+from threadpoolctl import threadpool_limits
 
 import penaltyrun.optim as optim
+from penaltyrun.optim import make_settings, minimize
 from penaltyrun.optim.cmaes import CMAESSettings, run_cmaes
 from penaltyrun.report.compare import pairwise
-from penaltyrun.runner import plan_jobs, run_job
+from penaltyrun.runner import swarm
 
 STUDY = Path(__file__).resolve().parents[1] / "studies" / "referee_attitude" / "results.parquet"
 ENGINES = {"pycma": run_pycma, "vectorized": run_cmaes}
@@ -53,14 +55,26 @@ def main() -> None:
         for param in args.params:
             cell = committed[(committed.case == case) & (committed.param == param)]
             cell = cell.sort_values("start").head(args.starts)
-            (job0,) = plan_jobs("attitude_lyapunov", case, param, "cmaes", 1, 0, {}, {},
-                                {"max_evals": int(cell.max_evals.iloc[0])}, holdout=False)
+            prob, layout = swarm.ProblemSpec("attitude_lyapunov", case, param, {},
+                                             {"name": param}).build()
+            func = swarm.LocalEvaluation().objective(None, prob, layout, param)
+            lb, ub = layout.bounds()
+            max_evals = int(cell.max_evals.iloc[0])
             for engine, run in ENGINES.items():
                 optim.OPTIMIZERS["cmaes"] = (CMAESSettings, run)
                 t0 = time.process_time()
-                for start, seed in zip(cell.start, cell.seed):
-                    rec = run_job(dataclasses.replace(job0, start=int(start), seed=int(seed)))
-                    rows.append({**rec, "case": f"{case}/{param}", "param": engine})
+                for seed in cell.seed:
+                    with threadpool_limits(limits=1, user_api="blas"):
+                        res = minimize("cmaes", func, lb, ub,
+                                       make_settings("cmaes", {"max_evals": max_evals}),
+                                       int(seed))
+                    mats, scalars = layout.split(res.best_z[None])
+                    best = prob.evaluate_batch(mats, scalars or None)
+                    rows.append({"problem": "attitude_lyapunov", "case": f"{case}/{param}",
+                                 "optimizer": "cmaes", "param": engine, "status": "ok",
+                                 "best_cost": res.best_cost, "n_evals": res.n_evals,
+                                 "max_evals": max_evals,
+                                 "best_converged": bool(best.converged[0])})
                 print(f"{case:12s} {param:8s} {engine:10s} {len(cell)} starts "
                       f"{time.process_time() - t0:6.1f} s CPU; committed median "
                       f"{cell.best_cost.median():.6g}", flush=True)

@@ -120,12 +120,13 @@ def from_box(U: np.ndarray) -> np.ndarray:
 
 @njit(cache=True)
 def _update(X: np.ndarray, order: np.ndarray, mean: np.ndarray, ps: np.ndarray,
-            pc: np.ndarray, C: np.ndarray, B: np.ndarray, D: np.ndarray, w: np.ndarray,
-            prm: np.ndarray, sigma: float, g: int, decompose: bool
-            ) -> float:  # pragma: no cover - compiled
-    """One generation's update in place (mean, paths, C; B and D if ``decompose``);
-    returns the new σ. ``prm``: μ, first negative weight, c_σ, d_σ, c_c, c1, cμ, the two
-    path gains, E‖N(0, I)‖, Σ w."""
+            pc: np.ndarray, C: np.ndarray, B: np.ndarray, D: np.ndarray, BD: np.ndarray,
+            invsqrt: np.ndarray, w: np.ndarray, prm: np.ndarray, sigma: float, g: int,
+            decompose: bool) -> float:  # pragma: no cover - compiled
+    """One generation's update in place (mean, paths, C; if ``decompose`` also B, D,
+    BD = B diag(D) and invsqrt = C^(-1/2) = B diag(1/D) Bᵀ, which are O(dim³) and so kept
+    between decompositions); returns the new σ. ``prm``: μ, first negative weight, c_σ,
+    d_σ, c_c, c1, cμ, the two path gains, E‖N(0, I)‖, Σ w."""
     lam, n = X.shape
     mu, neg0 = int(prm[0]), int(prm[1])
     cs, ds, cc, c1, cmu = prm[2], prm[3], prm[4], prm[5], prm[6]
@@ -138,7 +139,6 @@ def _update(X: np.ndarray, order: np.ndarray, mean: np.ndarray, ps: np.ndarray,
     for k in range(mu):
         for i in range(n):
             yw[i] += w[k] * Y[k, i]
-    invsqrt = (B / D) @ B.T
     z = invsqrt @ yw
     norm2 = 0.0
     for i in range(n):
@@ -179,14 +179,15 @@ def _update(X: np.ndarray, order: np.ndarray, mean: np.ndarray, ps: np.ndarray,
             D[i] = math.sqrt(D2[i])
         B[:, :] = V
         C[:, :] = (V * D2) @ V.T
+        BD[:, :] = V * D
+        invsqrt[:, :] = (V / D) @ V.T
     return sigma
 
 
 @njit(cache=True)
-def _sample(Z: np.ndarray, mean: np.ndarray, sigma: float, B: np.ndarray,
-            D: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
-    """Candidates m + σ B diag(D) z_k, shape (λ, dim)."""
-    BD = B * D
+def _sample(Z: np.ndarray, mean: np.ndarray, sigma: float, BD: np.ndarray
+            ) -> np.ndarray:  # pragma: no cover - compiled
+    """Candidates m + σ B diag(D) z_k, shape (λ, dim) (``BD`` = B diag(D))."""
     X = Z @ BD.T
     for k in range(X.shape[0]):
         for i in range(X.shape[1]):
@@ -265,6 +266,7 @@ class CMARun:
         self.mean = np.array(mean, dtype=float)
         self.sigma0 = self.sigma = float(sigma)
         self.C, self.B, self.D = np.eye(n), np.eye(n), np.ones(n)  # C = B diag(D²) Bᵀ
+        self.BD, self.invsqrt = np.eye(n), np.eye(n)  # B diag(D), B diag(1/D) Bᵀ
         self.ps, self.pc = np.zeros(n), np.zeros(n)
         self.g = 0
         self.counteval = 0
@@ -281,7 +283,7 @@ class CMARun:
     def ask(self) -> np.ndarray:
         """λ candidates m + σ B D z with z ~ N(0, I), shape (λ, dim) (genotypes)."""
         return _sample(self.rng.standard_normal((self.lam, self.n)), self.mean, self.sigma,
-                       self.B, self.D)
+                       self.BD)
 
     def tell(self, X: np.ndarray, f: np.ndarray) -> None:
         """Update the distribution from the candidates ``X`` (λ, dim) and their values ``f``
@@ -297,8 +299,8 @@ class CMARun:
         if decompose:
             self.eigen_eval = self.counteval
         self.sigma = _update(np.ascontiguousarray(X, dtype=float), order, self.mean, self.ps,
-                             self.pc, self.C, self.B, self.D, self.weights, self.prm,
-                             self.sigma, self.g, decompose)
+                             self.pc, self.C, self.B, self.D, self.BD, self.invsqrt,
+                             self.weights, self.prm, self.sigma, self.g, decompose)
         self._record(fs)
 
     def _record(self, fs: np.ndarray) -> None:

@@ -78,6 +78,9 @@ def main() -> None:
                 print(f"{case:12s} {param:8s} {engine:10s} {len(cell)} starts "
                       f"{time.process_time() - t0:6.1f} s CPU; committed median "
                       f"{cell.best_cost.median():.6g}", flush=True)
+            done = pairwise(pd.DataFrame([r for r in rows if r["case"] == f"{case}/{param}"]))
+            print(done[["case", "median_a", "median_b", "best_a", "best_b", "a12_b_beats_a",
+                        "p_mwu"]].to_string(index=False, header=False), flush=True)
     optim.OPTIMIZERS["cmaes"] = (CMAESSettings, run_cmaes)
     df = pd.DataFrame(rows)
     table = pairwise(df)[["case", "n_a", "n_b", "best_a", "best_b", "median_a", "median_b",

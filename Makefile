@@ -125,7 +125,7 @@ bench: install  ## benchmarks (ratios against references measured in the same ru
 	$(PYTHON) bench/bench_zermelo.py
 	@for f in bench/bench_attitude.py bench/bench_lowthrust.py bench/bench_first_eval.py \
 		bench/bench_swarm.py bench/swarm_model.py bench/bench_cutoff.py bench/bench_heyoka.py \
-		bench/bench_lqr.py bench/bench_mpc.py bench/bench_overhead.py; do \
+		bench/bench_lqr.py bench/bench_mpc.py bench/bench_overhead.py bench/bench_cmaes.py; do \
 		if [ -f $$f ]; then $(PYTHON) $$f || exit 1; fi; done
 	$(PYTHON) bench/bench_decode.py
 	$(PYTHON) bench/geagsp_conditioning.py

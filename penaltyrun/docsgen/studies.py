@@ -48,7 +48,7 @@ RESULTS = "results.parquet"
 TABLES = "tables"
 LOCK_FILE = "requirements.lock"
 #: Packages whose versions the provenance file records.
-PACKAGES = ("numpy", "scipy", "numba", "pyswarms", "cma", "pandas", "pyarrow", "hydra-core",
+PACKAGES = ("numpy", "scipy", "numba", "pyswarms", "pandas", "pyarrow", "hydra-core",
             "omegaconf", "matplotlib", "dask", "distributed")
 
 

@@ -1,9 +1,10 @@
 """Optimizers over a box with a batched objective and an evaluation budget.
 
 ``pso`` (pyswarms), ``pso_matlab`` (MATLAB's ``particleswarm`` re-implemented in numpy),
-``de`` (scipy differential evolution), ``cmaes`` (IPOP-CMA-ES from ``cma``), ``grid``
-(exhaustive grid + local search, dimension ≤ 4), ``lbfgs`` (multi-start L-BFGS-B with the
-problem's exact gradient) and ``baseline`` (one given point).
+``de`` (scipy differential evolution), ``cmaes`` (IPOP-CMA-ES,
+:mod:`penaltyrun.optim.cma_core`), ``grid`` (exhaustive grid + local search, dimension ≤ 4),
+``lbfgs`` (multi-start L-BFGS-B with the problem's exact gradient) and ``baseline`` (one
+given point).
 :func:`minimize` runs one of them, then the shared bounded polish (``optimizer.polish``)
 inside the same ``max_evals`` (``polish=gradient``: L-BFGS-B with the problem's exact
 gradient).
@@ -110,8 +111,8 @@ def minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarra
     worse than ``x0``).
 
     The caller's global ``np.random`` state is the same after the call
-    (:func:`~penaltyrun.optim.base.global_rng_kept`): pyswarms and ``cma`` seed and draw from
-    it inside the call only.
+    (:func:`~penaltyrun.optim.base.global_rng_kept`): pyswarms seeds and draws from it inside
+    the call only.
     """
     with global_rng_kept():
         return _minimize(name, objective, lb, ub, settings, seed, x0, gradient)

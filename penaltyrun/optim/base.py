@@ -48,7 +48,7 @@ POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP", "
 def global_rng_kept() -> Iterator[None]:
     """Restore ``np.random``'s global state when the block ends.
 
-    pyswarms and ``cma`` draw from (and ``cma`` seeds) the global numpy generator; an
+    pyswarms draws from the global numpy generator (seeded by the PSO adapter); an
     optimizer run inside this block seeds and uses it freely, and the caller's state is as
     it was afterwards (a library call must not move its caller's random numbers).
     """

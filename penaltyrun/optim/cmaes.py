@@ -1,23 +1,29 @@
-"""CMA-ES with IPOP restarts, from the ``cma`` package (Hansen's reference implementation).
+"""CMA-ES with IPOP restarts (:mod:`penaltyrun.optim.cma_core`: Hansen's update with active
+covariance adaptation, pycma's box transformation and default stopping rules).
 
 The search runs in the unit cube: the box [lb, ub] is mapped to [0, 1]^dim, so ``sigma0`` is
-a fraction of every side of the box (eigenvalues and angles have different ranges) and cma's
-``BoundTransform`` keeps every candidate inside the box. Each restart doubles the
-population (IPOP, ``incpopsize``) and starts from a fresh uniform point, until the evaluation
-budget is spent or ``restarts`` restarts are done. cma draws from the global ``np.random``
-state, seeded per restart from the job seed, so a seed gives one run.
+a fraction of every side of the box (eigenvalues and angles have different ranges), and
+pycma's linear-quadratic transformation maps every candidate into the box. Each restart
+multiplies the population by ``incpopsize`` (IPOP) and starts from a fresh uniform point,
+until the evaluation budget is spent or ``restarts`` restarts are done. Every random number
+(start points and samples) comes from one ``numpy.random.Generator`` seeded with the job
+seed, so a seed gives one run and the global ``np.random`` state is never touched.
+
+The population is sampled and updated as whole arrays, so the optimizer's own work per
+generation is a few dozen numpy calls (the ``cma`` package, which this module used before,
+does per-candidate Python bookkeeping that cost more than the attitude kernels' evaluation
+of the population; ``bench/bench_cmaes.py`` measures both).
 
 No exact cutoff (:mod:`penaltyrun.optim.base`): CMA-ES sorts every candidate of a generation
-and its update uses the ranks of all of them (cma's default active covariance update gives
-the worst candidates negative weights), so there is no threshold below which a candidate's
-exact cost stops mattering; a bound in place of a cost would change the ranks and the run.
+and its update uses the ranks of all of them (the active covariance update gives the worst
+candidates negative weights), so there is no threshold below which a candidate's exact cost
+stops mattering; a bound in place of a cost would change the ranks and the run.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +38,7 @@ from penaltyrun.optim.base import (
     main_budget,
     require_int,
 )
+from penaltyrun.optim.cma_core import CMARun, from_box, to_box
 
 logger = logging.getLogger(__name__)
 
@@ -45,13 +52,15 @@ class CMAESSettings(CommonSettings):
     sigma0 : float
         Initial step size as a fraction of the box side (the search runs in [0, 1]^dim).
     popsize : int or None
-        Population λ of the first run (``None``: cma's default 4 + ⌊3 ln dim⌋).
+        Population λ of the first run (``None``: the default 4 + ⌊3 ln dim⌋).
     incpopsize : float
         Population factor per restart (IPOP: 2).
     restarts : int
         Maximum number of restarts after the first run (the budget usually ends it first).
     tolfun, tolx : float
-        cma's stopping tolerances of one run (function values, step sizes).
+        Stopping tolerances of one run: function values (the range of a generation and of
+        the recent best values) and step sizes (σ √C_ii and σ p_c in every coordinate of
+        the unit cube); every stopping rule of a run: docs/explanation/cmaes.md.
     """
 
     sigma0: float = 0.3
@@ -77,8 +86,8 @@ class CMAESSettings(CommonSettings):
                                   f"{getattr(self, key)!r}")
 
     def search_evals(self, dim: int) -> None:
-        """``None``: each run ends on cma's own tolerances, so only ``max_evals`` bounds
-        the restarts."""
+        """``None``: each run ends on its stopping rules, so only ``max_evals`` bounds the
+        restarts."""
         return None
 
 
@@ -94,7 +103,7 @@ def run_cmaes(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
     lb, ub : ndarray, shape (dim,)
     settings : CMAESSettings
     seed : int
-        Job seed; each restart's cma seed and start point derive from it.
+        Job seed: the generator of every start point and sample.
     x0 : ndarray, shape (dim,), optional
         Mean of the first run (warm start); default uniform in the box.
 
@@ -102,35 +111,29 @@ def run_cmaes(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
     -------
     OptimResult
         ``stop_reason``: ``max_evals`` (budget spent) or ``restarts`` (all runs ended on
-        cma's own criteria). ``history`` has the best cost after every generation.
+        their stopping rules). ``history`` has the best cost after every generation.
     """
-    import cma  # 0.7 s of imports (scipy.stats, matplotlib): only when CMA-ES runs
-
     counted = as_counting(objective, main_budget(settings))
     lb, ub = np.asarray(lb, float), np.asarray(ub, float)
     width = ub - lb
     dim = lb.size
     rng = np.random.default_rng(seed)
     popsize = settings.popsize or 4 + int(3 * math.log(dim))
-    mean = rng.random(dim) if x0 is None else np.clip((np.asarray(x0, float) - lb) / width,
-                                                      0.0, 1.0)
+    mean = rng.random(dim) if x0 is None else (np.asarray(x0, float) - lb) / width
     history: list[float] = []
     stop = "restarts"
     try:
         for restart in range(settings.restarts + 1):
-            opts = {"bounds": [0.0, 1.0], "popsize": popsize,
-                    "seed": int(rng.integers(1, 2**31 - 1)), "verbose": -9, "verb_log": 0,
-                    "verb_disp": 0, "tolfun": settings.tolfun, "tolx": settings.tolx}
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # cma warns about flat fitness, etc.
-                es = cma.CMAEvolutionStrategy(mean.tolist(), settings.sigma0, opts)
-                while not es.stop():
-                    U = np.asarray(es.ask(), float)
-                    cost = counted(lb + np.clip(U, 0.0, 1.0) * width)
-                    es.tell(list(U), cost.tolist())
-                    history.append(counted.best_cost)
+            es = CMARun(from_box(mean), settings.sigma0, popsize, rng, settings.tolfun,
+                        settings.tolx)
+            reasons: list[str] = []
+            while not reasons:
+                X = es.ask()
+                es.tell(X, counted(lb + to_box(X) * width))
+                history.append(counted.best_cost)
+                reasons = es.stop()
             logger.debug("CMA-ES run %d (λ = %d) stopped on %s; best %.6g", restart, popsize,
-                         dict(es.stop()), counted.best_cost)
+                         ", ".join(reasons), counted.best_cost)
             popsize = int(round(popsize * settings.incpopsize))
             mean = rng.random(dim)
     except BudgetExhaustedError:

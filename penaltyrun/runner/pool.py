@@ -264,10 +264,10 @@ class _Worker:
         self.conn.close()
 
 
-#: Modules an optimizer imports when it first runs (``cma``: 0.7 s CPU), imported once in
-#: the parent before the workers are forked, so that every forked worker shares them
+#: Modules an optimizer imports when it first runs (``pyswarms``: 0.3 s CPU), imported once
+#: in the parent before the workers are forked, so that every forked worker shares them
 #: instead of importing them again (see :func:`import_shared`).
-SHARED_IMPORTS: dict[str, tuple[str, ...]] = {"cmaes": ("cma",)}
+SHARED_IMPORTS: dict[str, tuple[str, ...]] = {"pso": ("pyswarms",)}
 
 
 def import_shared(jobs: list[Job]) -> list[str]:

@@ -18,7 +18,7 @@ from pathlib import Path
 from penaltyrun import __version__
 
 #: Distributions always listed (``null`` when not installed).
-PACKAGES = ("numpy", "scipy", "numba", "pyswarms", "cma", "pandas", "pyarrow")
+PACKAGES = ("numpy", "scipy", "numba", "pyswarms", "pandas", "pyarrow")
 #: Distributions listed only when their module was imported by this process.
 IF_USED = {"dask": "dask", "distributed": "distributed"}
 

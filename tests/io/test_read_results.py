@@ -109,7 +109,7 @@ def test_records_carry_their_package_versions_and_old_files_still_read(tmp_path)
     pq.write_table(old, tmp_path / "old" / RESULTS_FILE)
     df = read_results(tmp_path).sort_values("start")
     packages = json.loads(df["packages"].iloc[0])
-    assert {"python", "numpy", "scipy", "numba", "pyswarms", "cma", "pandas", "pyarrow",
+    assert {"python", "numpy", "scipy", "numba", "pyswarms", "pandas", "pyarrow",
             "penaltyrun"} <= set(packages)
     assert packages["git_commit"] == "abc"
     assert pd.isna(df["packages"].iloc[1]) and df["schema_version"].tolist() == \

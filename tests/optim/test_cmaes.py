@@ -1,4 +1,4 @@
-"""CMA-ES adapter (cma, IPOP restarts): budget, determinism, bounds, warm start."""
+"""IPOP-CMA-ES: budget, determinism, bounds, warm start, restarts, stopping rules."""
 
 from __future__ import annotations
 
@@ -89,3 +89,32 @@ def test_bad_settings_name_the_key(options, key):
 
 def test_null_popsize_is_the_default():
     assert make_settings("cmaes", {"popsize": None}).popsize is None
+
+
+def test_ipop_restarts_grow_the_population():
+    sizes = []
+
+    def recorder(Z):
+        sizes.append(len(Z))
+        return np.ones(len(Z))  # flat: every run stops on tolfun after one generation
+
+    res = run_cmaes(recorder, LB, UB, CMAESSettings(restarts=3, popsize=5, incpopsize=2.0),
+                    seed=1)
+    assert sizes == [5, 10, 20, 40]
+    assert res.stop_reason == "restarts" and res.n_evals == sum(sizes)
+
+
+def test_runs_end_on_their_stopping_rules(caplog):
+    with caplog.at_level("DEBUG", logger="penaltyrun.optim.cmaes"):
+        res = run_cmaes(sphere, LB, UB, CMAESSettings(restarts=1, tolfun=1e-9, tolx=1e-12),
+                        seed=3)
+    stops = [r.getMessage() for r in caplog.records if "stopped on" in r.getMessage()]
+    assert len(stops) == 2 and all("tolfun" in m for m in stops)
+    assert res.best_cost < 1e-8
+
+
+def test_global_random_state_is_never_used():
+    np.random.seed(123)  # noqa: NPY002
+    before = np.random.get_state()[1].copy()  # noqa: NPY002
+    run_cmaes(rastrigin, LB, UB, CMAESSettings(max_evals=300), seed=5)
+    np.testing.assert_array_equal(np.random.get_state()[1], before)  # noqa: NPY002

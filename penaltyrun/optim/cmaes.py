@@ -38,7 +38,6 @@ from penaltyrun.optim.base import (
     main_budget,
     require_int,
 )
-from penaltyrun.optim.cma_core import CMARun, from_box, to_box
 
 logger = logging.getLogger(__name__)
 
@@ -113,6 +112,8 @@ def run_cmaes(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
         ``stop_reason``: ``max_evals`` (budget spent) or ``restarts`` (all runs ended on
         their stopping rules). ``history`` has the best cost after every generation.
     """
+    from penaltyrun.optim.cma_core import CMARun, from_box, to_box  # numba: load on use
+
     counted = as_counting(objective, main_budget(settings))
     lb, ub = np.asarray(lb, float), np.asarray(ub, float)
     width = ub - lb

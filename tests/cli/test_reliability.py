@@ -40,12 +40,45 @@ def test_killed_pool_worker_fails_only_its_job_which_is_retried(tmp_path):
     assert len(pd.read_parquet(run / RESULTS_FILE)) == 6
 
 
+#: A problem module whose evaluation divides by zero: every job fails.
+BROKEN = """
+from penaltyrun.problems.base import MatrixSpec
+
+CASES = ("one",)
+DEFAULT_CASE = "one"
+
+
+class Broken:
+    name = "broken"
+    case = "one"
+    matrices = (MatrixSpec("K", 2, (0.1, 10.0)),)
+    scalars = ()
+
+    def evaluate_batch(self, mats, scalars=None):
+        return 1 / 0
+
+    def evaluate(self, mats, scalars=None):
+        return 1 / 0
+
+    def simulate(self, mats, scalars=None):
+        return {}
+
+
+def make_problem(case, params):
+    return Broken()
+"""
+
+
 def test_failed_job_gives_exit_code_3_and_a_summary_line(tmp_path):
     """Row 1 (exit code): a run with a failed job no longer exits 0."""
     run = tmp_path / "run"
-    # zero tolerances pass the type checks but make the integrator divide by zero
-    proc = cli(*FAST_JOBS, "runner.n_starts=2", "problem.params.atol=0", "problem.params.rtol=0",
-               f"hydra.run.dir={run}", cwd=tmp_path)
+    (tmp_path / "lab").mkdir()
+    (tmp_path / "lab" / "__init__.py").write_text("", encoding="utf-8")
+    (tmp_path / "lab" / "broken.py").write_text(BROKEN, encoding="utf-8")
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    proc = cli("problem=lab.broken", "optimizer=baseline", "runner.report=false",
+               "runner.n_starts=2", "runner.forecast_samples=0", f"hydra.run.dir={run}",
+               cwd=tmp_path, env=env)
     assert proc.returncode == 3, proc.stderr
     last = proc.stderr.strip().splitlines()[-1]
     assert last.startswith("penaltyrun: 2 jobs: 0 ok, 0 diverged, 2 failed; errors in ")

@@ -239,3 +239,23 @@ def test_add_variant_labels_a_warm_start_as_a_variant_of_its_own():
     out = add_variant(frame)
     assert out["variant"].tolist() == ["", "", "warm_start=0.3"]
     assert out["problem_variant"].tolist() == ["", "", ""]
+
+
+def test_bca_of_a_large_sample_runs_in_batches_of_bounded_memory(monkeypatch):
+    import tracemalloc
+
+    from penaltyrun.report import stats as report_stats
+
+    x = np.random.default_rng(3).gamma(2.0, 1.0, 2000)
+    whole = bca_ci(x, "median", n_resamples=999, seed=5)
+    monkeypatch.setattr(report_stats, "BOOTSTRAP_BATCH_VALUES", 200_000)
+    tracemalloc.start()
+    try:
+        batched = bca_ci(x, "median", n_resamples=999, seed=5)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    # one call would hold 999 × 2000 resampled values and a 2000 × 1999 jackknife (48 MB);
+    # a batch is 200 000 values (1.6 MB), a few copies of it alive at once
+    assert peak < 16e6
+    assert batched == pytest.approx(whole, rel=1e-12)  # even batches: the same draws

@@ -26,10 +26,12 @@ MIN_N_TEST = 10
 #: Relative spread below which a sample is treated as constant (no interval, no test).
 DEGENERATE_RTOL = 1e-9
 #: Most values one vectorized bootstrap call holds (resamples × sample size, 8 bytes each):
-#: a larger sample is resampled, and its BCa jackknife run, in batches of this many values,
-#: so a cell's interval needs about 160 MB whatever its size (9999 resamples of 100 000
-#: starts would be 7.45 GiB at once). Smaller samples take one call, as before.
-BOOTSTRAP_BATCH_VALUES = 20_000_000
+#: a larger sample is resampled, and its BCa jackknife run, in batches of about this many
+#: values, so a cell's interval needs a bounded amount of memory (a few copies of one
+#: batch) whatever its size; 9999 resamples of 100 000 starts at once would be 7.45 GiB.
+#: Batches hold an even number of resamples, so the generator's stream, and the interval,
+#: are the same as in one call.
+BOOTSTRAP_BATCH_VALUES = 5_000_000
 #: |A12 − 0.5| thresholds of the magnitude labels (Vargha & Delaney 2000).
 A12_THRESHOLDS = ((0.21, "large"), (0.14, "medium"), (0.06, "small"))
 
@@ -176,7 +178,7 @@ def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
     func = {"median": np.median, "mean": np.mean}[statistic]
     batch = None
     if x.size * n_resamples > BOOTSTRAP_BATCH_VALUES:
-        batch = max(1, BOOTSTRAP_BATCH_VALUES // x.size)
+        batch = max(2, BOOTSTRAP_BATCH_VALUES // x.size // 2 * 2)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = stats.bootstrap((x,), func, n_resamples=n_resamples, confidence_level=level,

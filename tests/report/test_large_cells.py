@@ -16,8 +16,9 @@ from large_results import CELLS, write_large_results  # noqa: E402
 CHILD = """
 import json, resource, sys
 from penaltyrun.io import read_results
-from penaltyrun.report.stats import cell_summary
-df = read_results(sys.argv[1], ["best_converged", "max_evals", "optimizer_settings"])
+from penaltyrun.report.build import REPORT_COLUMNS
+from penaltyrun.report.stats import add_variant, cell_summary
+df = add_variant(read_results(sys.argv[1], REPORT_COLUMNS))
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 summary = cell_summary(df)
 print(json.dumps({"rows": len(df), "cells": len(summary),

@@ -66,6 +66,9 @@ STATUS_KNOWN = "status_known"
 #: JSON columns that name a job's cell (its variant, its parameterization): checked on
 #: reading, so a file holding damaged ones is skipped rather than breaking a report.
 KEY_JSON_COLUMNS = ("problem_params", "param_options")
+#: Columns read whatever the caller asks for: those that identify a job, check its file
+#: and count it once.
+KEEP_COLUMNS = (*IDENTITY_COLUMNS, "config_hash", "schema_version")
 #: Files above which reading shows progress.
 PROGRESS_MIN_FILES = 50
 #: Seconds between two progress log lines (not on a terminal).
@@ -155,8 +158,9 @@ def check_footer(path: Path) -> str | None:
     return None
 
 
-def _read_one(path: Path) -> pd.DataFrame:
-    """One results file as a frame of exactly :data:`COLUMNS` (older versions upgraded).
+def _read_one(path: Path, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
+    """One results file as a frame of exactly :data:`COLUMNS` (older versions upgraded),
+    or of ``columns`` (in :data:`COLUMNS` order) when given: only those are read.
 
     Raises
     ------
@@ -168,10 +172,10 @@ def _read_one(path: Path) -> pd.DataFrame:
     refused = check_footer(path)
     if refused:
         raise ValueError(refused)
-    return _frame(_read_bounded(path), path)
+    return _frame(_read_bounded(path, columns), path, columns)
 
 
-def _read_bounded(path: Path) -> pa.Table:
+def _read_bounded(path: Path, columns: tuple[str, ...] | None = None) -> pa.Table:
     """The table of ``path``, its text columns read dictionary-encoded and decoded only
     when they fit :data:`MAX_FILE_BYTES` (a small file can hold one long text referred to
     by every row: gigabytes once decoded, invisible in the footer). Columns the file
@@ -184,9 +188,11 @@ def _read_bounded(path: Path) -> pa.Table:
     """
     import pyarrow.compute as pc
 
-    text = [f.name for f in pq.read_schema(path)
-            if pa.types.is_string(f.type) or pa.types.is_binary(f.type)]
-    table = pq.read_table(path, read_dictionary=text)
+    schema = pq.read_schema(path)
+    wanted = None if columns is None else [n for n in schema.names if n in columns]
+    text = [f.name for f in schema if (wanted is None or f.name in wanted)
+            and (pa.types.is_string(f.type) or pa.types.is_binary(f.type))]
+    table = pq.read_table(path, columns=wanted, read_dictionary=text)
     size = 0
     for column in table.columns:
         for chunk in column.chunks:
@@ -206,19 +212,21 @@ def _read_bounded(path: Path) -> pa.Table:
     return table.cast(pa.schema(fields, metadata=table.schema.metadata))
 
 
-def _frame(table: pa.Table, path: Path) -> pd.DataFrame:
+def _frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = None
+           ) -> pd.DataFrame:
     """:func:`_read_one` of a table already read from ``path``."""
+    names = [n for n in COLUMNS if columns is None or n in columns]
     problem = check_table(table)
     if problem:
         raise ValueError(problem)
     frame = conform(table).to_pandas()
-    for name in COLUMNS:  # files of older schema versions lack newer columns
+    for name in names:  # files of older schema versions lack newer columns
         if name not in frame:
             frame[name] = None
-    for name in TIMESTAMP_COLUMNS:  # schema <= 3 stored ISO text
+    for name in (n for n in TIMESTAMP_COLUMNS if n in names):  # schema <= 3: ISO text
         if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
             frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
-    for name in KEY_JSON_COLUMNS:  # each distinct value once: a cell's share one
+    for name in (n for n in KEY_JSON_COLUMNS if n in names):  # each distinct value once
         for value in frame[name].dropna().unique():
             try:
                 decode_json(value)
@@ -226,13 +234,14 @@ def _frame(table: pa.Table, path: Path) -> pd.DataFrame:
                 raise ValueError(f"column {name} holds text that is not usable JSON "
                                  f"({_first_line(exc)[:80]})") from None
     try:
-        frame["optimizer_settings"] = [
-            _upgrade_settings(opt, settings)
-            for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
+        if "optimizer_settings" in names:
+            frame["optimizer_settings"] = [
+                _upgrade_settings(opt, settings)
+                for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
     except (ValueError, TypeError, RecursionError) as exc:  # damaged or hostile JSON
         raise ValueError(f"column optimizer_settings holds text that is not usable JSON "
                          f"({_first_line(exc)[:80]})") from None
-    frame = longholdout.apply(frame[list(COLUMNS)], path)
+    frame = longholdout.apply(frame[names], path)
     frame.attrs = {}
     frame["_source"] = str(path)
     return frame
@@ -249,7 +258,7 @@ def unfinished_runs(path: Path) -> list[Path]:
     return sorted(r for r in runs if not (r / RESULTS_FILE).exists())
 
 
-def read_records(run_dir: Path) -> pd.DataFrame:
+def read_records(run_dir: Path, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
     """The finished job records of a run directory without ``results.parquet``, as
     :func:`_read_one` reads a results file; one warning saying how many, and that
     ``runner.resume=true`` finishes the run (unusable records are left out and named,
@@ -276,7 +285,7 @@ def read_records(run_dir: Path) -> pd.DataFrame:
     logger.warning("%s has no %s (the run was interrupted, or is still running): reporting "
                    "its %d finished job records; to finish it, rerun the same command with "
                    "runner.resume=true", run_dir, RESULTS_FILE, len(records))
-    return _frame(to_table(records, run_id=run_dir.name), run_dir / JOBS_DIR)
+    return _frame(to_table(records, run_id=run_dir.name), run_dir / JOBS_DIR, columns)
 
 
 class _Progress:
@@ -345,17 +354,28 @@ def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
-def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
+def read_results(path: Path | Iterable[Path],
+                 columns: Iterable[str] | None = None) -> pd.DataFrame:
     """All results under ``path`` (file, folder, or several) as one DataFrame, each job once.
 
     JSON columns stay text; use :func:`~penaltyrun.io.schema.decode_json` to parse them.
     Files that cannot be used are skipped with a warning, duplicates left out, unknown
     statuses marked (see the module docstring).
 
+    Parameters
+    ----------
+    path : Path or iterable of Path
+        A results file, a folder searched recursively, or several files.
+    columns : iterable of str, optional
+        Read only these columns of :data:`~penaltyrun.io.schema.COLUMNS` (Parquet column
+        projection: the others are neither read nor decoded); the columns that identify
+        and check a job (:data:`KEEP_COLUMNS`) are always read. Default: every column.
+
     Returns
     -------
     DataFrame
-        The columns of :data:`~penaltyrun.io.schema.COLUMNS` and ``status_known`` (bool);
+        The columns of :data:`~penaltyrun.io.schema.COLUMNS` (or ``columns``) and
+        ``status_known`` (bool);
         ``attrs["unknown_statuses"]``: {status: rows} of the statuses not known here,
         ``attrs["skipped_files"]``: {path: reason} of the files left out.
 
@@ -367,6 +387,11 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
     ResultsUnreadableError
         If there are results files but none of them can be used.
     """
+    if columns is not None:
+        unknown = sorted(set(columns) - set(COLUMNS))
+        if unknown:
+            raise ValueError(f"not results columns: {', '.join(unknown)}")
+        columns = tuple(n for n in COLUMNS if n in set(columns) | set(KEEP_COLUMNS))
     single = isinstance(path, (str, Path))
     paths = find_results(path) if single else [Path(p) for p in path]
     unfinished = unfinished_runs(path) if single else []
@@ -376,7 +401,7 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
     skipped: dict[str, str] = {}
     for run_dir in unfinished:
         try:
-            frames.append(read_records(run_dir))
+            frames.append(read_records(run_dir, columns))
         except ValueError as exc:
             logger.warning("skipped run directory %s: %s", run_dir, exc)
             skipped[str(run_dir)] = str(exc)
@@ -384,7 +409,7 @@ def read_results(path: Path | Iterable[Path]) -> pd.DataFrame:
     try:
         for p in paths:
             try:
-                frames.append(_read_one(p))
+                frames.append(_read_one(p, columns))
             except (OSError, pa.ArrowException, ValueError, MemoryError,
                     RecursionError) as exc:
                 reason = _first_line(exc)

@@ -177,11 +177,12 @@ def find_results(path: Path) -> list[Path]:
                   if p.is_file() and CORRUPT_DIR not in p.parts)
 
 
-def read_results(path: Path | Iterable[Path]) -> Any:
-    """All results under ``path``: see :func:`penaltyrun.io.read.read_results`."""
+def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = None) -> Any:
+    """All results under ``path`` (only ``columns`` when given): see
+    :func:`penaltyrun.io.read.read_results`."""
     from penaltyrun.io.read import read_results as read
 
-    return read(path)
+    return read(path, columns)
 
 
 #: Settings that older records lack, with the behaviour the code had before they existed.

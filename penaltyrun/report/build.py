@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from penaltyrun.io import read_results
+from penaltyrun.io.schema import COLUMNS
 from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (
@@ -160,6 +161,13 @@ def _cells(summary: pd.DataFrame, g: pd.DataFrame, paper: bool) -> pd.DataFrame:
     return sel
 
 
+#: Columns the report never uses: not read (the per-iteration cost history, the resolved
+#: config text and the package versions are the bulk of a large results file).
+UNUSED_COLUMNS = ("history", "config", "packages")
+#: Columns the report reads.
+REPORT_COLUMNS = tuple(n for n in COLUMNS if n not in UNUSED_COLUMNS)
+
+
 #: Population-size and iteration-limit settings (first present is shown).
 SIZE_KEYS = ("n_particles", "swarm_size", "popsize")
 ITER_KEYS = ("iters", "max_iterations")
@@ -289,7 +297,7 @@ def build_report(src: Path, out: Path, paper: bool = True,
     out = Path(out)
     protocol.reset()
     with trust.reading_results():
-        df = add_variant(read_results(src))
+        df = add_variant(read_results(src, REPORT_COLUMNS))
         outdir.write_into(out, "report.output",
                           lambda tmp: _write_report(source_label or str(src), df, tmp, paper,
                                                    basin_points),

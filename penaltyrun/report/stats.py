@@ -30,11 +30,12 @@ DEGENERATE_RTOL = 1e-9
 #: order-statistic interval of the median and Student's t interval of the mean
 #: (:func:`large_sample_ci`), which BCa approaches as n grows.
 BCA_MAX_N = 5000
-#: Above this n the bootstrap resamples are drawn in batches of at most
-#: :data:`BOOTSTRAP_BATCH_BYTES` (the unbatched draw of 9999 × n indices is 80 MB here).
-BOOTSTRAP_BATCH_MIN_N = 1000
-#: Memory one batch of bootstrap resamples may take (bytes).
-BOOTSTRAP_BATCH_BYTES = 64 * 2**20
+#: Most values one vectorized bootstrap call holds (resamples × sample size, 8 bytes each):
+#: a larger sample is resampled, and its BCa jackknife run, in batches of about this many
+#: values, so a cell's interval needs a bounded amount of memory (a few copies of one
+#: batch). Batches hold an even number of resamples, so the generator's stream, and the
+#: interval, are the same as in one call.
+BOOTSTRAP_BATCH_VALUES = 5_000_000
 #: |A12 − 0.5| thresholds of the magnitude labels (Vargha & Delaney 2000).
 A12_THRESHOLDS = ((0.21, "large"), (0.14, "medium"), (0.06, "small"))
 
@@ -148,7 +149,7 @@ def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
            n_resamples: int = 9999, seed: int = 0) -> tuple[float, float, str]:
     """BCa bootstrap confidence interval (:func:`scipy.stats.bootstrap`, ``method='BCa'``);
     for more than :data:`BCA_MAX_N` values, :func:`large_sample_ci`. Memory stays bounded:
-    resamples of large samples are drawn in batches (:data:`BOOTSTRAP_BATCH_BYTES`).
+    resamples of large samples are drawn in batches (:data:`BOOTSTRAP_BATCH_VALUES`).
 
     Parameters
     ----------
@@ -162,6 +163,11 @@ def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
         Bootstrap resamples.
     seed : int
         Seed of the resampling generator (same seed, same interval).
+
+    Notes
+    -----
+    Memory is bounded by :data:`BOOTSTRAP_BATCH_VALUES` (scipy's ``batch``); time is not:
+    the BCa jackknife takes n statistics of n − 1 values, O(n²) for n starts.
 
     Returns
     -------
@@ -178,8 +184,9 @@ def bca_ci(values: np.ndarray, statistic: str = "median", level: float = 0.95,
     if x.size > BCA_MAX_N:
         return large_sample_ci(x, statistic, level)
     func = {"median": np.median, "mean": np.mean}[statistic]
-    batch = (None if x.size <= BOOTSTRAP_BATCH_MIN_N
-             else max(1, BOOTSTRAP_BATCH_BYTES // (8 * x.size)))
+    batch = None
+    if x.size * n_resamples > BOOTSTRAP_BATCH_VALUES:
+        batch = max(2, BOOTSTRAP_BATCH_VALUES // x.size // 2 * 2)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = stats.bootstrap((x,), func, n_resamples=n_resamples, confidence_level=level,

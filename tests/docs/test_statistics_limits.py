@@ -3,7 +3,7 @@ method as the code defines them."""
 
 from pathlib import Path
 
-from penaltyrun.report.stats import BCA_MAX_N, BOOTSTRAP_BATCH_MIN_N
+from penaltyrun.report.stats import BCA_MAX_N
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "statistics.md"
 
@@ -16,4 +16,4 @@ def _thousands(n: int) -> str:
 def test_interval_thresholds_on_the_statistics_page_are_the_code_s():
     text = " ".join(PAGE.read_text(encoding="utf-8").split())
     assert f"more than {_thousands(BCA_MAX_N)} converged starts" in text
-    assert f"samples over {_thousands(BOOTSTRAP_BATCH_MIN_N)} are drawn in batches" in text
+    assert "Large samples are resampled in batches" in text

@@ -171,3 +171,25 @@ def test_records_that_are_all_unusable_are_no_results(tmp_path):
     (tmp_path / "run" / "jobs" / "x.json").write_text("garbage")
     with pytest.raises(read.ResultsUnreadableError, match="no readable results"):
         read_results(tmp_path)
+
+
+def test_only_the_asked_columns_are_read(tmp_path, monkeypatch):
+    path = write_run(tmp_path / "run", [record(0, history=[3.0, 2.0]), record(1)])
+    read_columns = []
+    real = pq.read_table
+    monkeypatch.setattr(read.pq, "read_table",
+                        lambda *a, **k: read_columns.append(k.get("columns")) or real(*a, **k))
+    df = read_results(path, columns=["best_cost"])
+    assert set(df.columns) == {*read.KEEP_COLUMNS, "best_cost", read.STATUS_KNOWN}
+    assert "history" not in read_columns[0] and "best_cost" in read_columns[0]
+    assert df["best_cost"].tolist() == [1.0, 2.0]
+    full = read_results(path)
+    pd.testing.assert_frame_equal(df, full[df.columns])
+    interrupted = tmp_path / "open"
+    (interrupted / "jobs").mkdir(parents=True)
+    write_text_atomic(interrupted / "jobs" / f"{record(5)['job_id']}.json",
+                      json.dumps(record(5)))
+    assert set(read_results(interrupted, columns=["n_evals"]).columns) == {
+        *read.KEEP_COLUMNS, "n_evals", read.STATUS_KNOWN}
+    with pytest.raises(ValueError, match="not results columns: nope"):
+        read_results(path, columns=["nope"])

@@ -12,9 +12,7 @@ from hypothesis import strategies as st
 from scipy import stats as sps
 
 from penaltyrun.report.stats import (
-    BCA_MAX_N,
-    BOOTSTRAP_BATCH_BYTES,
-    BOOTSTRAP_BATCH_MIN_N,
+    BOOTSTRAP_BATCH_VALUES,
     a12,
     a12_magnitude,
     add_variant,
@@ -176,8 +174,7 @@ def test_bca_of_a_large_cell_takes_the_large_sample_interval_and_bounded_memory(
     finally:
         tracemalloc.stop()
     assert note == "" and lo < np.median(mid) < hi
-    assert BOOTSTRAP_BATCH_MIN_N < BCA_MAX_N
-    assert peak < 6 * BOOTSTRAP_BATCH_BYTES, peak / 2**20
+    assert peak < 6 * 8 * BOOTSTRAP_BATCH_VALUES, peak / 2**20
     ref_lo, ref_hi, _ = large_sample_ci(mid, "median")
     assert abs(lo - ref_lo) < 0.05 and abs(hi - ref_hi) < 0.05  # BCa ~ order statistics
 
@@ -294,3 +291,24 @@ def test_add_variant_labels_a_warm_start_as_a_variant_of_its_own():
     out = add_variant(frame)
     assert out["variant"].tolist() == ["", "", "warm_start=0.3"]
     assert out["problem_variant"].tolist() == ["", "", ""]
+
+
+def test_bca_of_a_large_sample_runs_in_batches_of_bounded_memory(monkeypatch):
+    import tracemalloc
+
+    from penaltyrun.report import stats as report_stats
+
+    x = np.random.default_rng(3).gamma(2.0, 1.0, 2001)  # odd: batches must stay even
+    whole = bca_ci(x, "median", n_resamples=999, seed=5)
+    monkeypatch.setattr(report_stats, "BOOTSTRAP_BATCH_VALUES", 199_000)
+    tracemalloc.start()
+    try:
+        batched = bca_ci(x, "median", n_resamples=999, seed=5)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    # one call would hold 999 × 2000 resampled values and a 2000 × 1999 jackknife (48 MB);
+    # a batch is 200 000 values (1.6 MB), a few copies of it alive at once
+    assert peak < 16e6
+    assert batched[2] == whole[2] == ""
+    assert batched[:2] == whole[:2]  # batches of even size: the same draws, same interval

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.problems import horizon
 from penaltyrun.typed import is_number
 
 #: Criterion names (problem parameter ``criterion``); the first is the default.
@@ -156,6 +157,18 @@ def judges_at_deadline(params: Any) -> bool:
     """Whether the held-out set is judged at a deadline and again at a longer horizon
     (``deadline`` only: the other criteria define their own horizon, used for both)."""
     return params.criterion == DEADLINE
+
+
+def judged_at(params: Any, train_t: float, t_max: float, step: float | None = None
+              ) -> float:
+    """The horizon a held-out set (and a basin map) is judged at (s): under ``deadline``
+    the held-out horizon of ``t_max`` (:func:`penaltyrun.problems.horizon.holdout_horizon`,
+    ``step`` a sampled controller's period), under the other criteria their own run
+    horizon ``train_t``."""
+    if not judges_at_deadline(params):
+        return float(train_t)
+    return horizon.holdout_horizon(t_max, params.holdout_horizon_factor,
+                                   params.holdout_t_max_cap, step)
 
 
 def report_name(params: Any, deadline_name: str, free_energy: str, fixed_energy: str

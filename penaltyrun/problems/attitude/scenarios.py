@@ -121,9 +121,7 @@ class AttitudeScenarios:
             return None
         p = self.params
         train_t = criteria.run_horizon(p)
-        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap) \
-            if criteria.judges_at_deadline(p) else train_t
+        long_t = criteria.judged_at(p, train_t, p.t_max)
         try:
             short = self.evaluate_states(mats, sc["y0"])
             res = horizon.at_horizon(self, long_t).evaluate_states(mats, sc["y0"]) \
@@ -152,9 +150,7 @@ class AttitudeScenarios:
         one)."""
         p = self.params
         train_t = criteria.run_horizon(p)
-        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap) \
-            if criteria.judges_at_deadline(p) else train_t
+        long_t = criteria.judged_at(p, train_t, p.t_max)
         att = np.column_stack([points, np.zeros(len(points))])
         prob = horizon.at_horizon(self, long_t) if long_t > train_t else self
         runs = prob.evaluate_grid(mats, att)

@@ -529,9 +529,7 @@ class LQRProblem:
         Q, R = self._check(mats)
         p = self.params
         train_t = criteria.run_horizon(p)
-        long_t = horizon.holdout_horizon(self.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap) \
-            if criteria.judges_at_deadline(p) else train_t
+        long_t = criteria.judged_at(p, train_t, self.t_max)
         short = self._holdout_runs(Q, R, sc["x0"])
         long = horizon.at_horizon(self, long_t, t_max=long_t)._holdout_runs(Q, R, sc["x0"]) \
             if long_t > train_t else short
@@ -561,9 +559,7 @@ class LQRProblem:
         Q, R = self._check(mats)
         p = self.params
         train_t = criteria.run_horizon(p)
-        long_t = horizon.holdout_horizon(self.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap) \
-            if criteria.judges_at_deadline(p) else train_t
+        long_t = criteria.judged_at(p, train_t, self.t_max)
         X0 = np.zeros((len(points), self.plant.n_states))
         X0[:, :2] = points
         prob = horizon.at_horizon(self, long_t, t_max=long_t) if long_t > train_t else self

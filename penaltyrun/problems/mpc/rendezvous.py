@@ -364,9 +364,7 @@ class RendezvousMPC:
             return None
         p = self.params
         train_t = mpc_criteria.run_horizon(p)
-        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap, p.sample_time_s) \
-            if criteria.judges_at_deadline(p) else train_t
+        long_t = criteria.judged_at(p, train_t, p.t_max, p.sample_time_s)
         short = self._holdout_runs(mats, scenarios)
         long = horizon.at_horizon(self, long_t)._holdout_runs(mats, scenarios) \
             if long_t > train_t else short
@@ -389,9 +387,7 @@ class RendezvousMPC:
         plant, at the horizon the held-out set is judged at."""
         p = self.params
         train_t = mpc_criteria.run_horizon(p)
-        long_t = horizon.holdout_horizon(p.t_max, p.holdout_horizon_factor,
-                                         p.holdout_t_max_cap, p.sample_time_s) \
-            if criteria.judges_at_deadline(p) else train_t
+        long_t = criteria.judged_at(p, train_t, p.t_max, p.sample_time_s)
         base = scen.training(p)
         starts = [scen.Scenario(f"basin:{k}", "basin", (float(x), float(y), base.s0[2],
                                                         0.0, 0.0, 0.0),

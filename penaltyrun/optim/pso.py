@@ -45,7 +45,7 @@ _NOOP_LOGGING = str(Path(__file__).with_name("pyswarms_logging.yaml"))
 
 
 @functools.cache
-def _pyswarms():  # noqa: ANN202
+def load_pyswarms():  # noqa: ANN202
     """pyswarms, imported at the first run (0.4 s of scipy imports the command line's
     checks do not need) with its import-time logging set-up pointed at a no-op config, and
     its later reporters kept from configuring logging or writing ``report.log``."""
@@ -164,7 +164,7 @@ def _run_pso(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray, settings
     if x0 is not None:
         init_pos = lb + np.random.random_sample((settings.n_particles, lb.size)) * (ub - lb)  # noqa: NPY002
         init_pos[0] = np.clip(np.asarray(x0, float), lb, ub)
-    opt = _pyswarms().single.GlobalBestPSO(
+    opt = load_pyswarms().single.GlobalBestPSO(
         n_particles=settings.n_particles,
         dimensions=len(lb),
         options={"c1": settings.c1, "c2": settings.c2, "w": settings.w},

@@ -266,8 +266,11 @@ class _Worker:
 
 #: Modules an optimizer imports when it first runs (``pyswarms``: 0.3 s CPU), imported once
 #: in the parent before the workers are forked, so that every forked worker shares them
-#: instead of importing them again (see :func:`import_shared`).
-SHARED_IMPORTS: dict[str, tuple[str, ...]] = {"pso": ("pyswarms",)}
+#: instead of importing them again (see :func:`import_shared`). ``module:function`` names
+#: the optimizer's own loader (pyswarms must be imported through it: its import-time
+#: logging set-up would write ``report.log``).
+SHARED_IMPORTS: dict[str, tuple[str, ...]] = {
+    "pso": ("penaltyrun.optim.pso:load_pyswarms",)}
 
 
 def import_shared(jobs: list[Job]) -> list[str]:
@@ -282,8 +285,11 @@ def import_shared(jobs: list[Job]) -> list[str]:
     done = []
     for name in sorted({job.optimizer for job in jobs}):
         for module in SHARED_IMPORTS.get(name, ()):
+            name, _, loader = module.partition(":")
             try:
-                importlib.import_module(module)
+                loaded = importlib.import_module(name)
+                if loader:
+                    getattr(loaded, loader)()
             except ImportError as exc:
                 logger.debug("not imported before the fork: %s (%s)", module, exc)
                 continue

@@ -116,7 +116,8 @@ def test_an_optimizers_heavy_imports_happen_once_before_the_fork():
         from penaltyrun.runner import pool
         assert pool.import_shared([J(optimizer="cmaes")]) == []
         assert "pyswarms" not in sys.modules
-        assert pool.import_shared([J(optimizer="pso"), J(optimizer="cmaes")]) == ["pyswarms"]
+        assert pool.import_shared([J(optimizer="pso"), J(optimizer="cmaes")]) == [
+            "penaltyrun.optim.pso:load_pyswarms"]
         assert "pyswarms" in sys.modules
         pool.SHARED_IMPORTS["pso"] = ("penaltyrun_no_such_module",)
         assert pool.import_shared([J(optimizer="pso")]) == []

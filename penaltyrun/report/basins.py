@@ -18,6 +18,7 @@ from penaltyrun.io import decode_json
 from penaltyrun.problems.basins import DEFAULT_POINTS, BasinMap, basin_map
 from penaltyrun.report import protocol
 from penaltyrun.report.bestknown import best_rows
+from penaltyrun.report.sections import matrices_of
 from penaltyrun.report.tables import fmt, markdown, md_text, save_figure
 
 COLUMNS = ["map", "by", "starts converged", "median arrival", "median cost"]
@@ -33,8 +34,7 @@ def maps_of(g: pd.DataFrame, n: int = DEFAULT_POINTS) -> dict[str, tuple[pd.Seri
         prob = protocol.rebuild(row["problem"], row["case"], row.get("problem_params"))
         if prob is None:
             return {}
-        mats = {k: np.asarray(v, float) for k, v in (decode_json(row["matrices"]) or {}).items()}
-        bm = basin_map(prob, mats, decode_json(row.get("scalars")) or None, n)
+        bm = basin_map(prob, matrices_of(row), decode_json(row.get("scalars")) or None, n)
         if bm is None:
             return {}
         out[fam] = (row, bm)

@@ -61,7 +61,7 @@ from penaltyrun.problems.base import (
     ScalarSpec,
     check_spd,
 )
-from penaltyrun.problems.basins import BasinAxes
+from penaltyrun.problems.basins import BasinAxes, arrival_times
 from penaltyrun.problems.lqr import constraints as cons
 from penaltyrun.problems.lqr import criteria as lqr_criteria
 from penaltyrun.problems.lqr import discrete
@@ -565,7 +565,7 @@ class LQRProblem:
         prob = horizon.at_horizon(self, long_t, t_max=long_t) if long_t > train_t else self
         runs = prob._holdout_runs(Q, R, X0)
         settled = p.criterion == criteria.TIME_ENERGY  # its runs end at the settling time
-        arrival = np.where(runs["converged"], runs["t_final"], np.nan) if settled \
+        arrival = arrival_times(runs["converged"], runs["t_final"]) if settled \
             else np.full(len(points), np.nan)
         return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
                 "arrival_time": arrival}

@@ -1,7 +1,9 @@
-"""Exceptions shared by every layer (no dependencies)."""
+"""Exceptions shared by every layer (no dependencies), and the exit codes of the command
+line that end them (:data:`EXIT_CODES`, re-exported as ``penaltyrun.cli.EXIT_CODES``)."""
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Iterable
 from typing import Any
 
@@ -79,8 +81,6 @@ class ResultsUnreadableError(ValueError):
 
 def signal_name(signum: int) -> str:
     """``SIGTERM`` for 15 etc. (``signal N`` if unknown)."""
-    import signal
-
     try:
         return signal.Signals(signum).name
     except ValueError:
@@ -150,3 +150,29 @@ def describe_os_error(exc: OSError, path: Any = None, doing: str = "write") -> s
         line += f"{space}; free some space and rerun with runner.resume=true " \
                 f"(finished jobs are kept)"
     return line
+
+
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_JOBS_FAILED = 3
+EXIT_ABORTED = 4
+EXIT_INTERRUPTED = 130
+#: A file operation the machine refused (disk full, no permission, a closed pipe).
+EXIT_ENVIRONMENT = 5
+#: Exit code → meaning (also in README "Errors and exit codes").
+EXIT_CODES = {
+    EXIT_OK: "success (every job recorded ok or diverged)",
+    1: "internal error (a bug: please report the traceback)",
+    EXIT_USAGE: "bad command line or config, a run directory in use by another run, or no "
+                "readable results (one line on stderr)",
+    EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed` or "
+                      "`timeout`",
+    EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
+                  "runner.worker_timeout s); finished jobs are kept",
+    EXIT_ENVIRONMENT: "the machine refused a file operation (disk full, no permission, "
+                      "read-only file system, output not writable): one line naming the "
+                      "path; finished jobs are kept",
+    128 + signal.SIGINT: "stopped by Ctrl-C (SIGINT); finished jobs are kept",
+    128 + signal.SIGTERM: "stopped by SIGTERM; finished jobs are kept",
+    128 + signal.SIGHUP: "stopped by SIGHUP; finished jobs are kept",
+}

@@ -29,7 +29,7 @@ NO_RESULT_STATUSES = (FAILED, TIMEOUT)
 #: Version of the record / results schema this code writes (the history:
 #: :data:`penaltyrun.io.schema.SCHEMA_HISTORY`). Records of a newer version are refused:
 #: their meaning is unknown here.
-SCHEMA_VERSION = 7
+SCHEMA_VERSION = 9
 
 # Kinds of values, worded as the record checks name them in their messages.
 INT = "an integer"
@@ -116,8 +116,14 @@ FIELDS: dict[str, Field] = {
     "active_bounds": Field(TEXTS, "variables of best_z on a bound of the box, as "
                                   "'<name>=lower' / '<name>=upper'"),
     "gradient_note": Field(TEXT, "why the cost has no gradient at best_z (empty: it has)"),
-    "n_evals": Field(INT, "objective evaluations (lbfgs: evaluation-equivalents, each "
-                          "gradient charged optimizer.grad_cost evaluations)"),
+    "n_evals": Field(INT, "objective evaluations; with exact gradients (lbfgs, "
+                          "polish=gradient) evaluation-equivalents: evaluations plus "
+                          "grad_cost × n_gradients"),
+    "n_gradients": Field(INT, "exact gradients charged in n_evals (lbfgs, polish=gradient; "
+                              "0: none)"),
+    "grad_cost": Field(NUMBER, "evaluations charged per exact gradient: what the problem "
+                               "declares one gradient to cost, or optimizer.grad_cost (null: "
+                               "no gradient charged)"),
     "n_iters": Field(INT, "optimizer iterations"),
     "stop_reason": Field(TEXT, "ftol (stall) | iters | max_evals (budget) | restarts | "
                                "grid+local, '+polish' after a local polish"),
@@ -126,6 +132,9 @@ FIELDS: dict[str, Field] = {
     "trace_evals": Field(INTS, "anytime trace: cumulative evaluations at each improvement "
                                "of the best cost (and at the end)"),
     "trace_best": Field(NUMBERS, "anytime trace: best cost so far at trace_evals"),
+    "trace_cpu_s": Field(NUMBERS, "anytime trace: CPU seconds (time.process_time of the "
+                                  "job's process) from the start of the search to each "
+                                  "point of trace_evals"),
     "max_evals": Field(INT, "evaluation budget of the job (null: none)"),
     "warm_start": Field(JSON, "JSON: the diagonal stage of a warm-started full job (share, "
                               "evaluations, best cost, best diagonal matrices), or null"),

@@ -23,6 +23,6 @@ def _drop_current_folder() -> None:
 
 if __name__ == "__main__":
     _drop_current_folder()
-    from penaltyrun.cli import report_main
+    from penaltyrun.cli.report import report_main
 
     report_main()

@@ -32,6 +32,12 @@ from hypothesis import HealthCheck, settings
 #: The pytest process; any other process reaching the test loop was forked from it.
 SESSION_PID = os.getpid()
 
+# A shell starts a background job (``make test &``, ``nohup``) with SIGINT ignored, and the
+# runner then cannot be stopped by Ctrl-C: the tests of Ctrl-C handling would see no
+# interrupt. They test the runner as a terminal runs it, with Python's own SIGINT handler.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 settings.register_profile(
     "dev", deadline=None, max_examples=50, suppress_health_check=[HealthCheck.too_slow],
 )

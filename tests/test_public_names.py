@@ -61,7 +61,7 @@ def test_top_level_api_has_the_documented_signatures():
 
     expected = {
         "from_cost": "(cost, matrices, *, scalars=None, batched=False, name='user', "
-                     "gradient=None)",
+                     "gradient=None, gradient_cost=None)",
         "tune": "(problem, *, param='full', optimizer='cmaes', n_starts=10, seed=None, "
                 "optimizer_options=None, case=None, params=None, run_dir=None, workers=None, "
                 "resume=False, job_timeout=None)",

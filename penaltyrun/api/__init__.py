@@ -16,7 +16,7 @@ _NAMES = {
     "from_cost": "tuning", "tune": "tuning",
     "Best": "result", "TuneResult": "result", "compare": "result", "load": "result",
     "evaluate": "evaluation",
-    "CellSpec": "core", "run_cell": "core",
+    "run_cell": "core",
 }
 
 __all__ = sorted(_NAMES)

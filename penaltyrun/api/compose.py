@@ -17,9 +17,9 @@ from typing import Any
 import yaml
 
 from penaltyrun import yamlsafe
-from penaltyrun.api.core import CellSpec
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.criteria import hashed_node
+from penaltyrun.runner.spec import RunnerOptions, RunSpec
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 #: ``runner.*`` values the API uses where the command line's defaults differ: no report
@@ -144,26 +144,32 @@ def compose(problem: str, module: str | None, *, case: str | None, param: str,
     return config
 
 
-def cell_spec(config: Mapping[str, Any]) -> CellSpec:
-    """The :class:`CellSpec` of a composed config (as the command line builds it from its
-    Hydra config, :func:`penaltyrun.cells.cell_spec`)."""
+def run_spec(config: Mapping[str, Any]) -> RunSpec:
+    """The :class:`~penaltyrun.runner.spec.RunSpec` of a composed config (as the command
+    line builds it from its Hydra config, :func:`penaltyrun.cli.spec.run_spec`).
+
+    Raises
+    ------
+    ConfigError
+        A ``runner.*`` option of the wrong type or out of range.
+    """
     hashed = {k: config[k] for k in ("problem", "case", "param", "optimizer")}
     hashed["problem"] = hashed_node(config["problem"])
     hashed["seed"] = config["runner"]["seed"]
     prob = config["problem"]
     params = {k: v for k, v in (prob.get("params") or {}).items() if v is not None}
     report = config.get("report") or {}
-    return CellSpec(
+    return RunSpec(
         problem=prob["name"], case=config["case"], param=config["param"]["name"],
         optimizer=config["optimizer"]["name"], problem_params=params,
         param_options=dict(config["param"]),
         optimizer_options={k: v for k, v in config["optimizer"].items() if k != "name"},
         problem_module=str(prob["module"]) if prob.get("module") else None,
-        runner=dict(config["runner"]), hashed=hashed,
+        runner=RunnerOptions.from_mapping(config["runner"]), hashed=hashed,
         config_text=yaml.safe_dump(dict(config), sort_keys=False, allow_unicode=True),
         report_output=report.get("output") or None, report_paper=bool(report.get("paper",
                                                                                  True)))
 
 
-__all__ = ["API_RUNNER", "CONF", "cell_spec", "choices", "compose", "group_node", "plain",
-           "problem_node", "read_yaml"]
+__all__ = ["API_RUNNER", "CONF", "choices", "compose", "group_node", "plain",
+           "problem_node", "read_yaml", "run_spec"]

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from penaltyrun import problems
-from penaltyrun.api.compose import API_RUNNER, cell_spec, compose, read_yaml
+from penaltyrun.api.compose import API_RUNNER, compose, read_yaml, run_spec
 from penaltyrun.api.core import run_cell, trust_own_modules
 from penaltyrun.api.result import TuneResult
 from penaltyrun.errors import ConfigError
@@ -133,7 +133,7 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
               "job_timeout": job_timeout}
     config = compose(name, module, case=case, param=param, optimizer=optimizer,
                      optimizer_options=optimizer_options, params=params, runner=runner)
-    spec = cell_spec(config)
+    spec = run_spec(config)
     if run_dir is None:
         run_dir = tempfile.mkdtemp(prefix="penaltyrun-")
     run_dir = Path(run_dir)

@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from penaltyrun.docsgen.studies import RESULTS, load_study
+from penaltyrun.problems.hooks import hooks
 
 #: Folder of the page's figures, relative to the page.
 FIGURE_DIR = "figures"
@@ -239,9 +240,10 @@ def simulate_example(df: pd.DataFrame, ex: dict[str, Any], n_points: int = 800
     for key, name in (("diag", "diagonal"), ("full", "full")):
         row = jobs.loc[ex[f"{key}_job"]]
         prob = protocol.make(row["problem"], row["case"], row.get("problem_params"))
-        if not (hasattr(prob, "gain") and hasattr(prob, "holdout_scenarios")):
+        scenarios = hooks(prob).holdout_scenarios
+        if not hasattr(prob, "gain") or scenarios is None:
             raise ValueError(f"{row['problem']}: no gain / held-out scenarios to simulate")
-        sc = prob.holdout_scenarios()
+        sc = scenarios()
         labels = [str(s) for s in sc["scenario"]]
         y0 = np.asarray(sc["y0"][labels.index(ex["scenario"])], float)
         mats = {k: np.asarray(v, float) for k, v in decode_json(row["matrices"]).items()}

@@ -125,8 +125,7 @@ def _default(cls: type, key: str) -> Any:
 
 def top_level_section() -> list[str]:
     """Keys of ``conf/config.yaml`` with the runner's and report's checks."""
-    from penaltyrun.checks import REPORT_OPTIONS
-    from penaltyrun.runner.options import RUNNER_OPTIONS
+    from penaltyrun.runner.options import REPORT_OPTIONS, RUNNER_OPTIONS
     lines = ["| key | type | default | range | meaning |", "|---|---|---|---|---|"]
     entries = yaml_entries(CONF / "config.yaml")
     nested = {e["key"].rsplit(".", 1)[0] for e in entries if "." in e["key"]}
@@ -230,7 +229,8 @@ def page_config() -> str:
              "## Config groups", "", *groups_section(), "",
              "## Optimizers (`optimizer.*`)", "",
              "Keys shared by every search optimizer come first in each table.", ""]
-    for name, (cls, _) in OPTIMIZERS.items():
+    for name, entry in OPTIMIZERS.items():
+        cls = entry.settings
         lines += optimizer_section(name, cls)
     lines += ["## Parameterizations (`param.*`)", "", *param_section(), "",
               "## Problems (`problem.params.*`)", ""]
@@ -241,13 +241,15 @@ def page_config() -> str:
 
 
 def page_exit_codes() -> str:
-    """Exit codes, read from :data:`penaltyrun.cli.EXIT_CODES`."""
-    from penaltyrun import cli
-    names = {v: k for k, v in vars(cli).items() if k.startswith("EXIT_") and isinstance(v, int)}
+    """Exit codes, read from :data:`penaltyrun.errors.EXIT_CODES` (the command line's
+    ``penaltyrun.cli.EXIT_CODES``)."""
+    from penaltyrun import errors
+    names = {v: k for k, v in vars(errors).items()
+             if k.startswith("EXIT_") and isinstance(v, int)}
     lines = ["# Exit codes", "", "Generated from `penaltyrun.cli.EXIT_CODES`. `penaltyrun` "
              "and `penaltyrun-report` end with one of these codes.", "",
              "| code | name | meaning |", "|---|---|---|"]
-    for code, meaning in sorted(cli.EXIT_CODES.items()):
+    for code, meaning in sorted(errors.EXIT_CODES.items()):
         lines.append(f"| {int(code)} | {cell(names.get(code, ''))} | {_text(meaning)} |")
     return "\n".join(lines) + "\n"
 
@@ -273,7 +275,7 @@ def page_schema() -> str:
 def page_protocol() -> str:
     """The problem protocol, read from :mod:`penaltyrun.problems.base`."""
     from penaltyrun import problems
-    from penaltyrun.problems import base, report_hooks
+    from penaltyrun.problems import base, hooks, report_hooks
     lines = ["# Problem protocol", "",
              "Generated from `penaltyrun/problems/base.py` and the registry's checks. A "
              "module that lacks a required member is refused with one line naming it.", "",
@@ -281,6 +283,9 @@ def page_protocol() -> str:
              + ". Required members of the object `make_problem` returns: "
              + ", ".join(f"`{m}`" for m in problems.PROBLEM_MEMBERS) + ".", "",
              "## The module", "", rst_to_md(inspect.getdoc(base) or ""), "",
+             "## Optional hooks of the problem object", "",
+             rst_to_md(inspect.getdoc(hooks) or ""), "",
+             numpydoc_to_md(inspect.getdoc(hooks.ProblemHooks) or ""), "",
              "## Report hooks (optional)", "",
              rst_to_md(inspect.getdoc(report_hooks) or ""), ""]
     for obj in (base.Problem, base.MatrixSpec, base.ScalarSpec, base.BatchEvaluation,

@@ -43,6 +43,7 @@ from penaltyrun.docsgen.studies import (
     write_tables,
 )
 from penaltyrun.io.longholdout import LONG_FILE, LONG_PROVENANCE
+from penaltyrun.problems.hooks import hooks
 
 logger = logging.getLogger(__name__)
 
@@ -90,7 +91,8 @@ def rejudge_record(record: dict[str, Any]) -> dict[str, Any]:
         mats = {k: np.asarray(v, dtype=float)
                 for k, v in (decode_json(record["matrices"]) or {}).items()}
         scalars = decode_json(record.get("scalars")) or None
-        held = prob.holdout(mats, scalars) if hasattr(prob, "holdout") else None
+        judge = hooks(prob).holdout
+        held = judge(mats, scalars) if judge is not None else None
         out["status"] = "ok" if held is not None else "no_holdout"
         if held is not None:
             out["holdout"] = json.dumps(_plain(held))

@@ -67,7 +67,7 @@ class StudyData:
 
     def has_row(self, stem: str, where: dict[str, Any] | None = None) -> bool:
         """Whether table ``stem`` exists and has a row matching ``where`` (a template's
-        guard for a row that names cells of one problem)."""
+        guard for a row that names cells of one problem; the study templates call it)."""
         return self.has_table(stem) and not _select(self.table(stem), where).empty
 
     @property
@@ -117,6 +117,8 @@ class StudyData:
 LABEL_COLUMNS = ("variant", "problem_variant", "note", "ci_note", "label")
 #: Columns of the verdict table shown outside its fold (one result per cell).
 VERDICT_MAIN = ("question", "diagonal best-known", "full best-known", "gain")
+#: Grid points per axis of the basin tables on the results pages (:meth:`Context.basins`).
+BASIN_POINTS = 12
 #: Columns of ``holdout.csv`` the results pages show.
 HELD_OUT_COLUMNS = ["optimizer", "full_map", "judged_at", "scenarios", "full_cheaper",
                     "ratio_median", "ratio_q05", "ratio_q95", "ratio_p_holm",
@@ -282,6 +284,18 @@ class Context:
         return section(name, self.study(name).df, self.study(name).table("comparison"),
                        self.figures)
 
+    def scaling(self, name: str, where: dict | None = None) -> str:
+        """The study's time to the known optimum against the size of the tuned matrix as a
+        figure (:func:`penaltyrun.docsgen.scalingfig.section`, rows of its
+        ``known_optimum`` table matching ``where``); a note when the report wrote none."""
+        from penaltyrun.docsgen.scalingfig import section
+        if not self.study(name).has_table("known_optimum"):
+            return f"*The report of `{name}` has no `known_optimum` table.*"
+        frame = _select(self.study(name).table("known_optimum"), where)
+        if frame.empty:
+            return f"*The `known_optimum` table of `{name}` has no row for {where}.*"
+        return section(name, frame, self.figures)
+
     def table_value(self, name: str, stem: str, column: str, where: dict | None = None,
                     spec: str = ".4g") -> str:
         """One entry of a report table (text as the report wrote it, a number formatted with
@@ -379,6 +393,59 @@ class Context:
                                 "deadline, and the pairs both converge", conv))
         return "\n\n".join(parts)
 
+    def problem_params(self, name: str, key: str) -> Any:
+        """Problem parameter ``key`` as the study's records carry it (``problem_params``;
+        ``None`` where unset). Records that disagree give their distinct values as text,
+        joined by " / " (a study that mixes settings says so instead of showing one)."""
+        values = sorted({json.dumps(json.loads(text or "{}").get(key), sort_keys=True)
+                         for text in self.study(name).df["problem_params"]})
+        if len(values) == 1:
+            return json.loads(values[0])
+        return " / ".join(values)
+
+    def late_gain(self, name: str, where: dict | None = None, share: float = 0.5) -> float:
+        """How far the starts were from converged: the median over the finished starts
+        matching ``where`` of the relative fall of the best-so-far cost over the last
+        ``1 - share`` of each start's evaluations, (best at ``share`` · n_evals − final
+        best) / |final best|, in % (from the anytime trace; 0 where nothing improved; NaN
+        without finished starts)."""
+        import numpy as np
+        frame = self.study(name).rows(where)
+        frame = frame[frame["status"] == OK]
+        gains = []
+        for evals, best, spent in zip(frame["trace_evals"], frame["trace_best"],
+                                      frame["n_evals"]):
+            evals, best = np.asarray(evals, float), np.asarray(best, float)
+            final = float(best[-1]) if best.size else float("nan")
+            before = evals <= share * float(spent)
+            if not before.any() or not np.isfinite(final) or final == 0.0:
+                continue
+            gains.append(100.0 * (float(best[before][-1]) - final) / abs(final))
+        return float(np.median(gains)) if gains else float("nan")
+
+    def basins(self, name: str, n: int = BASIN_POINTS, spec: str = ".4g") -> str:
+        """Basin-of-attraction tables of the study, computed when the page is rendered from
+        the committed matrices (the best converged diagonal and full start of each problem ×
+        case run from an ``n`` × ``n`` grid of initial conditions at the held-out horizon,
+        :func:`penaltyrun.report.basins.maps_of`): per map the start it comes from, the grid
+        points that converge, their median arrival time and cost. No figure: the report
+        draws the maps from the same data (``penaltyrun-report --basin-points``)."""
+        from penaltyrun.report.basins import COLUMNS, maps_of, table
+
+        parts = []
+        for (problem, case), group in self.study(name).df.groupby(["problem", "case"],
+                                                                   sort=True):
+            maps = maps_of(group, n)
+            if not maps:
+                continue
+            bm = next(iter(maps.values()))[1]
+            unit = f" {bm.axes.time_unit}" if bm.axes.time_unit else ""
+            parts.append(f"**Basins of attraction, {problem} / {case}** ({n} × {n} grid of "
+                         f"{bm.axes.labels[0]} × {bm.axes.labels[1]}, judged at "
+                         f"{fmt(bm.horizon, spec)}{unit}):\n\n"
+                         + markdown_table(table(maps)[COLUMNS], spec))
+        return "\n\n".join(parts) or f"*The problems of `{name}` offer no basin maps.*"
+
     def provenance(self, name: str) -> str:
         """One paragraph: jobs, machine and package versions of the study's data. The git
         commits of its records stay in ``studies/<name>/provenance.json`` (user pages carry
@@ -434,13 +501,15 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                              autoescape=False)
     ctx = ctx or Context(root)
     env.globals.update(comparison=ctx.comparison, study=ctx.study, pending=ctx.pending,
+                       scaling=ctx.scaling,
                        value=ctx.value,
                        number=ctx.number,
                        summary=ctx.summary, csv=ctx.csv, provenance=ctx.provenance,
                        held_out=ctx.held_out, table_value=ctx.table_value,
                        table_number=ctx.table_number,
                        verdict=ctx.verdict, answers=ctx.answers,
-                       held_out_words=ctx.held_out_words,
+                       held_out_words=ctx.held_out_words, basins=ctx.basins,
+                       late_gain=ctx.late_gain, problem_params=ctx.problem_params,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        full_matrix=(figures or explanation.Figures(root)).full_matrix,
                        multi_column=multi_column,
@@ -496,6 +565,7 @@ def render_all(root: Path, reference: bool = True, only: str | None = None) -> l
     """Write every generated file (``only``: see :func:`render`), the explanation pages'
     figures and each results figure whose numbers changed or whose PNG is missing; return
     the paths written."""
+    from penaltyrun.docsgen import scalingfig
     from penaltyrun.docsgen.comparefig import FIGURES, draw
     written = []
     figures = explanation.Figures(root)
@@ -508,8 +578,12 @@ def render_all(root: Path, reference: bool = True, only: str | None = None) -> l
             written.append(rel)
         png = path.with_suffix(".png")
         if rel.parent == FIGURES and (changed or not png.is_file()):
-            draw(text, png, f"{rel.stem.removesuffix('_a12')}: full vs diagonal at equal "
-                            "budget")
+            if rel.stem.endswith(scalingfig.SUFFIX):
+                scalingfig.draw(text, png, f"{rel.stem.removesuffix(scalingfig.SUFFIX)}: "
+                                "tuning cost against the plant size")
+            else:
+                draw(text, png, f"{rel.stem.removesuffix('_a12')}: full vs diagonal at "
+                                "equal budget")
             written.append(rel.with_suffix(".png"))
     return written + figures.write()
 

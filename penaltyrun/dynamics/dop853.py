@@ -4,7 +4,7 @@ The method is DOP853 (Hairer, Nørsett & Wanner, *Solving ODEs I*, II.10): order
 blended 5th/3rd-order error estimate and the order-7 dense output (three extra stages,
 computed only for the steps that need it). The integrator is specialized to one closed loop by
 :func:`make_dop853` (a closure over numba-compiled functions, so its compiled callers are
-cached on disk as with :func:`penaltyrun.dynamics.integrate.make_dopri5`):
+cached on disk):
 
 ``rhs(t, y, p, dydt)``
     Writes dy/dt. For a piecewise-smooth loop it must use the *frozen* piece stored in ``p``
@@ -35,8 +35,13 @@ derivatives (times :data:`SLOPE_SAFETY`) for the quick test that skips the dense
 from the interpolant itself (rigorous for the interpolant) for the probes. Probes are at most
 ``event_spacing`` apart only where w comes within S·``event_spacing`` of zero, so every dip of
 the event below zero that lasts longer than ``event_spacing`` is found; the crossing is then
-refined by bisection on the interpolant. At a switch point the state is taken from the dense
-output, ``set_mode`` selects the new piece, and integration resumes from there.
+refined by bisection on the interpolant. The interpolant's error is not under the step-size
+control (on a long step near a slow arrival it moved the event by up to 1e-3 s at rtol 1e-10),
+so an event crossing is then corrected on the method itself: Newton iterations on t* where
+every iterate y(t*) is a DOP853 step of length t* − t from the accepted step's start (shorter
+than the accepted step, so within its error control). At a switch point the state is taken
+from the dense output, ``set_mode`` selects the new piece, and integration resumes from
+there.
 
 Statuses, the horizon check and the exact cutoff are those of
 :mod:`penaltyrun.dynamics.integrate` (a step that ends at a switch point is an accepted step);
@@ -63,6 +68,9 @@ from penaltyrun.dynamics.integrate import (
 SLOPE_SAFETY = 2.0
 #: Derivative bounds of the dense-output basis x^a (1 − x)^b on [0, 1]: max(a, b).
 _BASIS_SLOPE = np.array([1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 4.0])
+#: Newton iterations on the event time at most, and their relative stopping size.
+EVENT_NEWTON = 8
+EVENT_NEWTON_TOL = 1e-13
 
 
 @njit(cache=True)
@@ -110,6 +118,38 @@ def _jump(margin, slope, h):
     return margin / (slope * h)
 
 
+def make_event_newton(rhs, event):
+    """Newton step on a terminal event's time, shared by the compiled integrators.
+
+    Returns
+    -------
+    numba dispatcher
+        ``newton(t, tau, h, y_tau, p, f_buf, v) -> d_tau``: with ``y_tau`` the method's state
+        at t + tau, the step −e / (d e / dt) clamped to [−tau / 2, h − tau]; ``nan`` when the
+        event does not fall along the flow there. d e / dt is a centred difference of e along
+        f (e is not smooth at the target itself, which a run never reaches); ``f_buf`` and
+        ``v`` are work arrays of the state's size.
+    """
+
+    @njit(cache=True)
+    def newton(t, tau, h, y_tau, p, f_buf, v):
+        n = y_tau.shape[0]
+        e_val = event(t + tau, y_tau, p)
+        rhs(t + tau, y_tau, p, f_buf)
+        eps = 1e-7 * max(tau, 1e-3)
+        for i in range(n):
+            v[i] = y_tau[i] + eps * f_buf[i]
+        e_plus = event(t + tau + eps, v, p)
+        for i in range(n):
+            v[i] = y_tau[i] - eps * f_buf[i]
+        slope = (e_plus - event(t + tau - eps, v, p)) / (2.0 * eps)
+        if not slope < 0.0:
+            return np.nan
+        return min(max(-e_val / slope, -0.5 * tau), h - tau)
+
+    return newton
+
+
 def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope,
                 set_mode=no_mode, guard=no_guard):
     """Build DOP853 specialized to one closed loop (see the module docstring).
@@ -122,9 +162,13 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
         modified (``set_mode``). Tolerances: mixed error test ``atol + rtol·|y|``; ``max_step``
         the largest step; ``event_spacing`` the largest distance between probes of a watched
         function near zero (same time unit), with at least ``n_samples`` probes per step
-        there; ``max_steps`` a cap on accepted + rejected steps; the cutoff as in
-        :func:`penaltyrun.dynamics.integrate.dopri5`.
+        there; ``max_steps`` a cap on accepted + rejected steps; with ``cut_index ≥ 0`` the
+        run stops with ``CUTOFF`` at the end of the first accepted step where
+        ``y[cut_index] > cut_value`` (a running cost past what the optimizer compares it
+        with; a run that ends in that step anyway ends as without the cutoff).
     """
+
+    newton = make_event_newton(rhs, event)
 
     @njit(cache=True)
     def _bisect(y, F, h, t, p, x_lo, x_hi, use_event, y_probe):
@@ -143,6 +187,40 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
             else:
                 x_lo = x_mid
         return x_hi
+
+    @njit(cache=True)
+    def _step_to(y, K, t, tau, p, y_tmp, out):
+        """One DOP853 step of length tau from (t, y) into ``out`` (K[0] = f(t, y) kept)."""
+        for s in range(1, 12):
+            stage_input(s, y, tau, K, y_tmp)
+            rhs(t + C[s] * tau, y_tmp, p, K[s])
+        stage_input(12, y, tau, K, out)
+        for i in range(out.shape[0]):
+            if not np.isfinite(out[i]):
+                return False
+        return True
+
+    @njit(cache=True)
+    def _refine_event(y, K, t, h, x_hit, p, y_tmp, y_probe, v):
+        """Event time t + tau on the method itself (Newton from the interpolant's x_hit).
+
+        Each iterate is a step of length tau from the accepted step's start. Returns tau
+        and leaves y(t + tau) in ``y_probe``; tau < 0 when the iteration cannot be trusted
+        (the caller keeps the interpolant's crossing).
+        """
+        tau = x_hit * h
+        for _ in range(EVENT_NEWTON):
+            if not _step_to(y, K, t, tau, p, y_tmp, y_probe):
+                return -1.0
+            d_tau = newton(t, tau, h, y_probe, p, y_tmp, v)
+            if not np.isfinite(d_tau):
+                return -1.0
+            tau += d_tau
+            if abs(d_tau) <= EVENT_NEWTON_TOL * max(1.0, t + tau):
+                break
+        if not _step_to(y, K, t, tau, p, y_tmp, y_probe):
+            return -1.0
+        return tau
 
     @njit(cache=True)
     def integrate(y0, p, t_max, rtol, atol, max_step, event_spacing, n_samples, max_steps,
@@ -287,6 +365,9 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
                     if x >= 1.0:
                         break
             if hit == 0:
+                tau = _refine_event(y, K, t, h, x_end, p, y_tmp, y_probe, v)
+                if tau > 0.0:
+                    return t + tau, y_probe, EVENT, steps
                 _dense(y, F, x_end, y_probe)
                 return t + x_end * h, y_probe, EVENT, steps
             if hit == 1:

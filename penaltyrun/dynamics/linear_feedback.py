@@ -40,7 +40,7 @@ CUTOFF = integrate.CUTOFF
 DIVERGED = 5
 SETTLED = 6
 
-_A, _B, _C, _E, _ = (np.asarray(a) for a in integrate._tableau())
+_A, _B, _C, _E = integrate.dopri54_tableau()
 
 
 def feedback_input(K: np.ndarray, X: np.ndarray, u_max: np.ndarray | None) -> np.ndarray:

@@ -39,7 +39,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from penaltyrun.dynamics.dop853 import _BASIS_SLOPE, SLOPE_SAFETY, _dense, _jump, no_guard
+from penaltyrun.dynamics.dop853 import (
+    _BASIS_SLOPE,
+    EVENT_NEWTON,
+    EVENT_NEWTON_TOL,
+    SLOPE_SAFETY,
+    _dense,
+    _jump,
+    make_event_newton,
+    no_guard,
+)
 from penaltyrun.dynamics.integrate import (
     CUTOFF,
     DIVERGED,
@@ -74,9 +83,6 @@ _M = np.array([1.221224509226641, 6.019134481288629, 12.53708332932087, -0.68788
                1.0, 1.0])
 #: Order of the error estimate (local error ∝ h^ELO).
 ELO = 4.0
-#: Newton iterations on the event time at most, and their relative stopping size.
-EVENT_NEWTON = 8
-EVENT_NEWTON_TOL = 1e-13
 
 
 @njit(cache=True)
@@ -140,6 +146,7 @@ def make_rodas(rhs, jac, event, event_slope, guard=no_guard):
         cut_index=-1, cut_value=inf) -> (t_end, y_end, status, n_steps)`` with the arguments
         and results of the integrator of :func:`penaltyrun.dynamics.dop853.make_dop853`.
     """
+    newton = make_event_newton(rhs, event)
 
     @njit(cache=True)
     def _step(y, f0, Jm, p, t, h, W, piv, K, y_tmp, y_out, err):
@@ -297,21 +304,9 @@ def make_rodas(rhs, jac, event, event_slope, guard=no_guard):
                 for _ in range(EVENT_NEWTON):
                     if not _step(y, f0, Jm, p, t, tau, W, piv, K, y_tmp, y_probe, err):
                         break
-                    e_val = event(t + tau, y_probe, p)
-                    rhs(t + tau, y_probe, p, y_tmp)
-                    # d e / dt by a centered difference of e along f (e is not smooth at
-                    # the target itself, which the run never reaches)
-                    eps = 1e-7 * max(tau, 1e-3)
-                    for i in range(n):
-                        v[i] = y_probe[i] + eps * y_tmp[i]
-                    e_plus = event(t + tau + eps, v, p)
-                    for i in range(n):
-                        v[i] = y_probe[i] - eps * y_tmp[i]
-                    slope = (e_plus - event(t + tau - eps, v, p)) / (2.0 * eps)
-                    if not slope < 0.0:
+                    d_tau = newton(t, tau, h, y_probe, p, y_tmp, v)
+                    if not np.isfinite(d_tau):
                         break
-                    d_tau = -e_val / slope
-                    d_tau = min(max(d_tau, -0.5 * tau), h - tau)
                     tau += d_tau
                     if abs(d_tau) <= EVENT_NEWTON_TOL * max(1.0, t + tau):
                         break

@@ -8,7 +8,7 @@ through :mod:`penaltyrun.dynamics.lapack`; LU and SVD through numba), so the res
 with the numpy path to round-off (the tests compare them on random candidates):
 
 * :func:`care_hamiltonian`: the Hamiltonian Riccati solve of
-  :func:`penaltyrun.problems.lqr.riccati.hamiltonian_solutions`;
+  :func:`penaltyrun.dynamics.riccati.hamiltonian_solutions`;
 * :func:`quadratic_eig`: the eigendecomposition route of
   :func:`penaltyrun.dynamics.linear.quadratic_cost`.
 """
@@ -48,7 +48,8 @@ def care_hamiltonian(A, S, Q, cond_max, residual_tol, stability_margin):
     residual_tol : float
         Relative residual below which a solution is accepted.
     stability_margin : float
-        Closed-loop poles must have real part below −margin·max(1, ‖A‖_F).
+        Closed-loop poles must have real part below −stability_margin (1/time unit; see
+        :func:`penaltyrun.dynamics.riccati.margin`).
 
     Returns
     -------
@@ -66,7 +67,6 @@ def care_hamiltonian(A, S, Q, cond_max, residual_tol, stability_margin):
     ok = np.zeros(n_c, dtype=np.bool_)
     res = np.full(n_c, np.inf)
     norm_a = _frobenius(A)
-    margin = stability_margin * max(1.0, norm_a)
     H = np.empty((2 * n, 2 * n))
     work_h = np.empty(geev_workspace(2 * n, True))
     work_a = np.empty(geev_workspace(n, False))
@@ -112,7 +112,7 @@ def care_hamiltonian(A, S, Q, cond_max, residual_tol, stability_margin):
         if not res[c] < residual_tol:
             continue
         poles, _, info = geev(A - Sc @ Pc, work_a, False)
-        ok[c] = info == 0 and np.max(poles.real) < -margin
+        ok[c] = info == 0 and np.max(poles.real) < -stability_margin
     return P, res, ok
 
 

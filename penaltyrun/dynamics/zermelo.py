@@ -24,15 +24,6 @@ def drift(x, y):
 
 
 @njit(cache=True)
-def control(x, y, p):
-    """Feedback U = −d(X) − Kᵀ X for ``p = (K11, K12, K21, K22, ...)``."""
-    dx, dy = drift(x, y)
-    u1 = -dx - (p[0] * x + p[2] * y)
-    u2 = -dy - (p[1] * x + p[3] * y)
-    return u1, u2
-
-
-@njit(cache=True)
 def rhs(t, y, p, out):
     """Closed-loop right-hand side dy/dt for ``y = (x, y, J)``: Ẋ = −Kᵀ X (the control
     cancels the drift), J̇ = ½ |U|² with U = −d(X) − Kᵀ X (one drift evaluation)."""

@@ -25,7 +25,12 @@ of files, into one DataFrame of the columns of :data:`~penaltyrun.io.schema.COLU
 * a ``holdout_long.parquet`` beside a results file (re-judged held-out data, see
   :mod:`penaltyrun.io.longholdout`) replaces that file's ``holdout`` column;
 * reading many files shows a progress bar on a terminal (a log line every few seconds
-  elsewhere).
+  elsewhere);
+* ``read_results(..., lazy=True)`` leaves the columns of :data:`LAZY_COLUMNS` (text and
+  lists, the bulk of a large file) in the files: each row keeps where it came from, and
+  :func:`fill_columns` reads them for a group of rows when they are needed (the rows'
+  row groups only, with column projection), so a report of a million rows never holds
+  them all at once.
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ import time
 from collections.abc import Iterable
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -69,6 +75,15 @@ KEY_JSON_COLUMNS = ("problem_params", "param_options")
 #: Columns read whatever the caller asks for: those that identify a job, check its file
 #: and count it once.
 KEEP_COLUMNS = (*IDENTITY_COLUMNS, "config_hash", "schema_version")
+#: Columns of one value per job whose size varies (text, lists): the bulk of a large
+#: results file. ``read_results(..., lazy=True)`` leaves them in the files;
+#: :func:`fill_columns` reads them for the rows that need them.
+LAZY_COLUMNS = ("error", "best_z", "z_names", "matrices", "scalars", "metrics", "holdout",
+                "closed_loop", "cl_eig_real", "cl_eig_imag", "active_bounds", "gradient_note",
+                "history", "trace_evals", "trace_best", "config", "packages")
+#: Columns of a lazily read frame: the file (or job-record folder) each row comes from,
+#: and its position in that file.
+SOURCE, ROW = "_source", "_row"
 #: Files above which reading shows progress.
 PROGRESS_MIN_FILES = 50
 #: Seconds between two progress log lines (not on a terminal).
@@ -186,13 +201,41 @@ def _read_bounded(path: Path, columns: tuple[str, ...] | None = None) -> pa.Tabl
     ValueError
         The decoded size is over the limit.
     """
-    import pyarrow.compute as pc
-
     schema = pq.read_schema(path)
     wanted = None if columns is None else [n for n in schema.names if n in columns]
-    text = [f.name for f in schema if (wanted is None or f.name in wanted)
+    table = pq.read_table(path, columns=wanted, read_dictionary=_text_columns(schema, wanted))
+    return _decoded(table)
+
+
+def _text_columns(schema: pa.Schema, wanted: list[str] | None) -> list[str]:
+    """The text columns of ``schema`` among ``wanted`` (None: all), read
+    dictionary-encoded by :func:`_read_bounded`."""
+    return [f.name for f in schema if (wanted is None or f.name in wanted)
             and (pa.types.is_string(f.type) or pa.types.is_binary(f.type))]
-    table = pq.read_table(path, columns=wanted, read_dictionary=text)
+
+
+def _decoded(table: pa.Table, used: int = 0) -> pa.Table:
+    """``table`` (text read dictionary-encoded) decoded, when its decoded size (plus
+    ``used`` bytes already read from its file) fits :data:`MAX_FILE_BYTES` (see
+    :func:`_read_bounded`).
+
+    Raises
+    ------
+    ValueError
+        The decoded size is over the limit.
+    """
+    if _decoded_size(table) + used > MAX_FILE_BYTES:
+        raise ValueError(f"expands to more than {MAX_FILE_BYTES} bytes when read (the "
+                         f"limit is {MAX_FILE_BYTES} per file): not read")
+    fields = [f.with_type(f.type.value_type) if pa.types.is_dictionary(f.type) else f
+              for f in table.schema]
+    return table.cast(pa.schema(fields, metadata=table.schema.metadata))
+
+
+def _decoded_size(table: pa.Table) -> int:
+    """Bytes of ``table`` with its dictionary-encoded columns decoded."""
+    import pyarrow.compute as pc
+
     size = 0
     for column in table.columns:
         for chunk in column.chunks:
@@ -204,12 +247,32 @@ def _read_bounded(path: Path, columns: tuple[str, ...] | None = None) -> pa.Tabl
                 size += int(pc.sum(pc.take(lengths, chunk.indices)).as_py() or 0)
             else:  # fixed-width or nested values: each row the dictionary's mean entry
                 size += len(chunk) * chunk.dictionary.nbytes // max(1, len(chunk.dictionary))
-    if size > MAX_FILE_BYTES:
-        raise ValueError(f"expands to {size} bytes when read (the limit is "
-                         f"{MAX_FILE_BYTES} per file): not read")
-    fields = [f.with_type(f.type.value_type) if pa.types.is_dictionary(f.type) else f
-              for f in table.schema]
-    return table.cast(pa.schema(fields, metadata=table.schema.metadata))
+    return size
+
+
+def _read_compact(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
+    """:func:`_read_one` of a lazily read file: row group by row group, each group's text
+    columns held as categories (:func:`_compact`) before the next is read, so reading
+    holds one group's decoded text at a time."""
+    refused = check_footer(path)
+    if refused:
+        raise ValueError(refused)
+    schema = pq.read_schema(path)
+    wanted = [n for n in schema.names if n in columns]
+    parquet = pq.ParquetFile(path, read_dictionary=_text_columns(schema, wanted))
+    pieces, used, first = [], 0, 0
+    for g in range(parquet.metadata.num_row_groups):
+        table = parquet.read_row_group(g, columns=wanted)
+        size = _decoded_size(table)
+        frame = _frame(_decoded(table, used), path, columns)
+        used += size
+        frame[ROW] += first
+        first += len(frame)
+        pieces.append(_compact(frame))
+    if not pieces:
+        return _compact(_frame(_decoded(parquet.schema_arrow.empty_table().select(wanted)),
+                               path, columns))
+    return _concat_compact(pieces)
 
 
 def _frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = None
@@ -234,17 +297,130 @@ def _frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = None
                 raise ValueError(f"column {name} holds text that is not usable JSON "
                                  f"({_first_line(exc)[:80]})") from None
     try:
-        if "optimizer_settings" in names:
-            frame["optimizer_settings"] = [
-                _upgrade_settings(opt, settings)
-                for opt, settings in zip(frame["optimizer"], frame["optimizer_settings"])]
+        if "optimizer_settings" in names:  # each distinct (optimizer, settings) once
+            pairs = list(zip(frame["optimizer"], frame["optimizer_settings"]))
+            upgraded = {pair: _upgrade_settings(*pair) for pair in dict.fromkeys(pairs)}
+            frame["optimizer_settings"] = [upgraded[pair] for pair in pairs]
     except (ValueError, TypeError, RecursionError) as exc:  # damaged or hostile JSON
         raise ValueError(f"column optimizer_settings holds text that is not usable JSON "
                          f"({_first_line(exc)[:80]})") from None
     frame = longholdout.apply(frame[names], path)
     frame.attrs = {}
-    frame["_source"] = str(path)
+    frame[SOURCE] = str(path)
+    frame[ROW] = np.arange(len(frame), dtype=np.int64)
     return frame
+
+
+def _read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.DataFrame:
+    """Rows ``rows`` (positions in the file) of the results file ``path``, columns
+    ``columns`` (:data:`COLUMNS` order) plus :data:`KEEP_COLUMNS`, checked and upgraded as
+    :func:`_read_one` reads a file; index ``0 .. len(rows) − 1``. Only the row groups that
+    hold the rows are read, one at a time, and only the rows are kept of each.
+
+    Raises
+    ------
+    ValueError
+        The file changed since it was read (fewer rows), or its rows cannot be used.
+    OSError, pyarrow.ArrowException
+        It cannot be read as Parquet.
+    """
+    wanted = tuple(n for n in COLUMNS if n in set(columns) | set(KEEP_COLUMNS))
+    schema = pq.read_schema(path)
+    present = [n for n in schema.names if n in wanted]
+    parquet = pq.ParquetFile(path, read_dictionary=_text_columns(schema, present))
+    meta = parquet.metadata
+    bounds = np.cumsum([0] + [meta.row_group(i).num_rows for i in range(meta.num_row_groups)])
+    rows = np.asarray(rows, np.int64)
+    if rows.size and (rows.min() < 0 or rows.max() >= bounds[-1]):
+        raise ValueError(f"{path} has fewer rows than when it was read: read the results "
+                         "again")
+    group = np.searchsorted(bounds, rows, side="right") - 1
+    pieces, order = [], []
+    for g in np.unique(group):
+        mine = np.flatnonzero(group == g)
+        table = parquet.read_row_group(int(g), columns=present)
+        pieces.append(table.take(pa.array(rows[mine] - bounds[g])))
+        order.append(mine)
+    table = _decoded(pa.concat_tables(pieces)) if pieces else \
+        _decoded(parquet.schema_arrow.empty_table().select(present))
+    with _Quiet(longholdout.logger):
+        frame = _frame(table, path, wanted)
+    if order:  # back to the order of ``rows``
+        frame = frame.iloc[np.argsort(np.concatenate(order), kind="stable")]
+    return frame.reset_index(drop=True)
+
+
+class _Quiet:
+    """Within the block, ``logger`` says only warnings (its info lines were said when the
+    rows were first read)."""
+
+    def __init__(self, log: logging.Logger) -> None:
+        self.log, self.level = log, log.level
+
+    def __enter__(self) -> None:
+        self.log.setLevel(max(self.level, logging.WARNING))
+
+    def __exit__(self, *exc: object) -> None:
+        self.log.setLevel(self.level)
+
+
+def fill_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
+    """``df`` with the columns ``columns`` that it lacks read from the files its rows came
+    from (a frame of :func:`read_results` with ``lazy=True``, or rows of it): the rows'
+    row groups only, one at a time; ``df`` itself when it has them all.
+
+    The values are those :func:`read_results` would have read (same checks, upgrades and
+    re-judged held-out data), so code that calls this before using a column gives the same
+    result on a lazily and an eagerly read frame.
+
+    Raises
+    ------
+    KeyError
+        A column is missing and ``df`` does not say where its rows come from, or a name is
+        not a results column.
+    ValueError
+        A file changed since it was read.
+    """
+    missing = [c for c in columns if c not in df.columns]
+    if not missing:
+        return df
+    unknown = sorted(set(missing) - set(COLUMNS))
+    if unknown:
+        raise KeyError(f"not results columns: {', '.join(unknown)}")
+    if SOURCE not in df or ROW not in df:
+        raise KeyError(f"columns {', '.join(missing)} were not read, and the rows do not "
+                       "say which file they come from")
+    if df.empty:
+        return df.assign(**{c: pd.Series(index=df.index, dtype=object) for c in missing})
+    parts = []
+    for source, where in df.groupby(SOURCE, sort=False).indices.items():
+        sub = df.iloc[where]
+        path = Path(source)
+        if path.name == JOBS_DIR and path.is_dir():  # an unfinished run: its job records
+            keep = tuple(n for n in COLUMNS if n in set(missing) | set(KEEP_COLUMNS))
+            frame = read_records(path.parent, keep, quiet=True)
+            frame = frame.drop_duplicates("job_id").set_index("job_id") \
+                .reindex(sub["job_id"]).reset_index(drop=True)
+        else:
+            frame = _read_rows(path, sub[ROW].to_numpy(), tuple(missing))
+        frame.index = sub.index
+        parts.append(frame[missing])
+    extra = pd.concat(parts) if len(parts) > 1 else parts[0]
+    extra = extra.reindex(df.index)
+    return df.assign(**{c: extra[c] for c in missing})
+
+
+def declared_rows(path: Path | Iterable[Path]) -> int:
+    """Rows the results files at or under ``path`` declare in their footers (files whose
+    footer cannot be read count 0; nothing else is read)."""
+    paths = find_results(path) if isinstance(path, (str, Path)) else [Path(p) for p in path]
+    total = 0
+    for p in paths:
+        try:
+            total += pq.read_metadata(p).num_rows
+        except (OSError, pa.ArrowException, ValueError):
+            continue
+    return total
 
 
 def unfinished_runs(path: Path) -> list[Path]:
@@ -258,11 +434,13 @@ def unfinished_runs(path: Path) -> list[Path]:
     return sorted(r for r in runs if not (r / RESULTS_FILE).exists())
 
 
-def read_records(run_dir: Path, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
+def read_records(run_dir: Path, columns: tuple[str, ...] | None = None,
+                 quiet: bool = False) -> pd.DataFrame:
     """The finished job records of a run directory without ``results.parquet``, as
     :func:`_read_one` reads a results file; one warning saying how many, and that
     ``runner.resume=true`` finishes the run (unusable records are left out and named,
-    never moved: the run may still be going).
+    never moved: the run may still be going); ``quiet``: no warning (the records are read
+    again for :func:`fill_columns`).
 
     Raises
     ------
@@ -277,14 +455,15 @@ def read_records(run_dir: Path, columns: tuple[str, ...] | None = None) -> pd.Da
             bad.append(f"{f.name} ({reason})")
         else:
             records.append(record)
-    if bad:
+    if bad and not quiet:
         logger.warning("left out %d unusable job records of %s: %s", len(bad), run_dir,
                        "; ".join(bad[:3]) + (" ..." if len(bad) > 3 else ""))
     if not records:
         raise ValueError(f"no usable job record in {run_dir / JOBS_DIR}")
-    logger.warning("%s has no %s (the run was interrupted, or is still running): reporting "
-                   "its %d finished job records; to finish it, rerun the same command with "
-                   "runner.resume=true", run_dir, RESULTS_FILE, len(records))
+    if not quiet:
+        logger.warning("%s has no %s (the run was interrupted, or is still running): "
+                       "reporting its %d finished job records; to finish it, rerun the same "
+                       "command with runner.resume=true", run_dir, RESULTS_FILE, len(records))
     return _frame(to_table(records, run_id=run_dir.name), run_dir / JOBS_DIR, columns)
 
 
@@ -327,15 +506,59 @@ def _dedupe(df: pd.DataFrame) -> pd.DataFrame:
         return df
     first = df[~dup].drop_duplicates(subset=["job_id", "config_hash"])
     origin = {(j, c): s for j, c, s in zip(first["job_id"], first["config_hash"],
-                                           first["_source"])}
+                                           first[SOURCE])}
     pairs = sorted({(s, origin[(j, c)]) for j, c, s in
                     zip(df.loc[dup, "job_id"], df.loc[dup, "config_hash"],
-                        df.loc[dup, "_source"])})
+                        df.loc[dup, SOURCE])})
     shown = "; ".join(f"{a} duplicates {b}" for a, b in pairs[:3])
     more = f"; and {len(pairs) - 3} more file pairs" if len(pairs) > 3 else ""
     logger.warning("left out %d duplicate rows (same job_id and config_hash, counted once): "
                    "%s%s", int(dup.sum()), shown, more)
     return df[~dup]
+
+
+#: Text columns a lazily read frame holds as categories (sorted, so that grouping and
+#: sorting give the order of the text): names, statuses, settings, the source file.
+CATEGORY_COLUMNS = ("run_id", "problem", "case", "param", "optimizer", "status",
+                    "stop_reason", "optimizer_settings", "problem_params", "param_options",
+                    "warm_start", "config_hash", "git_commit", SOURCE)
+
+
+def _compact(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with the text columns of :data:`CATEGORY_COLUMNS` as categories: a byte or
+    two per row instead of the text."""
+    for name in CATEGORY_COLUMNS:
+        if name in df and not isinstance(df[name].dtype, pd.CategoricalDtype):
+            df[name] = df[name].astype("category")
+    return df
+
+
+def _concat_compact(frames: list[pd.DataFrame]) -> pd.DataFrame:
+    """``pd.concat`` of frames of :func:`_compact`, their categories united (sorted) so
+    that the columns stay categories."""
+    from pandas.api.types import union_categoricals
+
+    for name in CATEGORY_COLUMNS:
+        if all(name in f for f in frames):
+            united = union_categoricals([f[name] for f in frames], sort_categories=True)
+            for f in frames:
+                f[name] = f[name].cat.set_categories(united.categories)
+    return pd.concat(frames, ignore_index=True)
+
+
+def release_memory() -> None:
+    """Give the memory freed after reading (Arrow's pool, the C heap) back to the system,
+    so that what a large report computes next starts from what it holds, not from the
+    peak of reading (a no-op where the C library cannot)."""
+    import ctypes
+    import gc
+
+    gc.collect()
+    pa.default_memory_pool().release_unused()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc
+        pass
 
 
 def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
@@ -344,7 +567,7 @@ def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
     known = df["status"].isin(JOB_STATUSES)
     df[STATUS_KNOWN] = known.to_numpy(dtype=bool)
     unknown = {str(k): int(v) for k, v in df.loc[~known, "status"].value_counts(
-        dropna=False).items()}
+        dropna=False).items() if v}
     if unknown:
         logger.warning("%d rows with a status other than %s (%s): reported as unknown, not "
                        "counted as ok, diverged, failed or timeout", int((~known).sum()),
@@ -354,8 +577,8 @@ def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
-def read_results(path: Path | Iterable[Path],
-                 columns: Iterable[str] | None = None) -> pd.DataFrame:
+def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = None,
+                 lazy: bool = False) -> pd.DataFrame:
     """All results under ``path`` (file, folder, or several) as one DataFrame, each job once.
 
     JSON columns stay text; use :func:`~penaltyrun.io.schema.decode_json` to parse them.
@@ -370,6 +593,10 @@ def read_results(path: Path | Iterable[Path],
         Read only these columns of :data:`~penaltyrun.io.schema.COLUMNS` (Parquet column
         projection: the others are neither read nor decoded); the columns that identify
         and check a job (:data:`KEEP_COLUMNS`) are always read. Default: every column.
+    lazy : bool
+        Leave the columns of :data:`LAZY_COLUMNS` in the files: the frame has
+        :data:`SOURCE` and :data:`ROW` instead (where each row comes from), and
+        :func:`fill_columns` reads them for the rows that need them.
 
     Returns
     -------
@@ -392,6 +619,8 @@ def read_results(path: Path | Iterable[Path],
         if unknown:
             raise ValueError(f"not results columns: {', '.join(unknown)}")
         columns = tuple(n for n in COLUMNS if n in set(columns) | set(KEEP_COLUMNS))
+    if lazy:
+        columns = tuple(n for n in (columns or COLUMNS) if n not in LAZY_COLUMNS)
     single = isinstance(path, (str, Path))
     paths = find_results(path) if single else [Path(p) for p in path]
     unfinished = unfinished_runs(path) if single else []
@@ -409,7 +638,7 @@ def read_results(path: Path | Iterable[Path],
     try:
         for p in paths:
             try:
-                frames.append(_read_one(p, columns))
+                frames.append(_read_compact(p, columns) if lazy else _read_one(p, columns))
             except (OSError, pa.ArrowException, ValueError, MemoryError,
                     RecursionError) as exc:
                 reason = _first_line(exc)
@@ -422,7 +651,15 @@ def read_results(path: Path | Iterable[Path],
         shown = ", ".join(list(skipped)[:3]) + (" ..." if len(skipped) > 3 else "")
         raise ResultsUnreadableError(f"no readable results under {path}: {len(skipped)} "
                                      f"unreadable file(s) ({shown})")
-    df = _dedupe(pd.concat(frames, ignore_index=True))
-    df = _mark_statuses(df.drop(columns="_source").reset_index(drop=True))
+    if lazy:
+        frames = [_compact(f) for f in frames]  # job records: compacted here
+        df = _dedupe(_concat_compact(frames))
+    else:
+        df = _dedupe(pd.concat(frames, ignore_index=True))
+    if not lazy:
+        df = df.drop(columns=[SOURCE, ROW])
+    df = _mark_statuses(df.reset_index(drop=True))
+    if lazy:
+        release_memory()
     df.attrs["skipped_files"] = skipped
     return df

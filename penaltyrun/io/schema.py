@@ -34,11 +34,16 @@ logger = logging.getLogger(__name__)
 #: diagnostics of the best candidate (``closed_loop``, ``cl_*``) — earlier files read back
 #: with them null (the report computes them from the stored matrices); 7: first-order
 #: columns of the best candidate (``grad_norm``, ``active_bounds``, ``gradient_note``) —
-#: earlier files read back with them null.
+#: earlier files read back with them null; 8: the anytime trace's CPU time
+#: (``trace_cpu_s``) — earlier files read back with it null; 9: what exact gradients were
+#: charged in ``n_evals`` (``n_gradients``, ``grad_cost``) — earlier files read back with
+#: them null.
 SCHEMA_HISTORY = {3: "anytime traces, warm start", 4: "timestamp columns",
                   5: "packages column; job id covers runner.seed and runner.holdout",
                   6: "closed-loop diagnostics columns (closed_loop, cl_*)",
-                  7: "first-order columns (grad_norm, active_bounds, gradient_note)"}
+                  7: "first-order columns (grad_norm, active_bounds, gradient_note)",
+                  8: "CPU time of the anytime trace (trace_cpu_s)",
+                  9: "gradients charged in n_evals (n_gradients, grad_cost)"}
 RESULTS_FILE = "results.parquet"
 
 #: Arrow type of each kind of :data:`penaltyrun.jobrecord.FIELDS`.

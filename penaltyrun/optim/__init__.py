@@ -12,12 +12,13 @@ gradient).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import fields
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 
+from penaltyrun import lazy
 from penaltyrun.errors import ConfigError
 from penaltyrun.optim.base import (
     POLISH_METHODS,
@@ -39,13 +40,54 @@ from penaltyrun.optim.polish import local_search
 from penaltyrun.optim.pso import PSOSettings, run_pso
 from penaltyrun.optim.pso_matlab import PSOMatlabSettings, run_pso_matlab
 
-OPTIMIZERS = {"pso": (PSOSettings, run_pso), "de": (DESettings, run_de),
-              "cmaes": (CMAESSettings, run_cmaes), "grid": (GridSettings, run_grid),
-              "baseline": (BaselineSettings, run_baseline),
-              "pso_matlab": (PSOMatlabSettings, run_pso_matlab),
-              "lbfgs": (LBFGSSettings, run_lbfgs)}
+
+@dataclass(frozen=True)
+class Optimizer:
+    """One optimizer of the registry (:data:`OPTIMIZERS`).
+
+    A new optimizer is one module of this package (its settings dataclass, with
+    ``validate`` and ``batch_size`` where the defaults do not fit, and its run function
+    ``run(objective, lb, ub, settings, seed, x0) -> OptimResult``), one entry here and one
+    preset ``penaltyrun/conf/optimizer/<name>.yaml``; the command line, the checks, the
+    forecast, the warm start, the worker pool and the configuration reference read it
+    from here.
+
+    Attributes
+    ----------
+    settings : type
+        Its settings dataclass (every field an ``optimizer.*`` option).
+    run : callable
+        Its run function.
+    needs_gradient : bool
+        It calls the problem's exact gradient (refused before a run on a problem without
+        one; ``run`` then also takes the gradient function).
+    warm_start : bool
+        A full-map run may spend a share of its ``max_evals`` on the diagonal map first
+        (``runner.warm_start``): false for optimizers without an evaluation budget.
+    shared_imports : tuple of str
+        Modules (or ``module:loader``) it imports on its first run, imported once in the
+        parent before worker processes are forked (:mod:`penaltyrun.runner.pool`).
+    """
+
+    settings: type
+    run: Callable[..., OptimResult]
+    needs_gradient: bool = False
+    warm_start: bool = True
+    shared_imports: tuple[str, ...] = ()
+
+
+#: The optimizers, by the name ``optimizer.name`` (and ``optimizer=<name>``) gives them.
+OPTIMIZERS: dict[str, Optimizer] = {
+    "pso": Optimizer(PSOSettings, run_pso, shared_imports=("penaltyrun.optim.pso:load_pyswarms",)),
+    "de": Optimizer(DESettings, run_de),
+    "cmaes": Optimizer(CMAESSettings, run_cmaes),
+    "grid": Optimizer(GridSettings, run_grid, warm_start=False),
+    "baseline": Optimizer(BaselineSettings, run_baseline, warm_start=False),
+    "pso_matlab": Optimizer(PSOMatlabSettings, run_pso_matlab),
+    "lbfgs": Optimizer(LBFGSSettings, run_lbfgs, needs_gradient=True),
+}
 #: Optimizers that need the problem's exact gradient.
-GRADIENT_OPTIMIZERS = ("lbfgs",)
+GRADIENT_OPTIMIZERS = tuple(name for name, opt in OPTIMIZERS.items() if opt.needs_gradient)
 
 Settings = (PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
             | PSOMatlabSettings | LBFGSSettings)
@@ -65,7 +107,7 @@ def make_settings(name: str, options: Mapping[str, Any]) -> Settings:
     """
     if name not in OPTIMIZERS:
         raise ConfigError("optimizer.name", f"unknown optimizer {name!r}", allowed=OPTIMIZERS)
-    cls = OPTIMIZERS[name][0]
+    cls = OPTIMIZERS[name].settings
     allowed = {f.name for f in fields(cls)}
     unknown = sorted(set(options) - allowed)
     if unknown:
@@ -129,24 +171,31 @@ def _minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarr
     counted.limit = main_budget(settings)
     if x0 is not None:  # a warm start is evaluated first: the run's best is never worse
         counted(np.asarray(x0, float)[None, :])
-    if name in GRADIENT_OPTIMIZERS:
-        result = run_lbfgs(counted, lb, ub, settings, seed, x0, gradient)
+    entry = OPTIMIZERS[name]
+    if entry.needs_gradient:
+        result = entry.run(counted, lb, ub, settings, seed, x0, gradient)
     else:
-        result = OPTIMIZERS[name][1](counted, lb, ub, settings, seed, x0)
+        result = entry.run(counted, lb, ub, settings, seed, x0)
     if settings.polish == "none":
         return result
     counted.limit = settings.max_evals
     if settings.polish == "gradient":
         outcome = gradient_polish(counted, counted.best_z, lb, ub, gradient,
-                                  getattr(settings, "grad_cost", None))
+                                  settings.grad_cost)
     else:
         outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
     stop = result.stop_reason + ("+polish" if outcome != "max_evals" else "+polish:max_evals")
     return counted.result(result.history, result.n_iters, stop)
 
 
-__all__ = ["GRADIENT_OPTIMIZERS", "OPTIMIZERS", "POLISH_METHODS", "BaselineSettings",
+#: Imported on first use: the gradient helpers need the problems and the parameterizations
+#: (numba), which a refused command-line value must not load.
+_NAMES = {"declared_gradient_cost": "gradient", "with_gradient_cost": "gradient"}
+
+__getattr__, __dir__ = lazy.exports(__name__, _NAMES, globals())
+
+__all__ = ["GRADIENT_OPTIMIZERS", "OPTIMIZERS", "POLISH_METHODS", "BaselineSettings", "Optimizer",
            "CMAESSettings", "CommonSettings", "DESettings", "GridSettings", "LBFGSSettings",
            "OptimResult", "PSOMatlabSettings",
-           "PSOSettings", "Settings", "check_dimension", "make_settings", "minimize",
-           "planned_evals"]
+           "PSOSettings", "Settings", "check_dimension", "declared_gradient_cost",
+           "make_settings", "minimize", "planned_evals", "with_gradient_cost"]

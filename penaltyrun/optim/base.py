@@ -28,13 +28,14 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.typed import is_int
+from penaltyrun.typed import is_int, is_number
 
 logger = logging.getLogger(__name__)
 
@@ -92,11 +93,22 @@ class CommonSettings:
     polish_share : float
         Share of ``max_evals`` kept for the polish (the search stops earlier to leave it).
         Without ``max_evals`` the polish runs until the local method's own tolerance.
+    grad_cost : float or None
+        Evaluations charged per exact gradient by ``optimizer=lbfgs`` and
+        ``polish=gradient``; ``None``: what the problem declares one gradient to cost (its
+        measured CPU time over that of one evaluation). Presets other than ``lbfgs`` do not
+        list it: set it with ``+optimizer.grad_cost=...``.
     """
 
     max_evals: int | None = None
     polish: str = "none"
     polish_share: float = 0.1
+    grad_cost: float | None = None
+
+    @property
+    def uses_gradient(self) -> bool:
+        """Whether the run calls the problem's exact gradient (and charges it)."""
+        return self.polish == "gradient"
 
     def validate(self) -> None:
         """Check the shared fields.
@@ -113,6 +125,20 @@ class CommonSettings:
         if not 0.0 < float(self.polish_share) < 1.0:
             raise ConfigError("optimizer.polish_share", f"must be in (0, 1), got "
                               f"{self.polish_share!r}")
+        cost = self.grad_cost
+        if cost is not None and not (is_number(cost) and 0.0 < cost < 1e6):
+            raise ConfigError("optimizer.grad_cost", f"must be a positive number (evaluations "
+                              f"per gradient, below 1e6) or null, got {cost!r}")
+        if cost is not None and not self.uses_gradient:
+            raise ConfigError("optimizer.grad_cost", "only optimizer=lbfgs and "
+                              "optimizer.polish=gradient charge gradients; drop it or set "
+                              "polish=gradient")
+
+    def batch_size(self, dim: int) -> int:
+        """Candidates the optimizer passes to the objective per call on ``dim`` variables
+        (what the forecast times one evaluation of): 1 unless the optimizer evaluates a
+        population (its settings class then overrides this)."""
+        return 1
 
     def search_evals(self, dim: int) -> int | None:
         """Most evaluations the search itself can spend on ``dim`` variables (its own
@@ -146,6 +172,14 @@ class OptimResult:
         Anytime trace: after ``trace_evals[k]`` evaluations the best cost so far was
         ``trace_best[k]``. A point is stored at every improvement and at the end, so the
         step function best-so-far(n) is exact.
+    trace_cpu_s : list of float
+        CPU seconds (``time.process_time`` of this process, every thread) from the start of
+        the search to each trace point: the work of this process only (evaluations farmed
+        out to other processes are not in it).
+    n_gradients : int
+        Exact gradients charged in ``n_evals`` (``optimizer=lbfgs``, ``polish=gradient``).
+    grad_cost : float or None
+        Evaluations charged per gradient; ``None`` when no gradient was charged.
     """
 
     best_cost: float
@@ -157,6 +191,9 @@ class OptimResult:
     n_nonfinite: int = 0
     trace_evals: list[int] = field(default_factory=list)
     trace_best: list[float] = field(default_factory=list)
+    trace_cpu_s: list[float] = field(default_factory=list)
+    n_gradients: int = 0
+    grad_cost: float | None = None
 
 
 class CountingObjective:
@@ -186,10 +223,14 @@ class CountingObjective:
         self.best_z: np.ndarray | None = None
         self.trace_evals: list[int] = []
         self.trace_best: list[float] = []
+        self.trace_cpu_s: list[float] = []
+        self.cpu_start = time.process_time()  # the search starts with its objective
         self.transformed = False  # objective values differ from the costs
         self.best_value = float("inf")
         self.value_costs: dict[float, float] = {}  # each new best value → its cost
         self.charged = 0.0  # evaluation-equivalents charged for gradients, not yet counted
+        self.n_gradients = 0
+        self.grad_cost: float | None = None
 
     @property
     def remaining(self) -> float:
@@ -247,9 +288,14 @@ class CountingObjective:
             self.best_z = Z[i].copy()
             self.trace_evals.append(self.n_evals)
             self.trace_best.append(self.best_cost)
+            self.trace_cpu_s.append(self.cpu_seconds())
         if cut:
             raise BudgetExhaustedError
         return value
+
+    def cpu_seconds(self) -> float:
+        """CPU seconds of this process since the objective was made (the search began)."""
+        return time.process_time() - self.cpu_start
 
     def charge(self, evaluations: float) -> None:
         """Count ``evaluations`` evaluation-equivalents (e.g. the CPU of an exact gradient
@@ -268,6 +314,19 @@ class CountingObjective:
         self.n_evals += whole
         self.charged -= whole
 
+    def charge_gradient(self, evaluations: float) -> None:
+        """Count one exact gradient as ``evaluations`` evaluation-equivalents
+        (:meth:`charge`; the result reports the gradients and the charge per gradient).
+
+        Raises
+        ------
+        BudgetExhaustedError
+            When the charge does not fit in the budget left (the gradient must not be made).
+        """
+        self.charge(evaluations)
+        self.n_gradients += 1
+        self.grad_cost = float(evaluations)
+
     def scalar(self, z: np.ndarray) -> float:
         """Value of one decision vector as the optimizer sees it (for scipy local
         searches)."""
@@ -283,14 +342,17 @@ class CountingObjective:
         if self.transformed:
             history = [self.value_costs.get(float(h), h) for h in history]
         trace_evals, trace_best = list(self.trace_evals), list(self.trace_best)
+        trace_cpu = list(self.trace_cpu_s)
         if trace_evals[-1] != self.n_evals:  # close the step function at the last evaluation
             trace_evals.append(self.n_evals)
             trace_best.append(self.best_cost)
+            trace_cpu.append(self.cpu_seconds())
         return OptimResult(best_cost=self.best_cost, best_z=self.best_z.copy(),
                            history=[float(h) for h in history], n_evals=self.n_evals,
                            n_iters=int(n_iters), stop_reason=stop_reason,
                            n_nonfinite=self.n_nonfinite, trace_evals=trace_evals,
-                           trace_best=trace_best)
+                           trace_best=trace_best, trace_cpu_s=trace_cpu,
+                           n_gradients=self.n_gradients, grad_cost=self.grad_cost)
 
 
 def as_counting(objective: BatchObjective, max_evals: int | None = None) -> CountingObjective:

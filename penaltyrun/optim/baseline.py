@@ -27,6 +27,11 @@ class BaselineSettings:
 
     scale: float = 1.0
 
+    def batch_size(self, dim: int) -> int:
+        """Candidates the optimizer passes to the objective per call on ``dim`` variables
+        (what the forecast times one evaluation of): its one point."""
+        return 1
+
     def validate(self) -> None:
         """Check that ``scale`` is a positive finite number (raises ConfigError)."""
         check_range("optimizer.scale", self.scale, 0.0, lo_open=True)

@@ -69,6 +69,12 @@ class CMAESSettings(CommonSettings):
     tolfun: float = 1e-11
     tolx: float = 1e-11
 
+    def batch_size(self, dim: int) -> int:
+        """Candidates the optimizer passes to the objective per call on ``dim`` variables
+        (what the forecast times one evaluation of): the population λ, ``popsize``
+        (default 4 + ⌊3 ln dim⌋)."""
+        return int(self.popsize or 4 + int(3 * math.log(dim)))
+
     def validate(self) -> None:
         """Check ranges (and the shared fields)."""
         super().validate()

@@ -62,6 +62,11 @@ class DESettings(CommonSettings):
     mutation: tuple[float, float] = (0.5, 1.0)
     recombination: float = 0.7
 
+    def batch_size(self, dim: int) -> int:
+        """Candidates the optimizer passes to the objective per call on ``dim`` variables
+        (what the forecast times one evaluation of): the population, max(5, ``popsize`` · dim)."""
+        return max(5, int(self.popsize) * dim)
+
     def validate(self) -> None:
         """Check ranges (and the shared fields)."""
         super().validate()

@@ -8,6 +8,11 @@ vector-Jacobian product (:meth:`~penaltyrun.penalty.maps.Parameterization.vjp`),
 scalar's derivative is its own entry. Where the problem has no gradient, or the map none
 (GEAGSP next to a skipped Gram–Schmidt vector), the result carries the reason instead.
 
+The charge of a gradient: a problem may declare what one gradient costs in evaluations
+(:class:`~penaltyrun.problems.base.GradientCost`, its ``gradient_cost`` hook);
+:func:`with_gradient_cost` makes that the ``grad_cost`` of settings that use gradients
+unless ``optimizer.grad_cost`` is given.
+
 First-order measures in a box [lb, ub]: the projected gradient
 P(z) = clip(z − g, lb, ub) − z (zero exactly at a first-order stationary point of the
 bounded problem), its infinity norm, and the bounds a coordinate sits on (within
@@ -16,13 +21,17 @@ bounded problem), its infinity norm, and the bounds a coordinate sits on (within
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, replace
+from typing import Any, TypeVar
 
 import numpy as np
 
+from penaltyrun.errors import ConfigError
 from penaltyrun.penalty import DecisionLayout, NotDifferentiableError
-from penaltyrun.problems.base import CostGradient, gradient_support
+from penaltyrun.problems.base import CostGradient, GradientCost, gradient_support
+from penaltyrun.problems.hooks import hooks
+
+S = TypeVar("S")
 
 #: A coordinate within this fraction of its box side of a bound is on that bound.
 BOUND_TOL = 1e-10
@@ -102,6 +111,49 @@ def chain(layout: DecisionLayout, z: np.ndarray, out: CostGradient) -> ZGradient
     return ZGradient(float(out.cost), str(out.status), grad, "")
 
 
+def declared_gradient_cost(problem: Any) -> GradientCost | None:
+    """What ``problem`` declares one exact gradient to cost (its ``gradient_cost`` hook), or
+    None when it declares nothing (no hook, or the hook returns None).
+
+    Raises
+    ------
+    ConfigError
+        The hook returns something other than a :class:`GradientCost`.
+    """
+    hook = hooks(problem).gradient_cost
+    if hook is None:
+        return None
+    found = hook()
+    if found is not None and not isinstance(found, GradientCost):
+        name = getattr(problem, "name", type(problem).__name__)
+        raise ConfigError("problem", f"{name}.gradient_cost() must return a GradientCost, got "
+                                     f"{type(found).__name__}")
+    return found
+
+
+def with_gradient_cost(settings: S, problem: Any) -> S:
+    """``settings`` with ``grad_cost`` set to the problem's declared cost of one gradient
+    when they use gradients (``optimizer=lbfgs``, ``polish=gradient``) and do not set it;
+    otherwise unchanged (also when the problem has no gradient: that is refused elsewhere).
+
+    Raises
+    ------
+    ConfigError
+        The settings use gradients, set no ``grad_cost`` and the problem declares none.
+    """
+    if not getattr(settings, "uses_gradient", False) or settings.grad_cost is not None \
+            or gradient_support(problem):
+        return settings
+    declared = declared_gradient_cost(problem)
+    if declared is None:
+        name = getattr(problem, "name", type(problem).__name__)
+        raise ConfigError("optimizer.grad_cost", f"problem {name!r} does not declare what one "
+                          "exact gradient costs in evaluations (its gradient_cost hook); set "
+                          "optimizer.grad_cost to the CPU time of one gradient over that of "
+                          "one evaluation")
+    return replace(settings, grad_cost=declared.evaluations)
+
+
 def projected_gradient(z: np.ndarray, grad: np.ndarray, lb: np.ndarray, ub: np.ndarray
                        ) -> np.ndarray:
     """P(z) = clip(z − grad, lb, ub) − z, shape (dim,): zero at a first-order stationary
@@ -136,5 +188,5 @@ def first_order(problem: Any, layout: DecisionLayout, z: np.ndarray) -> dict[str
             "gradient_note": out.reason}
 
 
-__all__ = ["BOUND_TOL", "ZGradient", "active_bounds", "chain", "first_order",
-           "projected_gradient", "z_gradient"]
+__all__ = ["BOUND_TOL", "ZGradient", "active_bounds", "chain", "declared_gradient_cost",
+           "first_order", "projected_gradient", "with_gradient_cost", "z_gradient"]

@@ -4,16 +4,23 @@ Each local run is ``scipy.optimize.minimize(method="L-BFGS-B")`` in the unit cub
 [lb, ub] mapped to [0, 1]^dim, as CMA-ES searches, so eigenvalues and angles are on one
 scale), with the cost divided by its value at the run's start (so ``gtol`` is relative)
 and the exact gradient d cost / d z of the problem (:mod:`penaltyrun.optim.gradient`).
+With ``log_positive`` the variables whose box is strictly positive (the eigenvalues of
+every map, the entries of the diagonal) are mapped to the cube on a log scale,
+z = lb·(ub/lb)^u: a relative change of a small eigenvalue is then as large a step as the
+same relative change of a large one, which keeps the local problem far better conditioned
+when the optimum's eigenvalues sit near the lower end of a wide box.
 The first run starts from ``x0`` when one is given (warm start), every other from a point
 uniform in the box drawn from the job seed, until ``starts`` runs are done or the budget is
 spent.
 
 **Budget in evaluation-equivalents.** Every value the search asks for is one evaluation
 of the run's objective (counted, traced and capped as for every optimizer); every gradient
-is charged ``grad_cost`` more evaluations (:data:`GRADIENT_COST`, measured by
-``bench/gradient_cost.py``: the CPU time of one gradient divided by the CPU time of one
-evaluation), so ``n_evals`` and ``max_evals`` compare with the other optimizers at equal
-CPU.
+is charged ``grad_cost`` more evaluations: the CPU time of one gradient over that of one
+evaluation, as the problem declares it (:class:`~penaltyrun.problems.base.GradientCost`,
+measured by the benchmarks in ``bench/``) unless ``optimizer.grad_cost`` says otherwise
+(:func:`penaltyrun.optim.gradient.with_gradient_cost` fills it in), so ``n_evals`` and
+``max_evals`` compare with the other optimizers at equal CPU. The result reports the
+gradients charged and the charge per gradient.
 
 A point where the gradient does not exist (a status other than ``converged``, a
 non-differentiable map) ends that local run (``no_gradient``); the next start follows.
@@ -43,12 +50,6 @@ from penaltyrun.optim.base import (
 
 logger = logging.getLogger(__name__)
 
-#: Evaluations charged per exact gradient: the CPU time of one ``problem=lqr`` gradient
-#: d cost / d z over one single-candidate evaluation, median over n = 2 … 16 states,
-#: diagonal and givens maps, continuous and discrete plants (1.8–1.9, rounded up;
-#: ``bench/gradient_cost.py``, figures in bench/README.md).
-GRADIENT_COST = 2.0
-
 #: Gradient callable: z (dim,) → an object with ``grad`` (ndarray or None) and ``reason``.
 GradientFn = Callable[[np.ndarray], Any]
 
@@ -75,8 +76,9 @@ class LBFGSSettings(CommonSettings):
         relative to its start value) is below this.
     maxcor : int
         Correction pairs kept by L-BFGS-B.
-    grad_cost : float or None
-        Evaluations charged per gradient (``None``: :data:`GRADIENT_COST`).
+    log_positive : bool
+        Search the variables whose box is strictly positive on a log scale (the box and
+        the start points are the same; only L-BFGS-B's coordinates change).
     """
 
     starts: int | None = 10
@@ -84,7 +86,12 @@ class LBFGSSettings(CommonSettings):
     ftol: float = 1e-15
     gtol: float = 1e-12
     maxcor: int = 20
-    grad_cost: float | None = None
+    log_positive: bool = False
+
+    @property
+    def uses_gradient(self) -> bool:
+        """Every run calls the exact gradient."""
+        return True
 
     def validate(self) -> None:
         """Check ranges (and the shared fields)."""
@@ -99,21 +106,58 @@ class LBFGSSettings(CommonSettings):
             value = getattr(self, key)
             if not (isinstance(value, (int, float)) and value > 0):
                 raise ConfigError(f"optimizer.{key}", f"must be positive, got {value!r}")
-        if self.grad_cost is not None and not (isinstance(self.grad_cost, (int, float))
-                                               and 0 <= self.grad_cost < 1e6):
-            raise ConfigError("optimizer.grad_cost", f"must be a number ≥ 0 (evaluations per "
-                              f"gradient) or null, got {self.grad_cost!r}")
-
-    @property
-    def gradient_cost(self) -> float:
-        """Evaluations charged per gradient."""
-        return GRADIENT_COST if self.grad_cost is None else float(self.grad_cost)
 
     def search_evals(self, dim: int) -> int | None:
-        """At most ``starts`` × ``maxiter`` × (1 + grad_cost) × (line-search factor 20)."""
-        if self.starts is None:
+        """At most ``starts`` × ``maxiter`` × (1 + grad_cost) × (line-search factor 20);
+        ``None`` while the charge per gradient is not known."""
+        if self.starts is None or self.grad_cost is None:
             return None
-        return int(self.starts * self.maxiter * 20 * (1.0 + self.gradient_cost))
+        return int(self.starts * self.maxiter * 20 * (1.0 + self.grad_cost))
+
+
+def require_charge(grad_cost: float | None) -> float:
+    """The evaluations charged per gradient; a run that would charge none is refused.
+
+    Raises
+    ------
+    ConfigError
+        ``grad_cost`` is None: neither ``optimizer.grad_cost`` nor the problem says what a
+        gradient costs.
+    """
+    if grad_cost is None:
+        raise ConfigError("optimizer.grad_cost", "the problem does not declare what one exact "
+                          "gradient costs in evaluations; set optimizer.grad_cost (the CPU "
+                          "time of one gradient over that of one evaluation)")
+    return float(grad_cost)
+
+
+class UnitCube:
+    """The map between the box [lb, ub] and L-BFGS-B's unit cube: linear, or on a log
+    scale for the strictly positive variables when ``log_positive`` (z = lb·(ub/lb)^u)."""
+
+    def __init__(self, lb: np.ndarray, ub: np.ndarray, log_positive: bool = False) -> None:
+        self.lb, self.ub = np.asarray(lb, float), np.asarray(ub, float)
+        self.log = (self.lb > 0) if log_positive else np.zeros(self.lb.size, bool)
+        self.low = np.where(self.log, self.lb, 1.0)
+        self.span = np.where(self.log, np.log(np.where(self.log, self.ub, 1.0) / self.low),
+                             self.ub - self.lb)
+
+    def to_box(self, u: np.ndarray) -> np.ndarray:
+        """z in [lb, ub] of u (clipped to the cube), shape (dim,)."""
+        u = np.clip(np.asarray(u, float), 0.0, 1.0)
+        z = np.where(self.log, self.low * np.exp(u * self.span), self.lb + u * self.span)
+        return np.clip(z, self.lb, self.ub)
+
+    def to_cube(self, z: np.ndarray) -> np.ndarray:
+        """u in [0, 1]^dim of z (clipped to the box), shape (dim,)."""
+        z = np.clip(np.asarray(z, float), self.lb, self.ub)
+        shifted = np.where(self.log, np.log(np.where(self.log, z, 1.0) / self.low),
+                           z - self.lb)
+        return np.clip(shifted / self.span, 0.0, 1.0)
+
+    def dz_du(self, z: np.ndarray) -> np.ndarray:
+        """Diagonal of the map's Jacobian dz/du at z, shape (dim,)."""
+        return np.where(self.log, np.asarray(z, float) * self.span, self.span)
 
 
 def local_run(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray, ub: np.ndarray,
@@ -133,7 +177,7 @@ def local_run(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray, ub: np
     charge : float
         Evaluations charged per gradient.
     options : LBFGSSettings
-        ``maxiter``, ``ftol``, ``gtol``, ``maxcor``.
+        ``maxiter``, ``ftol``, ``gtol``, ``maxcor``, ``log_positive``.
 
     Returns
     -------
@@ -149,26 +193,26 @@ def local_run(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray, ub: np
     """
     from scipy.optimize import minimize
 
-    width = ub - lb
+    cube = UnitCube(lb, ub, options.log_positive)
     scale = [0.0]
 
     def fun(u: np.ndarray) -> tuple[float, np.ndarray]:
-        z = lb + np.clip(u, 0.0, 1.0) * width
+        z = cube.to_box(u)
         value = counted.scalar(z)
         if counted.transformed:
             raise ConfigError("optimizer", "the exact-gradient search minimizes the cost; "
                               "this problem optimizes another objective form")
-        counted.charge(charge)  # before the work: a gradient past the budget is not made
+        counted.charge_gradient(charge)  # before the work: past the budget it is not made
         out = gradient(z)
         if out.grad is None:
             raise NoGradientError(out.reason)
         if not scale[0]:
             scale[0] = max(abs(value), 1e-300)
-        return value / scale[0], np.asarray(out.grad) * width / scale[0]
+        return value / scale[0], np.asarray(out.grad) * cube.dz_du(z) / scale[0]
 
-    u0 = np.clip((np.asarray(z0, float) - lb) / width, 0.0, 1.0)
     try:
-        res = minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * lb.size,
+        res = minimize(fun, cube.to_cube(z0), jac=True, method="L-BFGS-B",
+                       bounds=[(0.0, 1.0)] * lb.size,
                        options={"maxiter": options.maxiter, "ftol": options.ftol,
                                 "gtol": options.gtol, "maxcor": options.maxcor,
                                 "maxfun": 20 * options.maxiter})
@@ -205,6 +249,7 @@ def run_lbfgs(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
     if gradient is None:
         raise ConfigError("optimizer", "lbfgs needs the problem's exact gradient (its "
                           "gradient hook); this problem has none: pick another optimizer")
+    charge = require_charge(settings.grad_cost)
     counted = as_counting(objective, main_budget(settings))
     lb, ub = np.asarray(lb, float), np.asarray(ub, float)
     rng = np.random.default_rng(seed)
@@ -217,8 +262,7 @@ def run_lbfgs(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
             z0 = lb + rng.random(lb.size) * (ub - lb) if (run or x0 is None) else \
                 np.asarray(x0, float)
             run += 1
-            message, nit = local_run(counted, z0, lb, ub, gradient, settings.gradient_cost,
-                                     settings)
+            message, nit = local_run(counted, z0, lb, ub, gradient, charge, settings)
             n_iters += nit
             logger.debug("L-BFGS-B run %d: %s; best %.12g", run, message, counted.best_cost)
             history.append(counted.best_cost)
@@ -232,7 +276,8 @@ def gradient_polish(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray,
                     ub: np.ndarray, gradient: GradientFn | None, grad_cost: float | None
                     ) -> str:
     """``optimizer.polish=gradient``: one L-BFGS-B run with exact gradients from the
-    search's best, inside the budget left (default :class:`LBFGSSettings` tolerances).
+    search's best, inside the budget left (default :class:`LBFGSSettings` tolerances),
+    each gradient charged ``grad_cost`` evaluations.
 
     Returns
     -------
@@ -243,7 +288,7 @@ def gradient_polish(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray,
     if gradient is None:
         raise ConfigError("optimizer.polish", "gradient needs the problem's exact gradient; "
                           "this problem has none: use polish=L-BFGS-B (differences)")
-    charge = GRADIENT_COST if grad_cost is None else float(grad_cost)
+    charge = require_charge(grad_cost)
     try:
         message, _ = local_run(counted, np.asarray(z0, float), np.asarray(lb, float),
                                np.asarray(ub, float), gradient, charge, LBFGSSettings())
@@ -253,5 +298,5 @@ def gradient_polish(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray,
     return "no_gradient" if message.startswith("no_gradient") else "converged"
 
 
-__all__ = ["GRADIENT_COST", "LBFGSSettings", "NoGradientError", "gradient_polish",
-           "local_run", "run_lbfgs"]
+__all__ = ["LBFGSSettings", "NoGradientError", "UnitCube", "gradient_polish", "local_run",
+           "require_charge", "run_lbfgs"]

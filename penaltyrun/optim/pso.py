@@ -106,6 +106,11 @@ class PSOSettings(CommonSettings):
     bh_strategy: str = "nearest"
     vh_strategy: str = "unmodified"
 
+    def batch_size(self, dim: int) -> int:
+        """Candidates the optimizer passes to the objective per call on ``dim`` variables
+        (what the forecast times one evaluation of): the swarm, ``n_particles``."""
+        return int(self.n_particles)
+
     def validate(self) -> None:
         """Check ranges and strategy names (and the shared fields).
 

@@ -151,6 +151,12 @@ class PSOMatlabSettings(CommonSettings):
     neighbourhood: str = "with_self"
     stall_test: str = "code"
 
+    def batch_size(self, dim: int) -> int:
+        """Candidates the optimizer passes to the objective per call on ``dim`` variables
+        (what the forecast times one evaluation of): the swarm, ``swarm_size`` (default
+        :func:`default_swarm_size`)."""
+        return int(self.swarm_size or default_swarm_size(dim))
+
     def validate(self) -> None:
         """Check ranges (and the shared fields).
 

@@ -27,7 +27,13 @@ A problem module (``penaltyrun/problems/<name>.py``) exposes
   gradient of one candidate's cost with respect to its matrices and scalars
   (:class:`GradientProblem`); a point where it does not exist (a status change, a kink, a
   simulated cost) returns the reason instead of a number. Optimizers that need gradients
-  check it with :func:`gradient_support`.
+  check it with :func:`gradient_support`. A problem whose cost has no gradient anywhere
+  may instead say why in a one-line ``no_gradient`` attribute (shown wherever a gradient
+  is asked for).
+* with the gradient, optionally ``gradient_cost() -> GradientCost | None``: the measured CPU
+  time of one gradient in evaluations of one candidate, and where it was measured
+  (:class:`PricedGradientProblem`); what ``optimizer=lbfgs`` and ``optimizer.polish=gradient``
+  charge per gradient unless ``optimizer.grad_cost`` says otherwise.
 * optionally, in the dict ``simulate`` returns, besides ``t`` and the time histories:
   ``channels`` ({history key: [one name per column]}) and ``limits`` ({history key:
   (lower, upper)}, scalars or one value per column, ``±inf`` for none), so the report
@@ -64,6 +70,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.typed import is_number
 
 #: Status of a candidate stopped by the exact cutoff (its cost is a bound above its threshold).
 CUTOFF_STATUS = "cutoff"
@@ -198,12 +205,63 @@ class GradientProblem(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class GradientCost:
+    """What one exact gradient costs, in evaluations of one candidate (``gradient_cost``
+    hook): the budget of a gradient optimizer counts each gradient as this many
+    evaluations, so its ``n_evals`` compare with the other optimizers' at equal CPU.
+
+    Attributes
+    ----------
+    evaluations : float
+        CPU time of one gradient d cost / d z (the hook plus the map's VJP) over the CPU
+        time of one single-candidate evaluation (dimensionless, > 0).
+    source : str
+        Where the number was measured: the benchmark script and its table in
+        ``bench/README.md``.
+
+    Raises
+    ------
+    ValueError
+        ``evaluations`` not a finite positive number.
+    """
+
+    evaluations: float
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        value = self.evaluations
+        if not (is_number(value, any_real=True) and 0.0 < float(value) < float("inf")):
+            raise ValueError(f"a gradient's cost must be a positive number of evaluations, "
+                             f"got {value!r}")
+        object.__setattr__(self, "evaluations", float(value))
+
+
+@runtime_checkable
+class PricedGradientProblem(Protocol):
+    """Optional capability of a problem with a gradient: the measured cost of one gradient
+    in evaluations (:class:`GradientCost`), the default charge per gradient of
+    ``optimizer=lbfgs`` and ``optimizer.polish=gradient``. It may depend on the instance
+    (criterion, plant size)."""
+
+    def gradient_cost(self) -> GradientCost | None:
+        """Evaluations one gradient of this instance costs, and where that was measured
+        (None: not measured; a gradient optimizer then needs ``optimizer.grad_cost``)."""
+        ...
+
+
 def gradient_support(problem: Any) -> str:
-    """Empty when ``problem`` has the ``gradient`` hook, else the one-line reason."""
+    """Empty when ``problem`` has the ``gradient`` hook, else the one-line reason: the
+    problem's own ``no_gradient`` text (a cost that is never differentiable says why), or
+    that it defines no ``gradient`` method."""
     if callable(getattr(problem, "gradient", None)):
         return ""
-    return (f"problem {getattr(problem, 'name', type(problem).__name__)!r} has no gradient "
-            "(its object defines no gradient(mats, scalars) method)")
+    name = getattr(problem, "name", type(problem).__name__)
+    own = getattr(problem, "no_gradient", "")
+    if isinstance(own, str) and own:
+        return f"problem {name!r} has no gradient: {own}"
+    return (f"problem {name!r} has no gradient (its object defines no gradient(mats, "
+            "scalars) method)")
 
 
 @dataclass(frozen=True)
@@ -429,6 +487,8 @@ __all__ = [
     "BatchEvaluation",
     "ClosedLoop",
     "CostGradient",
+    "GradientCost",
+    "PricedGradientProblem",
     "GradientProblem",
     "MatrixSpec",
     "ParamsMixin",

@@ -85,6 +85,10 @@ class BasinMap:
         Its cost (graded where it did not arrive).
     horizon : float
         The horizon judged at (``axes.time_unit``).
+    region : dict or None
+        A problem's estimate of the region of attraction in this plane (a problem with a
+        ``basin_region`` member, e.g. a Lyapunov sub-level set): ``inside`` (m, n) bool,
+        ``level``, ``certified`` and ``label``; None without one.
     """
 
     axes: BasinAxes
@@ -94,6 +98,15 @@ class BasinMap:
     arrival_time: np.ndarray
     cost: np.ndarray
     horizon: float
+    region: dict[str, Any] | None = None
+
+    def region_check(self) -> tuple[int, int]:
+        """(grid points inside the region estimate that converged, grid points inside it);
+        (0, 0) without an estimate."""
+        if self.region is None:
+            return 0, 0
+        inside = self.region["inside"]
+        return int(np.sum(self.converged & inside)), int(np.sum(inside))
 
     @property
     def share_converged(self) -> float:
@@ -149,9 +162,13 @@ def basin_map(problem: Any, mats: Mapping[str, Any],
     shape = (y.size, x.size)
     converged = np.asarray(res["converged"], dtype=bool).reshape(shape)
     arrival = np.asarray(res["arrival_time"], dtype=float).reshape(shape)
+    region_of = getattr(problem, "basin_region", None)
+    region = region_of(mats, scalars, points) if callable(region_of) else None
+    if region is not None:
+        region = {**region, "inside": np.asarray(region["inside"], bool).reshape(shape)}
     return BasinMap(axes, x, y, converged, np.where(converged, arrival, np.nan),
                     np.asarray(res["cost"], dtype=float).reshape(shape),
-                    float(res["horizon"]))
+                    float(res["horizon"]), region)
 
 
 def arrival_times(converged: np.ndarray, t_final: np.ndarray) -> np.ndarray:

@@ -43,6 +43,9 @@ CRITERIA = ("deadline", "time_energy", "terminal")
 DEADLINE, TIME_ENERGY, TERMINAL = CRITERIA
 #: Parameter names of the criterion settings (every problem with criteria has them).
 SETTINGS = ("criterion", "rho", "terminal_weight", "free_time_cap")
+#: Problem parameters added after studies were committed: left ``null`` they are dropped
+#: from the config hash (:func:`hashed_node`), so older configurations keep their hash.
+HASH_NEUTRAL_WHEN_NULL = (*SETTINGS, "train_quantile")
 #: Relative tolerance of the symmetry and PSD checks of ``terminal_weight``.
 SYM_RTOL = 1e-10
 
@@ -135,14 +138,15 @@ def check(params: Any, prefix: str = "problem") -> None:
 
 
 def hashed_node(problem: Mapping[str, Any]) -> dict[str, Any]:
-    """A config's ``problem`` node as its config hash sees it: criterion settings left
+    """A config's ``problem`` node as its config hash sees it: the settings of
+    :data:`HASH_NEUTRAL_WHEN_NULL` (the criterion settings, ``train_quantile``) left
     ``null`` are dropped, so a shipped problem YAML that lists them hashes as it did before
-    the criteria existed (committed studies find their runs by that hash)."""
+    they existed (committed studies find their runs by that hash)."""
     node = dict(problem)
     params = node.get("params")
     if isinstance(params, Mapping):
         node["params"] = {k: v for k, v in params.items()
-                          if not (k in SETTINGS and v is None)}
+                          if not (k in HASH_NEUTRAL_WHEN_NULL and v is None)}
     return node
 
 
@@ -194,6 +198,7 @@ def terminal_cost(x_final: Any, S: np.ndarray) -> np.ndarray:
     return np.einsum("...i,ij,...j->...", x, S, x)
 
 
-__all__ = ["CRITERIA", "CriterionParams", "DEADLINE", "SETTINGS", "TERMINAL", "TIME_ENERGY",
+__all__ = ["CRITERIA", "CriterionParams", "DEADLINE", "HASH_NEUTRAL_WHEN_NULL", "SETTINGS",
+           "TERMINAL", "TIME_ENERGY",
            "check", "freeze", "hashed_node", "judges_at_deadline", "report_name", "run_horizon",
            "terminal_cost", "terminal_matrix", "time_energy_cost"]

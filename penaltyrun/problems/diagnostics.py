@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.problems.base import ClosedLoop
+from penaltyrun.problems.hooks import hooks
 
 logger = logging.getLogger(__name__)
 
@@ -153,7 +154,7 @@ def closed_loop_of(problem: Any, mats: Mapping[str, Any],
     TypeError
         The hook returned something other than a :class:`ClosedLoop` or None.
     """
-    hook = getattr(problem, "closed_loop", None)
+    hook = hooks(problem).closed_loop
     if hook is None:
         return None
     loop = hook({k: np.asarray(v, dtype=float) for k, v in mats.items()}, scalars or None)

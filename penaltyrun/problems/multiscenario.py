@@ -4,10 +4,16 @@ A problem's parameters may carry ``train_scenarios`` (a list of parameter overri
 one training scenario on top of the case and the other overrides; ``{}`` is the case's own
 scenario), ``train_sample`` / ``train_seed`` (a seeded sample of that many scenarios drawn
 by the problem's ``sample_training(n, seed)``, appended to the list) and
-``train_aggregate`` (``mean`` or ``max``). The tuned objective of a candidate
-is then the mean (or the max) of its costs over the training scenarios, each cost as the
-single-scenario problem defines it (graded penalty included, so it stays finite); the
-candidate converges only if it converges in every training scenario.
+``train_aggregate`` (``mean``, ``max`` or ``quantile``, the last at level
+``train_quantile``). The tuned objective of a candidate is then the mean, the max or the
+quantile of its costs over the training scenarios, each cost as the single-scenario problem
+defines it (graded penalty included, so it stays finite); the candidate converges only if it
+converges in every training scenario.
+
+The quantile is numpy's default (``method="linear"``): with the m costs sorted,
+c₍₀₎ ≤ … ≤ c₍ₘ₋₁₎, and h = q (m − 1), it is c₍⌊h⌋₎ + (h − ⌊h⌋)(c₍⌊h⌋+1₎ − c₍⌊h⌋₎). A
+high quantile (e.g. q = 0.9) prices the bad scenarios without letting the single worst one
+(``max``) decide alone; q = 1 is the max, q = 0.5 the median.
 
 The held-out set stays the one of the problem built without ``train_scenarios`` (see each
 problem's ``holdout_scenarios``) and must be disjoint from the training scenarios: an
@@ -34,10 +40,13 @@ from penaltyrun.problems.base import (
     accepts_thresholds,
     gradient_support,
 )
-from penaltyrun.typed import is_int
+from penaltyrun.problems.hooks import hooks
+from penaltyrun.typed import is_int, is_number
 
-AGGREGATES = ("mean", "max")
-KEYS = ("train_scenarios", "train_aggregate", "train_sample", "train_seed")
+AGGREGATES = ("mean", "max", "quantile")
+KEYS = ("train_scenarios", "train_aggregate", "train_sample", "train_seed", "train_quantile")
+#: Level of ``train_aggregate: quantile`` when ``train_quantile`` is not set.
+DEFAULT_QUANTILE = 0.9
 
 
 @dataclass(frozen=True)
@@ -50,11 +59,14 @@ class TrainingParams:
         Training scenarios as parameter overrides; ``None``: single-scenario tuning (the
         case itself).
     train_aggregate : str
-        ``"mean"`` or ``"max"`` of the per-scenario costs.
+        ``"mean"``, ``"max"`` or ``"quantile"`` of the per-scenario costs.
     train_sample : int
         Further training scenarios drawn by the problem's ``sample_training`` (0: none).
     train_seed : int
         Seed of that sample (different from the held-out seeds).
+    train_quantile : float or None
+        Level q in (0, 1] of ``train_aggregate: quantile`` (``None``: 0.9); only with that
+        aggregate.
     HOLDOUT_OFF : mapping (class attribute)
         Overrides that empty a problem's held-out set: training scenarios are built with
         them, since only the run's own held-out set counts (and a training scenario must not
@@ -66,10 +78,40 @@ class TrainingParams:
     train_aggregate: str = "mean"
     train_sample: int = 0
     train_seed: int = 1
+    train_quantile: float | None = None
 
 
-def _aggregate(costs: np.ndarray, how: str) -> np.ndarray:
-    return costs.mean(axis=0) if how == "mean" else costs.max(axis=0)
+def _aggregate(costs: np.ndarray, how: str, q: float = DEFAULT_QUANTILE) -> np.ndarray:
+    """Aggregate of per-scenario costs ``costs`` (m, B) over the scenarios → (B,)."""
+    if how == "mean":
+        return costs.mean(axis=0)
+    if how == "max":
+        return costs.max(axis=0)
+    return np.quantile(costs, q, axis=0)
+
+
+def quantile_weights(costs: np.ndarray, q: float) -> np.ndarray | None:
+    """Weights w (m,) with quantile(costs, q) = w · costs locally (numpy's ``linear``
+    method: the two order statistics around h = q (m − 1)); ``None`` where the quantile has
+    a kink (two tied costs of neighbouring ranks with different weights: moving one of them
+    swaps the ranks, and the weight jumps), so no gradient exists there."""
+    m = len(costs)
+    order = np.argsort(costs, kind="stable")
+    h = q * (m - 1)
+    lo = int(np.floor(h))
+    frac = h - lo
+    by_rank = np.zeros(m)
+    by_rank[lo] = 1.0 - frac
+    if frac > 0.0:
+        by_rank[lo + 1] = frac
+    ranked = np.asarray(costs, dtype=float)[order]
+    scale = max(1.0, float(np.max(np.abs(ranked))))
+    for j in range(m - 1):
+        if by_rank[j] != by_rank[j + 1] and ranked[j + 1] - ranked[j] <= 1e-9 * scale:
+            return None
+    weights = np.zeros(m)
+    weights[order] = by_rank
+    return weights
 
 
 class MultiScenarioProblem:
@@ -84,17 +126,19 @@ class MultiScenarioProblem:
     overrides : list of dict
         The training scenarios' overrides (recorded in results).
     aggregate : str
-        ``"mean"`` or ``"max"``.
+        ``"mean"``, ``"max"`` or ``"quantile"``.
     params : dataclass, optional
         Parameters to report (default: the base's with the training settings filled in).
     """
 
     def __init__(self, base: Any, scenarios: list[Any], overrides: list[dict[str, Any]],
-                 aggregate: str, params: Any = None) -> None:
+                 aggregate: str, params: Any = None, quantile: float = DEFAULT_QUANTILE
+                 ) -> None:
         self.base = base
         self.scenarios = scenarios
         self.overrides = overrides
         self.aggregate = aggregate
+        self.quantile = float(quantile)
         self.name = base.name
         self.case = base.case
         self.matrices = base.matrices
@@ -116,17 +160,25 @@ class MultiScenarioProblem:
     def _gradient(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
                   ) -> CostGradient:
         """Gradient of the aggregate (the ``gradient`` hook when every training scenario
-        has one): the mean of the scenarios' gradients, or for ``max`` the gradient of the
-        one scenario whose cost is the largest (none where two tie: a kink)."""
+        has one): the mean of the scenarios' gradients, for ``max`` the gradient of the
+        one scenario whose cost is the largest (none where two tie: a kink), for
+        ``quantile`` the interpolation of the two order statistics it uses
+        (:func:`quantile_weights`; none at a tie)."""
         parts = [p.gradient(mats, scalars) for p in self.scenarios]
         costs = np.asarray([g.cost for g in parts], dtype=float)
-        cost = float(_aggregate(costs[:, None], self.aggregate)[0])
+        cost = float(_aggregate(costs[:, None], self.aggregate, self.quantile)[0])
         failed = [g for g in parts if not g.exists]
         status = next((g.status for g in parts if g.status != "converged"), "converged")
         if failed:
             return CostGradient(cost, status, None, {}, f"training scenario: {failed[0].reason}")
         if self.aggregate == "mean":
             weights = np.full(len(parts), 1.0 / len(parts))
+        elif self.aggregate == "quantile":
+            found = quantile_weights(costs, self.quantile)
+            if found is None:
+                return CostGradient(cost, status, None, {}, "training scenario costs tie "
+                                    "at the quantile's order statistics (a kink)")
+            weights = found
         else:
             order = np.argsort(costs)
             if len(costs) > 1 and costs[order[-1]] - costs[order[-2]] <= \
@@ -148,14 +200,14 @@ class MultiScenarioProblem:
 
         ``thresholds`` (exact cutoff, shape (B,)) are passed to every scenario that takes
         them when the aggregate is ``max`` (a scenario's bound above the threshold puts the
-        max above it too); the ``mean`` ignores them (one scenario's cost says nothing of
-        the mean without bounds on the others').
+        max above it too); the ``mean`` and the ``quantile`` ignore them (one scenario's
+        cost says nothing of them without bounds on the others').
         """
         cut = thresholds if self.aggregate == "max" else None
         evals = [p.evaluate_batch(mats, scalars, thresholds=cut)
                  if cut is not None and accepts_thresholds(p) else p.evaluate_batch(mats, scalars)
                  for p in self.scenarios]
-        cost = _aggregate(np.stack([e.cost for e in evals]), self.aggregate)
+        cost = _aggregate(np.stack([e.cost for e in evals]), self.aggregate, self.quantile)
         conv = np.stack([e.converged for e in evals])
         status = []
         for b in range(cost.shape[0]):
@@ -181,11 +233,12 @@ class MultiScenarioProblem:
         bad = [d["status"] for d in details if not d["converged"]]
         return {
             "problem": self.name, "case": self.case,
-            "cost": float(_aggregate(costs, self.aggregate)[0]),
+            "cost": float(_aggregate(costs, self.aggregate, self.quantile)[0]),
             "converged": all(bool(d["converged"]) for d in details),
             "status": bad[0] if bad else "converged",
             "t_final": max(float(d["t_final"]) for d in details),
             "train_aggregate": self.aggregate,
+            **({"train_quantile": self.quantile} if self.aggregate == "quantile" else {}),
             "train_scenarios": [{"overrides": o, "cost": float(d["cost"]),
                                  "converged": bool(d["converged"]), "status": d["status"],
                                  "t_final": float(d["t_final"])}
@@ -209,8 +262,9 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
     Raises
     ------
     ConfigError
-        Empty or malformed ``train_scenarios``, an unknown ``train_aggregate``, or a training
-        scenario that is also a held-out scenario.
+        Empty or malformed ``train_scenarios``, an unknown ``train_aggregate``, a
+        ``train_quantile`` outside (0, 1] or set without ``train_aggregate: quantile``, or a
+        training scenario that is also a held-out scenario.
     """
     rest = {k: v for k, v in overrides.items() if k not in KEYS}
     scenarios = overrides.get("train_scenarios")
@@ -218,6 +272,7 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
     if aggregate not in AGGREGATES:
         raise ConfigError("problem.params.train_aggregate", f"unknown aggregate {aggregate!r}",
                           allowed=AGGREGATES)
+    quantile = check_quantile(overrides.get("train_quantile"), aggregate)
     base = mod.make_problem(case, rest)
     n_sample = overrides.get("train_sample") or 0
     seed = overrides.get("train_seed", 1)
@@ -233,10 +288,11 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
                           "need a non-empty list of parameter overrides (use {} for the "
                           "case itself), or null for single-scenario tuning")
     if n_sample:
-        if not hasattr(base, "sample_training"):
+        sample = hooks(base).sample_training
+        if sample is None:
             raise ConfigError("problem.params.train_sample",
                               f"problem {base.name!r} cannot draw training scenarios")
-        scenarios = list(scenarios or []) + base.sample_training(n_sample, seed)
+        scenarios = list(scenarios or []) + sample(n_sample, seed)
     if scenarios is None:
         return base
     if getattr(getattr(base, "params", None), "objective_form", "cost") != "cost":
@@ -251,7 +307,8 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
                           "need a non-empty list of parameter overrides (use {} for the "
                           "case itself), or null for single-scenario tuning")
     built, recorded = [], []
-    held = base.holdout_keys() if hasattr(base, "holdout_keys") else set()
+    holdout_keys = hooks(base).holdout_keys
+    held = holdout_keys() if holdout_keys is not None else set()
     for k, scen in enumerate(scenarios):
         if not isinstance(scen, Mapping):
             raise ConfigError("problem.params.train_scenarios",
@@ -271,15 +328,39 @@ def build(mod: ModuleType, case: str, overrides: Mapping[str, Any]) -> Any:
         except ConfigError as err:
             raise ConfigError("problem.params.train_scenarios",
                               f"scenario {k} ({dict(scen)}) is invalid: {err}") from None
-        if hasattr(prob, "scenario_key") and prob.scenario_key() in held:
+        key = hooks(prob).scenario_key
+        if key is not None and key() in held:
             raise ConfigError("problem.params.train_scenarios",
                               f"training scenario {k} ({dict(scen)}) is also in the held-out "
                               "set; training and held-out scenarios must be disjoint")
         built.append(prob)
         recorded.append(dict(scen))
     params = replace(base.params, train_scenarios=None if listed is None else tuple(listed),
-                     train_aggregate=aggregate, train_sample=n_sample, train_seed=seed)
-    return MultiScenarioProblem(base, built, recorded, aggregate, params)
+                     train_aggregate=aggregate, train_sample=n_sample, train_seed=seed,
+                     train_quantile=quantile if aggregate == "quantile" else None)
+    return MultiScenarioProblem(base, built, recorded, aggregate, params, quantile)
 
 
-__all__ = ["AGGREGATES", "KEYS", "MultiScenarioProblem", "TrainingParams", "build"]
+def check_quantile(value: Any, aggregate: str) -> float:
+    """The level of ``train_aggregate: quantile`` (``value`` ``None``: 0.9).
+
+    Raises
+    ------
+    ConfigError
+        ``value`` not a number in (0, 1], or set with another aggregate.
+    """
+    if value is None:
+        return DEFAULT_QUANTILE
+    if aggregate != "quantile":
+        raise ConfigError("problem.params.train_quantile",
+                          f"is the level of train_aggregate=quantile, but the aggregate is "
+                          f"{aggregate!r}; set train_aggregate=quantile or drop train_quantile")
+    if not (is_number(value, any_real=True) and 0.0 < float(value) <= 1.0):
+        raise ConfigError("problem.params.train_quantile",
+                          f"must be a number in (0, 1] (0.9: the 90 % quantile of the "
+                          f"training costs), got {value!r}")
+    return float(value)
+
+
+__all__ = ["AGGREGATES", "DEFAULT_QUANTILE", "KEYS", "MultiScenarioProblem", "TrainingParams",
+           "build", "check_quantile", "quantile_weights"]

@@ -21,7 +21,13 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems.base import BatchEvaluation, CostGradient, MatrixSpec, ScalarSpec
+from penaltyrun.problems.base import (
+    BatchEvaluation,
+    CostGradient,
+    GradientCost,
+    MatrixSpec,
+    ScalarSpec,
+)
 from penaltyrun.typed import is_int
 
 #: Cost given to a candidate whose cost raised or was not finite (finite, so that every
@@ -155,13 +161,22 @@ class GradientCostProblem(CostProblem):
     grad : callable
         ``grad(**mats, **scalars)`` of one candidate (never batched): {matrix name: d cost /
         d entry, shape (n, n)} plus {scalar name: d cost / d scalar}.
+    price : GradientCost or None
+        What one call of ``grad`` costs in evaluations of ``cost`` (the ``gradient_cost``
+        hook); None: not measured.
     """
 
     def __init__(self, cost: Callable[..., Any], matrices: tuple[MatrixSpec, ...],
                  scalars: tuple[ScalarSpec, ...], batched: bool, name: str,
-                 grad: Callable[..., Any]) -> None:
+                 grad: Callable[..., Any], price: GradientCost | None = None) -> None:
         super().__init__(cost, matrices, scalars, batched, name)
         self.grad = grad
+        self.price = price
+
+    def gradient_cost(self) -> GradientCost | None:
+        """What one gradient costs in evaluations, as given to :func:`from_cost` (None: not
+        given)."""
+        return self.price
 
     def gradient(self, mats: Mapping[str, np.ndarray],
                  scalars: Mapping[str, float] | None = None) -> CostGradient:
@@ -194,7 +209,8 @@ def from_cost(cost: Callable[..., Any],
               matrices: Mapping[str, tuple[int, tuple[float, float]]], *,
               scalars: Mapping[str, tuple[float, float]] | None = None,
               batched: bool = False, name: str = "user",
-              gradient: Callable[..., Any] | None = None) -> CostProblem:
+              gradient: Callable[..., Any] | None = None,
+              gradient_cost: float | None = None) -> CostProblem:
     """A problem that tunes the matrices of your own cost function.
 
     Parameters
@@ -219,6 +235,11 @@ def from_cost(cost: Callable[..., Any],
         candidate, also for a batched cost) returns {matrix name: ∂cost/∂K_ij, shape
         (n, n)} and {scalar name: ∂cost/∂scalar}. Enables ``optimizer=lbfgs``,
         ``polish=gradient`` and ``evaluate(..., gradient=True)``.
+    gradient_cost : float, optional
+        What one call of ``gradient`` costs, in calls of ``cost`` (CPU time of one gradient
+        over that of one evaluation, measured by you): ``optimizer=lbfgs`` and
+        ``polish=gradient`` count each gradient as this many evaluations of the budget.
+        Without it those need ``optimizer.grad_cost``.
 
     Returns
     -------
@@ -258,10 +279,19 @@ def from_cost(cost: Callable[..., Any],
     clash = {m.name for m in specs} & {s.name for s in scalar_specs}
     if clash:
         raise ConfigError(f"scalars.{sorted(clash)[0]}", "is also a matrix name")
+    price = None
+    if gradient_cost is not None:
+        try:
+            price = GradientCost(gradient_cost, "from_cost(gradient_cost=...)")
+        except ValueError as exc:
+            raise ConfigError("gradient_cost", str(exc)) from None
+        if gradient is None:
+            raise ConfigError("gradient_cost", "needs gradient (the cost of which gradient?)")
     if gradient is not None:
         if not callable(gradient):
             raise ConfigError("gradient", f"must be callable, got {type(gradient).__name__}")
-        return GradientCostProblem(cost, tuple(specs), scalar_specs, batched, name, gradient)
+        return GradientCostProblem(cost, tuple(specs), scalar_specs, batched, name, gradient,
+                                   price)
     return CostProblem(cost, tuple(specs), scalar_specs, batched, name)
 
 

@@ -24,6 +24,10 @@ closed form is the one that agrees with a tighter ``solve_ivp``). With threshold
 form computes J exactly and reports status ``cutoff`` with that J when it exceeds the
 threshold by :data:`CUT_MARGIN`, as the integrator would have stopped.
 
+Gradient (``gradient`` hook): d J / d K of a converged gain from the closed form, by
+:mod:`penaltyrun.problems.zermelo_gradient`; none (with the reason) where the cost is not
+differentiable.
+
 Training scenario: the start ``x0``. Held-out set: starts on circles around the origin
 (``holdout_radii`` × ``holdout_n_angles`` equally spaced angles), any start equal to ``x0``
 left out.
@@ -43,10 +47,12 @@ from penaltyrun.dynamics import integrate
 from penaltyrun.dynamics.zermelo import drift, simulate_batch
 from penaltyrun.dynamics.zermelo_closed import QUAD_RTOL, closed_batch
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import horizon
+from penaltyrun.problems import gradient_costs, horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
+    CostGradient,
+    GradientCost,
     MatrixSpec,
     PaperValues,
     ParamsMixin,
@@ -220,6 +226,20 @@ class Zermelo:
             "t_final": float(t_end[0]),
             "final_distance": float(dist[0]),
         }
+
+    def gradient(self, mats: Mapping[str, np.ndarray],
+                 scalars: Mapping[str, float] | None = None) -> CostGradient:
+        """Cost of one gain and its exact gradient d J / d K from the closed form
+        (:mod:`~penaltyrun.problems.zermelo_gradient`), or the reason there is none."""
+        from penaltyrun.problems.zermelo_gradient import zermelo_gradient
+
+        return zermelo_gradient(self, check_spd("matrices.K", mats["K"], 2))
+
+    def gradient_cost(self) -> GradientCost:
+        """What one gradient costs in evaluations: measured by
+        ``bench/gradient_cost_zermelo_mpc.py``, table in ``bench/README.md``
+        (:func:`~penaltyrun.problems.gradient_costs.zermelo_cost`)."""
+        return gradient_costs.zermelo_cost()
 
     def training_scenario(self) -> dict[str, Any]:
         """The scenario K is tuned on: the start ``x0``."""

@@ -17,12 +17,16 @@ import pandas as pd
 
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.bestknown import family, reference, with_problem_variant
+from penaltyrun.report.rows import TRACE_COLUMNS, has, narrow, with_columns
 
 EPSILONS = (1e-2, 1e-3)
+#: Most best-so-far values (starts × grid points) :func:`anytime_band` holds at once; the
+#: quantiles of each grid point are the same in batches of grid points.
+BAND_VALUES = 4_000_000
 CELL = ["problem", "case", "problem_variant", "variant", "optimizer", "param"]
 
 
-def trace_of(row: pd.Series) -> tuple[np.ndarray, np.ndarray] | None:
+def trace_of(row: pd.Series | dict) -> tuple[np.ndarray, np.ndarray] | None:
     """(evaluations, best-so-far) of a job row, or None when it has no trace."""
     evals, best = row.get("trace_evals"), row.get("trace_best")
     if evals is None or best is None or len(evals) == 0 or len(evals) != len(best):
@@ -69,12 +73,19 @@ def ert(hits: np.ndarray, spent: np.ndarray) -> float:
 
 
 def cell_traces(g: pd.DataFrame) -> list[tuple[np.ndarray, np.ndarray, float]]:
-    """(evals, best, evaluations spent) of each non-failed start of a cell with a trace."""
+    """(evals, best, evaluations spent) of each non-failed start of a cell with a trace
+    (the traces of a lazily read frame read for these rows only)."""
+    ran = g[~g["status"].isin(NO_RESULT_STATUSES)]
+    if ran.empty or not has(ran, "trace_evals"):
+        return []
+    ran = with_columns(ran, TRACE_COLUMNS)
+    if "trace_evals" not in ran or "trace_best" not in ran:
+        return []
+    spent_all = ran["n_evals"] if "n_evals" in ran else [None] * len(ran)
     out = []
-    for _, row in g[~g["status"].isin(NO_RESULT_STATUSES)].iterrows():
-        tr = trace_of(row)
+    for evals, best, spent in zip(ran["trace_evals"], ran["trace_best"], spent_all):
+        tr = trace_of({"trace_evals": evals, "trace_best": best})
         if tr is not None:
-            spent = row.get("n_evals")
             spent = float(spent) if spent is not None and np.isfinite(spent) else tr[0][-1]
             out.append((tr[0], tr[1], spent))
     return out
@@ -88,7 +99,7 @@ def target_table(df: pd.DataFrame, bk: pd.DataFrame,
     trace), ``n_reached``, ``share_reached``, ``ert_evals`` (``inf`` if none reached) and
     ``median_evals_to_target`` over the starts that reached it.
     """
-    df = with_problem_variant(df)
+    df = narrow(with_problem_variant(df), [*CELL, "status", "n_evals", *TRACE_COLUMNS])
     rows = []
     for key, g in df[df["optimizer"] != "baseline"].groupby(CELL, sort=True):
         traces = cell_traces(g)
@@ -119,8 +130,12 @@ def anytime_band(traces: list[tuple[np.ndarray, np.ndarray, float]], grid: np.nd
     if not traces:
         nan = np.full(np.shape(grid), np.nan)
         return nan, nan, nan
-    values = np.array([best_so_far(e, b, grid) for e, b, _ in traces])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns stay NaN
-        q = np.nanquantile(values, [0.5, 0.25, 0.75], axis=0)
+    grid = np.asarray(grid)
+    q = np.empty((3, grid.size))
+    step = max(1, BAND_VALUES // len(traces))  # grid points per batch: bounded memory
+    for j in range(0, grid.size, step):
+        values = np.array([best_so_far(e, b, grid[j:j + step]) for e, b, _ in traces])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns stay NaN
+            q[:, j:j + step] = np.nanquantile(values, [0.5, 0.25, 0.75], axis=0)
     return q[0], q[1], q[2]

@@ -22,6 +22,8 @@ from penaltyrun.report.sections import matrices_of
 from penaltyrun.report.tables import fmt, markdown, md_text, save_figure
 
 COLUMNS = ["map", "by", "starts converged", "median arrival", "median cost"]
+#: Column added when a problem gives an estimate of the region of attraction.
+REGION_COLUMN = "inside region estimate: converged"
 #: Grid points per axis of a report's maps (``penaltyrun-report --basin-points``).
 REPORT_POINTS = 16
 
@@ -43,7 +45,8 @@ def maps_of(g: pd.DataFrame, n: int = DEFAULT_POINTS) -> dict[str, tuple[pd.Seri
 
 def table(maps: dict[str, tuple[pd.Series, BasinMap]]) -> pd.DataFrame:
     """One row per map: the start it comes from, the converged grid points (k/n) and the
-    median arrival time and cost over them."""
+    median arrival time and cost over them; with a region estimate (:data:`REGION_COLUMN`)
+    also the grid points inside it that converged (k/n)."""
     rows = []
     for fam, (row, bm) in maps.items():
         ok = bm.converged
@@ -55,8 +58,20 @@ def table(maps: dict[str, tuple[pd.Series, BasinMap]]) -> pd.DataFrame:
                                         if arrival.size and np.isfinite(arrival).all()
                                         else "—"),
                      "median cost": fmt(float(np.median(bm.cost[ok])), 4)
-                     if ok.any() else "—"})
-    return pd.DataFrame(rows, columns=COLUMNS)
+                     if ok.any() else "—",
+                     REGION_COLUMN: _region_text(bm)})
+    regions = any(bm.region is not None for _, bm in maps.values())
+    return pd.DataFrame(rows, columns=[*COLUMNS, REGION_COLUMN]
+                        )[[*COLUMNS, REGION_COLUMN] if regions else COLUMNS]
+
+
+def _region_text(bm: BasinMap) -> str:
+    """``k/n`` grid points inside the problem's region estimate that converged, "—" without
+    an estimate."""
+    if bm.region is None:
+        return "—"
+    hit, inside = bm.region_check()
+    return f"{hit}/{inside}"
 
 
 def figure(maps: dict[str, tuple[pd.Series, BasinMap]], title: str, path: Path) -> Path:
@@ -84,6 +99,9 @@ def figure(maps: dict[str, tuple[pd.Series, BasinMap]], title: str, path: Path) 
                       vmin=0.0, vmax=4.0, shading="nearest")
         mesh = ax.pcolormesh(bm.x, bm.y, values[fam], cmap="viridis", norm=norm,
                              shading="nearest")
+        if bm.region is not None and bm.region["inside"].any():
+            ax.contour(bm.x, bm.y, bm.region["inside"].astype(float), levels=[0.5],
+                       colors="red", linewidths=1.5)
         if bm.axes.marker is not None:
             ax.plot(*bm.axes.marker, marker="*", color="red", markersize=12, linestyle="",
                     label="training start")
@@ -122,8 +140,21 @@ def section(g: pd.DataFrame, out: Path, stem: str, n: int = REPORT_POINTS) -> li
             f"other state components as in the problem's held-out set) at the held-out "
             f"horizon {fmt(bm.horizon, 4)}{unit}. A grid point counts as converged when "
             "its run reached the target by then: a sampled map, not a proof.", "",
-            markdown(table(maps), COLUMNS), "", f"![basins of attraction]({path.name})", ""]
+            *_region_lines(maps),
+            markdown(table(maps)), "", f"![basins of attraction]({path.name})", ""]
 
 
-__all__ = ["COLUMNS", "REPORT_POINTS", "figure", "maps_of", "section", "table"]
+def _region_lines(maps: dict[str, tuple[pd.Series, BasinMap]]) -> list[str]:
+    """The region estimates' description (red contour), when the problem gives one."""
+    with_region = [(fam, bm) for fam, (_, bm) in maps.items() if bm.region is not None]
+    if not with_region:
+        return []
+    levels = "; ".join(f"{fam}: c = {fmt(float(bm.region['level']), 4)} (certified "
+                       f"{fmt(float(bm.region['certified']), 3)})" for fam, bm in with_region)
+    return [f"Red contour: the problem's estimate of the region of attraction in this plane, "
+            f"the {md_text(with_region[0][1].region['label'])} ({levels}). The last column "
+            "counts the grid points inside it that converged.", ""]
+
+
+__all__ = ["COLUMNS", "REGION_COLUMN", "REPORT_POINTS", "figure", "maps_of", "section", "table"]
 

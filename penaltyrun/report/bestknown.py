@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from penaltyrun.io import decode_json
+from penaltyrun.report.rows import full_row, narrow
 from penaltyrun.report.stats import converged
 
 #: Relative tolerance within which two optimizers "agree" on a best-known value.
@@ -69,13 +70,15 @@ def best_known(df: pd.DataFrame) -> pd.DataFrame:
     ``matrices`` (JSON, 6 decimals), ``certified`` and ``certified_by`` (the optimizers
     whose best is within :data:`CERTIFY_RTOL`), and per-optimizer bests (``best_<opt>``).
     """
-    df = with_problem_variant(df)
+    df = narrow(with_problem_variant(df), [*KEY, "param", "optimizer", "status",
+                                           "best_converged", "best_cost", "job_id",
+                                           "grad_norm", "matrices"])
     tuned = df[df["optimizer"] != "baseline"]
     n_starts = tuned.groupby(KEY + [tuned["param"].map(family).rename("family")]).size()
     ok = df[converged(df) & (df["optimizer"] != "baseline")]
     rows = []
     for key, g in ok.groupby(KEY + [ok["param"].map(family).rename("family")], sort=True):
-        top = g.loc[g["best_cost"].astype(float).idxmin()]
+        top = full_row(g, g["best_cost"].astype(float).idxmin())
         ref = float(top["best_cost"])
         per_opt = g.groupby("optimizer")["best_cost"].min().astype(float)
         agree = [o for o, v in per_opt.items() if within(v, ref)]
@@ -129,7 +132,7 @@ def best_rows(df: pd.DataFrame) -> dict[str, pd.Series]:
     ok = df[converged(df) & (df["optimizer"] != "baseline")]
     out = {}
     for fam, g in ok.groupby(ok["param"].map(family)):
-        out[str(fam)] = g.loc[g["best_cost"].astype(float).idxmin()]
+        out[str(fam)] = full_row(g, g["best_cost"].astype(float).idxmin())
     return out
 
 

@@ -15,16 +15,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from penaltyrun.io import read_results
-from penaltyrun.io.schema import COLUMNS
+from penaltyrun.io.read import declared_rows, read_results, release_memory
 from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (
     basins,
     controllers,
     figures,
+    fronts,
+    fronts_section,
     holdout,
     html,
+    knownopt,
     outdir,
     protocol,
     sections,
@@ -33,6 +35,8 @@ from penaltyrun.report import (
 from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, FIRST_ORDER_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
+from penaltyrun.report.progress import Steps
+from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS, lazy, with_columns
 from penaltyrun.report.stats import BCA_MAX_N, MIN_N_TEST, add_variant, cell_summary
 from penaltyrun.report.tables import (
     StemBook,
@@ -88,11 +92,24 @@ TABLES = {
                   "family, with its evidence",
     "shortfall": "each cell's gap to the best-known value of its map family",
     "targets": "fixed targets: share of starts reaching f* + ε·|f*| and the ERT",
+    "known_optimum": "problems with a known optimum J* (lqr): starts reaching J* within "
+                     "1e-6 (relative), evaluations and CPU seconds to reach it, and what "
+                     "the starts spent",
+    "known_optimum_ratios": "problems with a known optimum J*: the CPU ratio of the median "
+                            "time to reach J* between two optimizers of one cell (a lower "
+                            "bound where the first did not reach J* in most starts)",
     "holdout_tuning_modes": "multi- against single-scenario tuning, held-out gaps side by "
                             "side",
     "controllers": "the best start of each map per problem × case × variant: its closed "
                    "loop at the target (slowest real part, smallest damping ratio, gain "
                    "norm and condition number)",
+    "fronts": "trade-off fronts of a sweep of the price of a second ρ: per sweep × map × "
+              "start, its front (energy, arrival time) and hypervolume with the sweep's "
+              "reference point",
+    "fronts_tests": "per sweep × full map: hypervolumes against the diagonal map's "
+                    "(Mann–Whitney, A12, Holm p) and the pooled fronts' dominance",
+    "fronts_holdout": "per cell of a sweep × map: the front of training cost against mean "
+                      "held-out cost over its starts, its hypervolume and dominated share",
 }
 
 
@@ -159,13 +176,6 @@ def _cells(summary: pd.DataFrame, g: pd.DataFrame, paper: bool) -> pd.DataFrame:
                              zip(sel["median_ci95_lo"], sel["median_ci95_hi"], sel["ci_note"])]
     sel["paper mean"] = sel["paper_mean"] if paper else np.nan
     return sel
-
-
-#: Columns the report never uses: not read (the per-iteration cost history, the resolved
-#: config text and the package versions are the bulk of a large results file).
-UNUSED_COLUMNS = ("history", "config", "packages")
-#: Columns the report reads.
-REPORT_COLUMNS = tuple(n for n in COLUMNS if n not in UNUSED_COLUMNS)
 
 
 #: Population-size and iteration-limit settings (first present is shown).
@@ -260,9 +270,16 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
     return lines
 
 
+#: Rows (declared in the files' footers) above which a report reads its results lazily:
+#: the per-row text and list columns are read for the rows a section needs
+#: (:mod:`penaltyrun.report.rows`), so memory does not grow with them.
+STREAM_MIN_ROWS = 100_000
+
+
 def build_report(src: Path, out: Path, paper: bool = True,
                  source_label: str | None = None,
-                 basin_points: int = basins.REPORT_POINTS) -> Path:
+                 basin_points: int = basins.REPORT_POINTS, stream: bool | None = None,
+                 progress: bool | None = None) -> Path:
     """Write tables (CSV + Markdown), figures (PNG), ``report.md`` and ``report.html``.
 
     Every file is first written into a temporary folder inside ``out`` and renamed into
@@ -286,6 +303,12 @@ def build_report(src: Path, out: Path, paper: bool = True,
     basin_points : int
         Grid points per axis of the basin-of-attraction maps (0: no maps); each map runs
         ``basin_points²`` starts of the best diagonal and the best full gain of a case.
+    stream : bool, optional
+        Read the results lazily (:mod:`penaltyrun.report.rows`); default: when the files
+        declare more than :data:`STREAM_MIN_ROWS` rows. The report is the same either way.
+    progress : bool, optional
+        Show a progress bar of the report's steps on stderr; default: when stderr is a
+        terminal.
 
     Raises
     ------
@@ -296,11 +319,14 @@ def build_report(src: Path, out: Path, paper: bool = True,
     """
     out = Path(out)
     protocol.reset()
+    if stream is None:
+        stream = declared_rows(src) > STREAM_MIN_ROWS
     with trust.reading_results():
-        df = add_variant(read_results(src, REPORT_COLUMNS))
+        df = add_variant(read_results(src, FRAME_COLUMNS if stream else REPORT_COLUMNS,
+                                      lazy=stream))
         outdir.write_into(out, "report.output",
                           lambda tmp: _write_report(source_label or str(src), df, tmp, paper,
-                                                   basin_points),
+                                                   basin_points, progress),
                           lambda folder: outdir.report_files(
                               folder, [*TABLES, "summary", "comparison"]))
     logger.info("report: %s", out / "report.md")
@@ -308,22 +334,43 @@ def build_report(src: Path, out: Path, paper: bool = True,
 
 
 def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool,
-                  basin_points: int = basins.REPORT_POINTS) -> None:
+                  basin_points: int = basins.REPORT_POINTS,
+                  progress: bool | None = None) -> None:
     """Write every file of the report into ``out`` (see :func:`build_report`)."""
+    n_cases = df.groupby(["problem", "case", "variant"], sort=True).ngroups
+    with Steps(len(STEPS) + n_cases, progress, lazy(df) and release_memory) as steps:
+        _write_files(src, df, out, paper, basin_points, steps, n_cases)
+
+
+#: The report's steps besides one per case section (what its progress bar counts).
+STEPS = ("cell statistics", "comparisons", "best-known optima", "held-out", "verdict",
+         "paper and controller tables", "checks", "contributed sections",
+         "tuning modes", "statistics", "report.md and report.html")
+
+
+def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_points: int,
+                 steps: Steps, n_cases: int) -> None:
+    """:func:`_write_report` with its progress bar ``steps``."""
+    steps.step(STEPS[0])
     summary = cell_summary(df)
     summary.to_csv(out / "summary.csv", index=False, encoding="utf-8")
     (out / "summary.md").write_text(markdown_split(summary[SUMMARY_MD]) + "\n",
                                     encoding="utf-8")
+    steps.step(STEPS[1])
     comp = pairwise(df)
     if not comp.empty:
         comp.to_csv(out / "comparison.csv", index=False, encoding="utf-8")
         (out / "comparison.md").write_text(markdown_split(comp[COMPARISON_MD]) + "\n",
                                            encoding="utf-8")
+    steps.step(STEPS[2])
     bk = best_known(df)
+    steps.step(STEPS[3])
     held, imps = holdout.holdout_rows(df)
     if not held.empty:
         held.to_csv(out / "holdout.csv", index=False, encoding="utf-8")
+    steps.step(STEPS[4])
     verdict = verdict_rows(df, bk, comp, held)
+    steps.step(STEPS[5])
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
            "stems": StemBook(), "basin_points": int(basin_points),
            "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
@@ -344,19 +391,27 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool,
                   "the best-known starts paired on the problem's held-out scenarios at the "
                   "held-out horizon (J_full / J_diag over every scenario). Details per case "
                   "below; methods at the end.", ""]
+    steps.step(STEPS[6])
     body = checks(df)
     if body:
         lines += ["## Checks", ""] + body + [""]
-    for _, g in df.groupby(["problem", "case", "variant"], sort=True):
+    for k, (key, g) in enumerate(df.groupby(["problem", "case", "variant"], sort=True)):
+        steps.step(f"case {k + 1}/{n_cases}: " + " / ".join(str(x) for x in key if x))
         lines += _case_lines(g, ctx, out, paper)
+    steps.step(STEPS[7])
     lines += sections.contributed(df, out)
+    front_tables = fronts.fronts_of(df)
+    fronts.write(front_tables, out)
+    lines += fronts_section.section(front_tables, comp, out)
+    steps.step(STEPS[8])
     try:
         lines += tuning.study_sections(df, out, paper)
     except Exception as exc:  # one study must not lose the rest of the report
         logger.warning("tuning-mode section failed: %s", exc)
         lines += [f"(tuning-mode section failed: {exc!r})", ""]
+    steps.step(STEPS[9])
     lines += _statistics(df, bk, out)
-    failed = df[df["status"].isin(NO_RESULT_STATUSES)]
+    failed = with_columns(df[df["status"].isin(NO_RESULT_STATUSES)], ("error",))
     if not failed.empty:
         lines += ["## Failed jobs", ""]
         lines += [f"- {md_text(r.job_id)} ({md_text(r.status)}): "
@@ -366,6 +421,7 @@ def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool,
     commits = ", ".join(sorted(df["git_commit"].dropna().unique())) or "unknown"
     lines += ["## Methods and conventions", "", methods(), "",
               f"Code commit(s) of these results: {commits}.", ""]
+    steps.step(STEPS[10])
     text = "\n".join(lines) + "\n"
     (out / "report.md").write_text(text, encoding="utf-8")
     html.write_html(text, out, out / "report.html")
@@ -401,4 +457,19 @@ def _statistics(df: pd.DataFrame, bk: pd.DataFrame, out: Path) -> list[str]:
                   "evaluations spent by all starts, each counted until it reached the target "
                   "or stopped, divided by the number of starts that reached it (∞ if none).",
                   "", write_table(targets, out, "targets", TARGET_COLUMNS), ""]
+    reach = knownopt.reach_table(df)
+    if not reach.empty:
+        lines += ["### Time to the known optimum", "",
+                  f"Cells whose problem knows its optimum J*: starts whose best-so-far came "
+                  f"within {knownopt.RTOL:g}·|J*| of J*, the evaluations and CPU seconds "
+                  "(`trace_cpu_s`) until then, and the least CPU a start spent in all (a "
+                  "lower bound where no start reached J*); gap = best/J* − 1.", "",
+                  write_table(reach, out, "known_optimum", knownopt.COLUMNS), ""]
+        ratios = knownopt.ratio_table(reach)
+        if not ratios.empty:
+            lines += ["CPU ratio a / b of the median time to reach J* over every start ('>': "
+                      "a did not reach J* in most starts, its starts count with the CPU they "
+                      "spent, so the ratio is a lower bound).", "",
+                      write_table(ratios, out, "known_optimum_ratios",
+                                  knownopt.RATIO_COLUMNS), ""]
     return lines

@@ -34,8 +34,10 @@ from penaltyrun.errors import ConfigError
 from penaltyrun.io import decode_json
 from penaltyrun.problems import diagnostics as dg
 from penaltyrun.problems.base import ClosedLoop
+from penaltyrun.problems.hooks import hooks
 from penaltyrun.report import protocol
 from penaltyrun.report.controller_plots import channel_figure, cost_mode_scatter, pole_map
+from penaltyrun.report.rows import full_row, with_columns
 from penaltyrun.report.stats import converged
 from penaltyrun.report.tables import fmt, markdown, md_text, with_unit
 
@@ -58,13 +60,18 @@ COLUMNS = ["map", "by", "cost", "time", "slowest Re s", "min damping", "‖K‖�
            "poles from"]
 
 
+#: Rows whose closed loop :func:`start_modes` recomputes per batch (their matrices read
+#: together when the frame was read lazily).
+RECOMPUTE_ROWS = 20_000
+
+
 def best_per_map(g: pd.DataFrame) -> dict[str, pd.Series]:
     """The converged start with the lowest cost of each map of ``g`` (over every
     optimizer, the baseline excluded), diagonal first."""
     ok = g[converged(g) & (g["optimizer"] != "baseline")]
     out = {}
     for param, cell in ok.groupby("param", sort=True):
-        out[str(param)] = cell.loc[cell["best_cost"].astype(float).idxmin()]
+        out[str(param)] = full_row(cell, cell["best_cost"].astype(float).idxmin())
     order = sorted(out, key=lambda p: (p != "diagonal", p))
     return {p: out[p] for p in order}
 
@@ -95,7 +102,7 @@ def loop_of(row: pd.Series, prob: Any = None) -> tuple[ClosedLoop | None, str]:
     prob = _problem(row) if prob is None else prob
     if prob is None:
         return None, "problem not rebuilt from the results"
-    if not hasattr(prob, "closed_loop"):
+    if hooks(prob).closed_loop is None:
         return None, "no linearization"
     loop = dg.closed_loop_of(prob, _matrices(row), decode_json(row.get("scalars")) or None)
     return loop, "recomputed from the stored matrices" if loop else "no closed loop"
@@ -299,11 +306,15 @@ def start_modes(g: pd.DataFrame) -> pd.DataFrame:
     baseline excluded): the stored column, else from the stored matrices (NaN without a
     closed loop)."""
     ok = g[converged(g) & (g["optimizer"] != "baseline")]
+    stored = pd.to_numeric(ok["cl_slowest_real"], errors="coerce") \
+        if "cl_slowest_real" in ok else pd.Series(np.nan, index=ok.index)
+    slowest = stored.astype(float).to_numpy().copy()
     built: dict[tuple[str, str, str], Any] = {}
-    rows = []
-    for _, row in ok.iterrows():
-        slowest = row.get("cl_slowest_real")
-        if slowest is None or not np.isfinite(float(slowest)):
+    todo = np.flatnonzero(~np.isfinite(slowest))
+    for first in range(0, todo.size, RECOMPUTE_ROWS):  # a batch of rows' matrices at a time
+        chunk = todo[first:first + RECOMPUTE_ROWS]
+        batch = with_columns(ok.iloc[chunk], ("matrices", "scalars", "closed_loop"))
+        for i, (_, row) in zip(chunk, batch.iterrows()):
             key = (str(row["problem"]), str(row["case"]), str(row.get("problem_params")))
             try:
                 if key not in built:
@@ -311,10 +322,11 @@ def start_modes(g: pd.DataFrame) -> pd.DataFrame:
                 loop, _ = loop_of(row, built[key])
             except Exception:  # counted as no closed loop; controller_rows logs the reason
                 loop = None
-            slowest = dg.diagnose(loop).slowest_real if loop is not None else np.nan
-        rows.append({"param": str(row["param"]), "cost": float(row["best_cost"]),
-                     "slowest": float(slowest)})
-    return pd.DataFrame(rows, columns=["param", "cost", "slowest"])
+            slowest[i] = dg.diagnose(loop).slowest_real if loop is not None else np.nan
+    return pd.DataFrame({"param": ok["param"].astype(str).to_numpy(),
+                         "cost": ok["best_cost"].astype(float).to_numpy(),
+                         "slowest": slowest.astype(float)},
+                        columns=["param", "cost", "slowest"])
 
 
 def mode_lines(modes: pd.DataFrame) -> list[str]:

@@ -23,6 +23,7 @@ from penaltyrun.report.compare import (
     MAP_ORDER,  # noqa: E402
     map_order,  # noqa: E402
 )
+from penaltyrun.report.rows import TRACE_COLUMNS, narrow  # noqa: E402
 from penaltyrun.report.stats import converged, paper_value  # noqa: E402
 from penaltyrun.report.tables import save_figure  # noqa: E402
 
@@ -32,6 +33,9 @@ plt.rcParams.update({"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11
                      "axes.formatter.useoffset": False})
 #: One colour per map in every figure of every report; other maps get the next ones.
 MAP_COLORS = {m: f"C{i}" for i, m in enumerate(MAP_ORDER)}
+#: Columns the anytime and ECDF figures use (a cell's traces read with them).
+TRACED = ("problem", "case", "problem_variant", "optimizer", "param", "status", "n_evals",
+          *TRACE_COLUMNS)
 #: Colour of each published value (dashed lines).
 PAPER_COLORS = {"mean_cost": "k", "median_cost": "0.45"}
 
@@ -77,8 +81,16 @@ def anytime(df: pd.DataFrame, bk: pd.DataFrame, label: str, title: str,
     marks the best-known diagonal when it is higher); x is log evaluations. None if no
     start has a trace (results before anytime traces).
     """
-    df = with_problem_variant(df)
-    opts = [o for o in _optimizers(df) if cell_traces(df[df["optimizer"] == o])]
+    df = narrow(with_problem_variant(df), TRACED)
+    bands = {}  # one cell's traces at a time: (optimizer, map) → grid, band, starts
+    for opt in _optimizers(df):
+        g = df[df["optimizer"] == opt]
+        for param in map_order(g["param"].unique()):
+            traces = cell_traces(g[g["param"] == param])
+            if traces:
+                grid = _grid(traces)
+                bands[opt, param] = (grid, *anytime_band(traces, grid), len(traces))
+    opts = [o for o in _optimizers(df) if any(key[0] == o for key in bands)]
     if not opts:
         return None
     first = df.iloc[0]
@@ -92,14 +104,12 @@ def anytime(df: pd.DataFrame, bk: pd.DataFrame, label: str, title: str,
     for ax, opt in zip(axes[0], opts):
         g = df[df["optimizer"] == opt]
         for param in map_order(g["param"].unique()):
-            traces = cell_traces(g[g["param"] == param])
-            if not traces:
+            if (opt, param) not in bands:
                 continue
-            grid = _grid(traces)
-            med, q25, q75 = anytime_band(traces, grid)
+            grid, med, q25, q75, n = bands[opt, param]
             c = colors[param]
             ax.plot(grid, med - f_ref + delta, color=c, lw=2,
-                    label=f"{param} (median of {len(traces)})")
+                    label=f"{param} (median of {n})")
             ax.fill_between(grid, q25 - f_ref + delta, q75 - f_ref + delta, color=c,
                             alpha=0.2, lw=0)
         if np.isfinite(refs[0]) and refs[0] > f_ref:
@@ -122,8 +132,23 @@ def ecdf_figure(df: pd.DataFrame, bk: pd.DataFrame, title: str, path: Path) -> P
 
     f* is the best-known cost of the map's family. Rows: ε; columns: optimizers.
     """
-    df = with_problem_variant(df)
-    opts = [o for o in _optimizers(df) if cell_traces(df[df["optimizer"] == o])]
+    df = narrow(with_problem_variant(df), TRACED)
+    curves, traced = {}, set()  # one cell's traces at a time: (optimizer, map) → curves
+    for opt in _optimizers(df):
+        g = df[df["optimizer"] == opt]
+        for param in map_order(g["param"].unique()):
+            cell = g[g["param"] == param]
+            traces = cell_traces(cell)
+            traced |= {opt} if traces else set()
+            ref = reference(bk, cell["problem"].iloc[0], cell["case"].iloc[0],
+                            cell["problem_variant"].iloc[0], family(param))
+            if not traces or not np.isfinite(ref):
+                continue
+            grid = _grid(traces)
+            curves[opt, param] = (grid, [ecdf(np.array([hitting_evals(
+                e, b, ref + eps * abs(ref)) for e, b, _ in traces]), grid)
+                for eps in EPSILONS], len(traces))
+    opts = [o for o in _optimizers(df) if o in traced]
     if not opts:
         return None
     colors = _colors(df)
@@ -132,17 +157,12 @@ def ecdf_figure(df: pd.DataFrame, bk: pd.DataFrame, title: str, path: Path) -> P
     for j, opt in enumerate(opts):
         g = df[df["optimizer"] == opt]
         for param in map_order(g["param"].unique()):
-            cell = g[g["param"] == param]
-            traces = cell_traces(cell)
-            ref = reference(bk, cell["problem"].iloc[0], cell["case"].iloc[0],
-                            cell["problem_variant"].iloc[0], family(param))
-            if not traces or not np.isfinite(ref):
+            if (opt, param) not in curves:
                 continue
-            grid = _grid(traces)
-            for i, eps in enumerate(EPSILONS):
-                hits = [hitting_evals(e, b, ref + eps * abs(ref)) for e, b, _ in traces]
-                axes[i, j].step(grid, ecdf(np.array(hits), grid), where="post",
-                                color=colors[param], label=f"{param} (n = {len(traces)})")
+            grid, shares, n = curves[opt, param]
+            for i, share in enumerate(shares):
+                axes[i, j].step(grid, share, where="post",
+                                color=colors[param], label=f"{param} (n = {n})")
         for i, eps in enumerate(EPSILONS):
             ax = axes[i, j]
             _log_x(ax)

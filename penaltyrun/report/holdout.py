@@ -43,6 +43,7 @@ from penaltyrun.io import decode_json  # noqa: E402
 from penaltyrun.jobrecord import NO_RESULT_STATUSES  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
+from penaltyrun.report.rows import full_row, has, with_columns  # noqa: E402
 from penaltyrun.report.stats import holm  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
     alt_text,
@@ -101,18 +102,19 @@ def scenario_table(holdout: Any, drop_kinds: tuple[str, ...] = ()) -> pd.DataFra
 
 def best_start(g: pd.DataFrame) -> pd.Series | None:
     """Best non-failed start with a held-out result (converged starts first)."""
+    g = with_columns(g, ("holdout",))
     ok = g[~g["status"].isin(NO_RESULT_STATUSES) & g["holdout"].notna()]
     if ok.empty:
         return None
     conv = ok[ok["best_converged"].astype(bool)]
     pick = conv if not conv.empty else ok
-    return pick.loc[pick["best_cost"].idxmin()]
+    return full_row(pick, pick["best_cost"].idxmin())
 
 
 def _rate_all(g: pd.DataFrame, drop: tuple[str, ...] = ()) -> float:
     """Share of (start, scenario) pairs that converge, over all starts of ``g``."""
     hits = total = 0
-    for h in g["holdout"].dropna():
+    for h in with_columns(g, ("holdout",))["holdout"].dropna():
         t = scenario_table(h, drop)
         if t is not None:
             hits += int(t["converged"].sum())
@@ -236,7 +238,7 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
         the convergence rates over all starts of the cell.
     ratios : dict label → ndarray of per-scenario cost ratios J_full / J_diag
     """
-    if "holdout" not in df or df.empty:
+    if not has(df, "holdout") or df.empty:
         return pd.DataFrame(), {}
     df = with_problem_variant(df)
     if "variant" not in df:
@@ -245,6 +247,7 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
     for (problem, case, pvar, variant, optimizer), g in df.groupby(
             ["problem", "case", "problem_variant", "variant", "optimizer"], sort=True):
         drop = protocol.info_of(g).discretization_kinds
+        g = with_columns(g, ("holdout",))
         dg = g[g["param"] == "diagonal"]
         drow = best_start(dg)
         if drow is None:
@@ -259,6 +262,7 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
                              "full_conv_all_starts": _rate_all(fg, drop)})
     for (problem, case, pvar), g in df.groupby(["problem", "case", "problem_variant"],
                                                sort=True):
+        g = with_columns(g, ("holdout",))
         best = best_rows(g[g["holdout"].notna()])
         if set(best) >= {"diagonal", "full"}:
             drop = protocol.info_of(g).discretization_kinds
@@ -325,7 +329,7 @@ def discretization_rows(df: pd.DataFrame) -> pd.DataFrame:
     """The discretization check of each cell's best diagonal vs best full start, for the
     problems that declare discretization scenario kinds."""
     rows = []
-    if "holdout" not in df:
+    if not has(df, "holdout"):
         return pd.DataFrame(rows)
     for (problem, case, variant, optimizer), g in df.groupby(
             ["problem", "case", "variant", "optimizer"], sort=True):

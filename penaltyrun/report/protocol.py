@@ -117,8 +117,10 @@ def _plain(value: Any) -> Any:
 
 def jobs_of(df: pd.DataFrame) -> list[dict[str, Any]]:
     """Job rows as plain dicts (keys: :func:`penaltyrun.problems.report_hooks.job_keys`)."""
+    from penaltyrun.report.rows import with_columns
     from penaltyrun.report.stats import converged
 
+    df = with_columns(df)
     ok = converged(df)
     jobs = []
     for idx, row in df.iterrows():
@@ -147,6 +149,21 @@ def simulate(row: pd.Series) -> dict[str, np.ndarray] | None:
     key = (str(row.get("job_id")), str(row.get("config_hash")), str(row.get("matrices")))
     if key not in _SIMULATIONS:
         _SIMULATIONS[key] = _simulate(row)
+    return _SIMULATIONS[key]
+
+
+def simulate_matrices(problem: str, case: str, params: Any, mats: dict[str, Any]
+                      ) -> dict[str, np.ndarray] | None:
+    """``simulate`` of given matrices (e.g. a paper's) on the problem of stored results
+    (None when it cannot be rebuilt); kept for this report, so the variants of one problem
+    case that share its parameters (budgets, warm starts) simulate them once."""
+    text = params if isinstance(params, str) else json.dumps(params or {}, sort_keys=True,
+                                                            default=str)
+    key = ("matrices", f"{problem}\0{case}\0{text}",
+           json.dumps({k: np.asarray(v, float).tolist() for k, v in sorted(mats.items())}))
+    if key not in _SIMULATIONS:
+        prob = rebuild(problem, case, params)
+        _SIMULATIONS[key] = None if prob is None else prob.simulate(dict(mats))
     return _SIMULATIONS[key]
 
 
@@ -204,4 +221,4 @@ def bounds_of(row: pd.Series) -> dict[str, tuple[float, float]] | None:
 
 
 __all__ = ["WARNINGS", "bounds_of", "info", "info_of", "jobs_of", "make", "module",
-           "params_of", "rebuild", "reset", "simulate", "warn"]
+           "params_of", "rebuild", "reset", "simulate", "simulate_matrices", "warn"]

@@ -17,6 +17,7 @@ from penaltyrun.problems import report_hooks  # noqa: E402
 from penaltyrun.problems.base import ReportSection  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, family  # noqa: E402
+from penaltyrun.report.rows import full_row, narrow, with_columns  # noqa: E402
 from penaltyrun.report.stats import converged, holm, paper_value  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
     alt_text,
@@ -39,7 +40,11 @@ BOUND_RTOL = 1e-6
 PAPER_FAMILY = "every median test against a published median of this report"
 
 
-def matrices_of(row: pd.Series) -> dict[str, np.ndarray]:
+#: Rows whose matrices the paper-matrix table reads per batch (a lazily read frame).
+MATRIX_ROWS = 50_000
+
+
+def matrices_of(row: pd.Series | dict) -> dict[str, np.ndarray]:
     """Decoded best matrices of a job row."""
     return {k: np.asarray(v, float) for k, v in (decode_json(row["matrices"]) or {}).items()}
 
@@ -69,7 +74,8 @@ def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
             protocol.simulate(row)
     if info.paper is not None and sims:
         for name, mats in info.paper.matrices.items():
-            sims[f"paper {name}"] = prob.simulate(dict(mats))
+            sims[f"paper {name}"] = protocol.simulate_matrices(
+                first["problem"], first["case"], first.get("problem_params"), dict(mats))
     figures = report_hooks.plots(mod, sims, first["case"],
                                  protocol.params_of(first.get("problem_params")))
     lines = []
@@ -84,6 +90,8 @@ def paper_matrix_rows(df: pd.DataFrame) -> pd.DataFrame:
     """:func:`paper_matrices` rows of every problem × case × variant of ``df`` (the
     ``paper_matrices`` table), with ``problem``, ``case`` and ``variant`` columns."""
     tables = []
+    df = narrow(df, ["problem", "case", "variant", "problem_params", "optimizer", "param",
+                     "status", "best_converged", "best_cost", "matrices"])
     for (problem, case, variant), g in df.groupby(["problem", "case", "variant"], sort=True):
         rows = _paper_matrix_table(g)
         if not rows.empty:
@@ -110,9 +118,13 @@ def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
         cell = ok[ok["param"].map(family) == family(name)]
         if cell.empty:
             continue
-        best = cell.loc[cell["best_cost"].astype(float).idxmin()]
-        devs = [max(relative_deviation(matrices_of(r)[k], np.asarray(v, float))
-                    for k, v in ref.items()) for _, r in cell.iterrows()]
+        best = full_row(cell, cell["best_cost"].astype(float).idxmin())
+        devs = []
+        for first in range(0, len(cell), MATRIX_ROWS):  # a batch of rows' matrices at a time
+            batch = with_columns(cell.iloc[first:first + MATRIX_ROWS], ("matrices",))
+            devs += [max(relative_deviation(matrices_of({"matrices": m})[k],
+                                            np.asarray(v, float)) for k, v in ref.items())
+                     for m in batch["matrices"]]
         best_dev = max(relative_deviation(matrices_of(best)[k], np.asarray(v, float))
                        for k, v in ref.items())
         rows.append({"map": name, "our best": float(best["best_cost"]),
@@ -288,7 +300,7 @@ def contributed(df: pd.DataFrame, out: Path) -> list[str]:
     lines: list[str] = []
     for problem, g in df.groupby("problem", sort=True):
         mod = protocol.module(problem)
-        if mod is None:
+        if getattr(mod, "report_sections", None) is None:  # also: module not imported
             continue
         try:
             found = report_hooks.sections(mod, protocol.jobs_of(g))

@@ -24,6 +24,7 @@ import pandas as pd
 
 from penaltyrun.io import decode_json
 from penaltyrun.report import holdout
+from penaltyrun.report.rows import has
 from penaltyrun.report.tables import markdown
 
 #: Problem parameters that define the training set (multi-scenario tuning).
@@ -68,7 +69,20 @@ def _canonical(value: Any) -> str:
     return json.dumps(value, sort_keys=True, default=str)
 
 
-def _setting(row: pd.Series) -> tuple[str, str]:
+def _key(value: Any) -> Any:
+    """``value`` as a dictionary key (JSON text for a dict or list)."""
+    try:
+        hash(value)
+    except TypeError:
+        return ("json", _canonical(value))
+    return value
+
+
+#: Columns besides ``problem_params`` that :func:`_setting` reads.
+SETTING_COLUMNS = ("optimizer_settings", "warm_start")
+
+
+def _setting(row: dict[str, Any]) -> tuple[str, str]:
     """(comparison key, display text) of everything but the training set."""
     params = {k: v for k, v in _json(row.get("problem_params")).items()
               if k not in TRAIN_KEYS and v is not None}
@@ -81,13 +95,17 @@ def _setting(row: pd.Series) -> tuple[str, str]:
 def with_modes(df: pd.DataFrame) -> pd.DataFrame:
     """``df`` with columns ``tuning`` (mode label), ``tuning_key`` (the training settings as
     JSON), ``setting_key`` and ``setting`` (the rest of the set-up)."""
-    out = df.copy()
-    training = [training_of(p) for p in out["problem_params"]]
-    out["tuning_key"] = [_canonical(t) for t in training]
-    out["tuning"] = [mode_label(t) for t in training]
-    settings = [_setting(r) for _, r in out.iterrows()]
-    out["setting_key"] = [s[0] for s in settings]
-    out["setting"] = [s[1] for s in settings]
+    out = df.copy(deep=False)  # new columns only: the frame itself is not copied
+    columns = ("problem_params", *SETTING_COLUMNS)
+    values = list(zip(*(out[c] if c in out else [None] * len(out) for c in columns)))
+    keys = [tuple(_key(v) for v in row) for row in values]
+    first = dict(zip(keys, values))  # each distinct set-up computed once
+    training = {k: training_of(v[0]) for k, v in first.items()}
+    settings = {k: _setting(dict(zip(columns, v))) for k, v in first.items()}
+    out["tuning_key"] = [_canonical(training[k]) for k in keys]
+    out["tuning"] = [mode_label(training[k]) for k in keys]
+    out["setting_key"] = [settings[k][0] for k in keys]
+    out["setting"] = [settings[k][1] for k in keys]
     # two different training sets with the same label get a short hash of their own
     for _, g in out[out["tuning_key"] != "{}"].groupby("tuning"):
         if g["tuning_key"].nunique() > 1:
@@ -113,7 +131,7 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
         ``M: pairs``, ``M: median impr. %``, ``M: full better``, ``M: Wilcoxon p``,
         ``M: note``. Empty when no set-up has both.
     """
-    if "holdout" not in df or "problem_params" not in df or df.empty:
+    if not has(df, "holdout") or "problem_params" not in df or df.empty:
         return pd.DataFrame()
     m = with_modes(df)
     rows = []

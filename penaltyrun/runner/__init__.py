@@ -9,14 +9,15 @@ from __future__ import annotations
 from penaltyrun import lazy
 
 _NAMES = {
-    "BACKENDS": "executor", "check_settings": "executor", "execute": "executor",
+    "BACKENDS": "options", "execute": "executor", "SERIAL": "executor",
     "forecast_cell": "forecast", "log_forecast": "forecast",
     "JOB_STATUSES": "validate", "NO_RESULT_STATUSES": "validate", "run_job": "job",
-    "check_runner_options": "options",
+    "check_runner_options": "options", "check_report_options": "options",
     "Job": "plan", "config_hash": "plan", "job_seed": "plan", "plan_jobs": "plan",
     "module_source_hash": "plan", "user_code_hash": "plan",
     "job_path": "records", "pending_jobs": "records", "read_record": "records",
     "build": "setup", "build_layout": "setup",
+    "RunSpec": "spec", "RunnerOptions": "spec",
 }
 
 __all__ = sorted(_NAMES)

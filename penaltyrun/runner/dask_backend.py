@@ -68,12 +68,21 @@ def import_distributed() -> Any:
     return distributed
 
 
+#: Seconds the scheduler has to answer the probe of :func:`scheduler_lost`.
+PROBE_TIMEOUT_S = 5.0
+
+
 def scheduler_lost(client: Any) -> bool:
-    """Whether the client has lost its scheduler (closed, reconnecting or not answering)."""
+    """Whether the client has lost its scheduler (closed, reconnecting or not answering).
+
+    The scheduler is asked for its identity directly: ``Client.scheduler_info`` swallows a
+    broken connection and returns its cached answer, so a scheduler killed a moment ago
+    would still look alive and the tasks it cancelled would be recorded as failed jobs.
+    """
     if getattr(client, "status", "running") != "running":
         return True
     try:
-        client.scheduler_info()
+        client.sync(client.scheduler.identity, callback_timeout=PROBE_TIMEOUT_S)
     except Exception:  # any failure to reach the scheduler
         return True
     return False

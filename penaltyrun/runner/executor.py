@@ -27,18 +27,16 @@ from penaltyrun.runner.dask_backend import import_distributed, run_dask
 from penaltyrun.runner.eta import DispatchEta
 from penaltyrun.runner.job import run_job
 from penaltyrun.runner.objects import object_paths, pickled, run_job_shipped
-from penaltyrun.runner.options import (
-    BACKENDS,
-    RUNNER_OPTIONS,
-    check_job_timeout,
-    check_value,
-    resolve_workers,
-)
+from penaltyrun.runner.options import resolve_workers
 from penaltyrun.runner.plan import Job, order_longest_first
-from penaltyrun.runner.pool import STALL_TIMEOUT_S, run_pool
+from penaltyrun.runner.pool import run_pool
 from penaltyrun.runner.records import JOBS_DIR, pending_jobs, remove_leftovers, write_record
+from penaltyrun.runner.spec import RunnerOptions
 
 logger = logging.getLogger(__name__)
+
+#: The default options of :func:`execute`: ``conf/config.yaml``'s, with one worker.
+SERIAL = RunnerOptions(workers=1)
 
 
 def _serial(jobs: list[Job]) -> Iterator[tuple[Job, dict[str, Any]]]:
@@ -66,33 +64,9 @@ def dispatch_slots(workers: int, n_todo: int, backend: str = "local",
     return 1 if workers == 1 or n_todo <= 1 else int(workers)
 
 
-def check_settings(workers: Any, backend: Any, evaluate_on: Any = "local",
-                   chunks: Any = "auto", job_timeout: Any = None) -> None:
-    """Validate ``runner.workers`` (an integer ≥ 1 or ``auto``), ``runner.backend``,
-    ``runner.evaluate_on``, ``runner.chunks`` and ``runner.job_timeout``.
-
-    Raises
-    ------
-    ConfigError
-        Naming the key (and the allowed backends).
-    """
-    resolve_workers(workers)
-    if backend not in BACKENDS:
-        raise ConfigError("runner.backend", f"unknown backend {backend!r}", allowed=BACKENDS)
-    for key, value in (("evaluate_on", evaluate_on), ("chunks", chunks)):
-        check_value(key, RUNNER_OPTIONS[key][0], value, RUNNER_OPTIONS[key][1])
-    if evaluate_on == "dask" and backend != "dask":
-        raise ConfigError("runner.evaluate_on", "dask needs runner.backend=dask")
-    check_job_timeout(job_timeout, backend)
-
-
-def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
-            backend: str = "local", scheduler: str | None = None, resume: bool = False,
-            retry_failed: bool = False, on_record: Callable[[dict[str, Any]], None] | None = None,
-            max_retries: int = 1, worker_timeout: float = 60.0,
-            expected_s: Mapping[str, float] | None = None, evaluate_on: str = "local",
-            chunks: int | str = "auto", stall_timeout: float = STALL_TIMEOUT_S,
-            job_timeout: float | None = None) -> list[Path]:
+def execute(jobs: Iterable[Job], run_dir: Path, options: RunnerOptions = SERIAL, *,
+            on_record: Callable[[dict[str, Any]], None] | None = None,
+            expected_s: Mapping[str, float] | None = None) -> list[Path]:
     """Run ``jobs`` and write one record file per finished job.
 
     Parameters
@@ -100,33 +74,24 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
     jobs : iterable of Job
     run_dir : Path
         Run directory; records go to ``run_dir/jobs``.
-    workers : int or "auto"
-        Parallel jobs (processes), ≥ 1 (1: in this process); ``auto``: one per core.
-    backend : {"local", "dask"}
-    scheduler : str, optional
-        dask scheduler address (``None``: a LocalCluster of ``workers`` processes).
-    resume, retry_failed : bool
-        Skip finished jobs (and re-run failed ones with ``retry_failed``).
+    options : RunnerOptions
+        The ``runner.*`` options; those read here: ``workers`` (parallel jobs, processes;
+        1: in this process; ``auto``: one per core), ``backend`` (local or dask),
+        ``scheduler`` (dask scheduler address; ``None``: a LocalCluster of ``workers``
+        processes), ``resume`` and ``retry_failed`` (skip finished jobs; re-run failed
+        ones), ``max_retries`` (times a job whose worker process died is run again),
+        ``worker_timeout`` (dask: s without any worker before the run stops),
+        ``evaluate_on`` and ``chunks`` (dask: each batch of candidates evaluated as chunks
+        on the workers, see :mod:`penaltyrun.runner.dask_swarm`), ``stall_timeout`` (s a
+        worker may go without a heartbeat before it is killed and its job retried) and
+        ``job_timeout`` (wall-clock s a job may run before its worker is killed and the job
+        recorded ``timeout``; local backend). Default :data:`SERIAL`: the defaults of
+        ``conf/config.yaml`` with one worker (every job in this process).
     on_record : callable, optional
         Called with each record as it is written (progress reporting).
-    max_retries : int
-        Times a job whose worker process died is run again before it is recorded failed.
-    worker_timeout : float
-        dask: seconds without any worker before the run stops (s).
     expected_s : mapping, optional
         ``job_id`` → expected CPU time (s): jobs are dispatched longest first (see
         :func:`~penaltyrun.runner.plan.order_longest_first`); without it, in the given order.
-    evaluate_on : {"local", "dask"}
-        dask (with ``backend="dask"``): each batch of candidates is evaluated as chunks on
-        the dask workers, several starts at once (see :mod:`penaltyrun.runner.dask_swarm`).
-    chunks : int or "auto"
-        Chunks per batch with ``evaluate_on="dask"``.
-    stall_timeout : float
-        Seconds a worker may go without a heartbeat (local pool) or without answering the
-        scheduler (dask LocalCluster) before it is killed and its job retried (s).
-    job_timeout : float, optional
-        Wall-clock seconds a job may run before its worker process is killed and the job
-        recorded ``timeout`` (s; local backend); ``None``: no limit.
 
     Returns
     -------
@@ -145,25 +110,28 @@ def execute(jobs: Iterable[Job], run_dir: Path, workers: int | str = 1,
     EnvironmentProblemError
         A record could not be written (e.g. a full disk); records written before stay.
     """
-    check_settings(workers, backend, evaluate_on, chunks, job_timeout)
-    workers = resolve_workers(workers)
+    workers = resolve_workers(options.workers)
+    backend, evaluate_on = options.backend, options.evaluate_on
+    scheduler, max_retries = options.scheduler, options.max_retries
+    job_timeout, stall_timeout = options.job_timeout, float(options.stall_timeout)
     lock.acquire(run_dir)  # held until the results are collected (or the process ends)
     jobs_dir = Path(run_dir, JOBS_DIR)
     jobs_dir.mkdir(parents=True, exist_ok=True)
     if remove_leftovers(jobs_dir):
         logger.info("removed temporary files of an interrupted write in %s", jobs_dir)
-    todo = order_longest_first(pending_jobs(jobs, run_dir, resume, retry_failed), expected_s)
+    todo = order_longest_first(pending_jobs(jobs, run_dir, options.resume,
+                                            options.retry_failed), expected_s)
     shipped = backend == "dask" and bool(object_paths(todo))
     if shipped and evaluate_on == "dask":
         raise ConfigError("runner.evaluate_on", "dask evaluates the candidates of problems "
                           "named by module only; an in-memory problem runs with "
                           "evaluate_on=local (each job on one dask worker)")
     if evaluate_on == "dask":
-        stream = _swarm_stream(todo, workers, scheduler, max_retries, worker_timeout, chunks,
-                               stall_timeout)
+        stream = _swarm_stream(todo, workers, scheduler, max_retries,
+                               float(options.worker_timeout), options.chunks, stall_timeout)
     elif backend == "dask":
         func = partial(run_job_shipped, blobs=pickled(todo)) if shipped else run_job
-        stream = run_dask(todo, workers, scheduler, max_retries, worker_timeout,
+        stream = run_dask(todo, workers, scheduler, max_retries, float(options.worker_timeout),
                           stall_timeout, func)
     elif job_timeout is None and (workers == 1 or len(todo) <= 1):
         stream = _serial(todo)

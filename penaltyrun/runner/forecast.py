@@ -29,7 +29,7 @@ import heapq
 import logging
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -37,6 +37,7 @@ import numpy as np
 
 from penaltyrun import optim
 from penaltyrun.optim.base import uniform_box
+from penaltyrun.problems.hooks import hooks
 from penaltyrun.runner.options import available_cores
 from penaltyrun.runner.plan import Job, job_seed
 from penaltyrun.runner.setup import build, build_layout
@@ -122,23 +123,10 @@ class Timing:
 
 
 def optimizer_batch(settings: Any, dim: int) -> int:
-    """Candidates the optimizer of ``settings`` passes to the problem per call (≥ 1).
-
-    Swarm size (``pso``, ``pso_matlab``), population (``cmaes``: λ, default
-    4 + ⌊3 ln dim⌋; ``de``: max(5, popsize · dim)); 1 for anything else.
-    """
-    name = type(settings).__module__.rsplit(".", 1)[-1]
-    if name == "pso_matlab":
-        from penaltyrun.optim.pso_matlab import default_swarm_size
-
-        return int(settings.swarm_size or default_swarm_size(dim))
-    if name == "pso":
-        return int(settings.n_particles)
-    if name == "cmaes":
-        return int(settings.popsize or 4 + int(3 * math.log(dim)))
-    if name == "de":
-        return max(5, int(settings.popsize) * dim)
-    return 1
+    """Candidates the optimizer of ``settings`` passes to the problem per call (≥ 1): its
+    settings' own ``batch_size`` (swarm size of ``pso`` and ``pso_matlab``, population of
+    ``cmaes`` and ``de``, 1 for the others)."""
+    return max(1, int(settings.batch_size(dim)))
 
 
 def time_candidates(problem: Any, layout: Any, n: int, seed: int, batch: int = 1) -> Timing:
@@ -188,11 +176,7 @@ def time_candidates(problem: Any, layout: Any, n: int, seed: int, batch: int = 1
 def extra_evals(problem: Any, holdout: bool) -> int:
     """Evaluations after the search: the best candidate's detail (1) plus, with
     ``holdout``, one per held-out scenario of ``problem`` (0 if it has none)."""
-    scenarios = getattr(problem, "holdout_scenarios", None)
-    if not holdout or scenarios is None or not hasattr(problem, "holdout"):
-        return 1
-    found = scenarios()
-    return 1 + (len(found["scenario"]) if isinstance(found, Mapping) else len(found))
+    return 1 + (hooks(problem).n_holdout() if holdout else 0)
 
 
 def job_evals(job: Job, problem: Any, settings: Any, dim: int) -> int | None:

@@ -220,12 +220,16 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
                           lb, ub, full_settings, job.seed, x0, _gradient(prob, layout))
     trace_evals = list(diag.trace_evals) + [diag.n_evals + n for n in full.trace_evals]
     trace_best = np.minimum.accumulate(list(diag.trace_best) + list(full.trace_best))
+    diag_cpu = diag.trace_cpu_s[-1] if diag.trace_cpu_s else 0.0
+    trace_cpu = list(diag.trace_cpu_s) + [diag_cpu + c for c in full.trace_cpu_s]
     result = optim.OptimResult(
         best_cost=full.best_cost, best_z=full.best_z, history=diag.history + full.history,
         n_evals=diag.n_evals + full.n_evals, n_iters=diag.n_iters + full.n_iters,
         stop_reason=f"warm:{diag.stop_reason}|{full.stop_reason}",
         n_nonfinite=diag.n_nonfinite + full.n_nonfinite, trace_evals=trace_evals,
-        trace_best=[float(c) for c in trace_best])
+        trace_best=[float(c) for c in trace_best], trace_cpu_s=trace_cpu,
+        n_gradients=diag.n_gradients + full.n_gradients,
+        grad_cost=full.grad_cost if full.grad_cost is not None else diag.grad_cost)
     warm = {"share": job.warm_start_share, "n_evals": diag.n_evals,
             "best_cost": diag.best_cost, "stop_reason": diag.stop_reason,
             "matrices": _jsonable(diag_mats), "scalars": diag_scalars}
@@ -319,12 +323,15 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
             "metrics": _jsonable(detail),
             "holdout": _jsonable(holdout),
             "n_evals": int(result.n_evals),
+            "n_gradients": int(result.n_gradients),
+            "grad_cost": result.grad_cost,
             "n_iters": int(result.n_iters),
             "stop_reason": result.stop_reason,
             "n_nonfinite": int(result.n_nonfinite),
             "history": [float(h) for h in result.history],
             "trace_evals": [int(n) for n in result.trace_evals],
             "trace_best": [float(c) for c in result.trace_best],
+            "trace_cpu_s": [float(c) for c in result.trace_cpu_s],
             "max_evals": getattr(settings, "max_evals", None),
         })
         record.update(_jsonable(diagnostics.record_columns(prob, best_mats, best_scalars)))

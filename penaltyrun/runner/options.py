@@ -39,6 +39,10 @@ RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
 BACKENDS = ("local", "dask")
 #: Where a job's candidates are evaluated: in the job's process, or as chunks on Dask workers.
 EVALUATE_ON = ("local", "dask")
+#: ``report.*`` option → the types it may have (the report a run writes at its end, and
+#: ``mode=report``).
+REPORT_OPTIONS: dict[str, tuple[type, ...]] = {"input": (str, type(None)),
+                                               "output": (str, type(None)), "paper": (bool,)}
 _ADDRESS = re.compile(r"^(?:(?P<proto>tcp|tls)://)?(?P<host>\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+)"
                       r":(?P<port>\d{1,5})$")
 
@@ -174,3 +178,15 @@ def check_runner_options(options: Mapping[str, Any], connect: bool = True) -> No
         parse_address(scheduler)
         if connect:
             check_scheduler(scheduler)
+
+
+def check_report_options(options: Mapping[str, Any]) -> None:
+    """Check ``report.input``, ``report.output`` (path or null), ``report.paper`` (bool)."""
+    for key, value in options.items():
+        types = REPORT_OPTIONS.get(key)
+        if types is None:
+            raise ConfigError(f"report.{key}", "unknown report option",
+                              allowed=sorted(REPORT_OPTIONS))
+        if not isinstance(value, types) or (isinstance(value, str) and not value.strip()):
+            what = "true or false" if types == (bool,) else "a path or null"
+            raise ConfigError(f"report.{key}", f"must be {what}, got {value!r}")

@@ -119,18 +119,41 @@ def config_hash(obj: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def plan_jobs(problem: str, case: str, param: str, optimizer: str, n_starts: int,
-              root_seed: int, problem_params: dict[str, Any] | None = None,
-              param_options: dict[str, Any] | None = None,
-              optimizer_options: dict[str, Any] | None = None,
-              meta: dict[str, Any] | None = None, holdout: bool = True,
-              warm_start_share: float = 0.0,
-              problem_module: str | None = None, cutoff: bool = True,
-              module_hash: str = "") -> list[Job]:
+def plan_jobs(problem: str, case: str, param: str, optimizer: str, *, n_starts: int,
+              root_seed: int, problem_params: Mapping[str, Any] | None = None,
+              param_options: Mapping[str, Any] | None = None,
+              optimizer_options: Mapping[str, Any] | None = None,
+              meta: Mapping[str, Any] | None = None, holdout: bool = True,
+              warm_start_share: float = 0.0, problem_module: str | None = None,
+              cutoff: bool = True, module_hash: str = "") -> list[Job]:
     """One job per start of a single (problem, case, param, optimizer) cell.
 
-    ``warm_start_share`` applies to full maps only (a diagonal job has nothing to warm).
-    ``module_hash``: :func:`module_source_hash` of ``problem_module`` (part of the job ids).
+    The cell is positional, everything else keyword-only (a run from a config plans through
+    :meth:`penaltyrun.runner.spec.RunSpec.plan`).
+
+    Parameters
+    ----------
+    problem, case, param, optimizer : str
+        The cell: problem name, resolved case, parameterization (map), optimizer.
+    n_starts : int
+        Starts (jobs), at most :data:`MAX_N_STARTS`.
+    root_seed : int
+        The run's root seed; each job's seed is :func:`job_seed` of it and the job's key.
+    problem_params, param_options, optimizer_options : mapping, optional
+        Problem parameter overrides, the parameterization node, the optimizer settings.
+    meta : mapping, optional
+        Run-level metadata copied into every record.
+    holdout : bool
+        Judge each job's best candidate on the held-out scenarios.
+    warm_start_share : float
+        Share of the budget for a diagonal warm start; full maps only (a diagonal job has
+        nothing to warm).
+    problem_module : str, optional
+        Module of a problem outside penaltyrun.
+    cutoff : bool
+        Let the problem stop hopeless candidates early (not part of the job's identity).
+    module_hash : str
+        :func:`module_source_hash` of ``problem_module`` (part of the job ids).
 
     Raises
     ------

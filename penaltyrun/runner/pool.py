@@ -264,17 +264,13 @@ class _Worker:
         self.conn.close()
 
 
-#: Modules an optimizer imports when it first runs (``pyswarms``: 0.3 s CPU), imported once
-#: in the parent before the workers are forked, so that every forked worker shares them
-#: instead of importing them again (see :func:`import_shared`). ``module:function`` names
-#: the optimizer's own loader (pyswarms must be imported through it: its import-time
-#: logging set-up would write ``report.log``).
-SHARED_IMPORTS: dict[str, tuple[str, ...]] = {
-    "pso": ("penaltyrun.optim.pso:load_pyswarms",)}
-
-
 def import_shared(jobs: list[Job]) -> list[str]:
-    """Import the :data:`SHARED_IMPORTS` of the optimizers of ``jobs`` in this process.
+    """Import the modules the optimizers of ``jobs`` import when they first run
+    (``shared_imports`` of :data:`penaltyrun.optim.OPTIMIZERS`; ``pyswarms``: 0.3 s CPU) in
+    this process, before the workers are forked, so that every forked worker shares them
+    instead of importing them again. ``module:function`` names the optimizer's own loader
+    (pyswarms must be imported through it: its import-time logging set-up would write
+    ``report.log``).
 
     Returns
     -------
@@ -282,9 +278,12 @@ def import_shared(jobs: list[Job]) -> list[str]:
         The modules imported now or before; one that cannot be imported is left to the
         job, which then records the error as before.
     """
+    from penaltyrun.optim import OPTIMIZERS
+
     done = []
     for name in sorted({job.optimizer for job in jobs}):
-        for module in SHARED_IMPORTS.get(name, ()):
+        entry = OPTIMIZERS.get(name)
+        for module in entry.shared_imports if entry is not None else ():
             name, _, loader = module.partition(":")
             try:
                 loaded = importlib.import_module(name)

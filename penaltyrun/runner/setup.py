@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import Any, TypeVar
 
 from penaltyrun import optim, penalty, problems
 from penaltyrun.errors import ConfigError
 from penaltyrun.penalty.layout import DecisionLayout
 from penaltyrun.problems.base import Problem
+
+T = TypeVar("T")
 
 
 def build_layout(problem: Problem, param: str, options: Mapping[str, Any]) -> DecisionLayout:
@@ -36,16 +38,36 @@ def build(problem: str, case: str | None, problem_params: Mapping[str, Any], par
     ``problem_module`` names the module of a problem outside penaltyrun (a problem
     config's ``module:``; see :func:`penaltyrun.problems.module`).
 
+    The settings of an optimizer or polish that uses the exact gradient charge what the
+    problem declares one gradient to cost unless ``optimizer.grad_cost`` is given
+    (:func:`penaltyrun.optim.with_gradient_cost`).
+
     Raises
     ------
     ConfigError
-        On any invalid name or value, naming the key.
+        On any invalid name or value, naming the key; also a grid optimizer whose grid
+        does not fit the decision dimension (:func:`penaltyrun.optim.check_dimension`), and
+        a gradient charge neither given nor declared by the problem.
     """
     settings = optim.make_settings(optimizer, optimizer_options)
     if param not in penalty.KINDS:
         raise ConfigError("param", f"unknown parameterization {param!r}",
                           allowed=penalty.KINDS)
-    prob = problems.make(problem, case, problem_params, problem_module)
-    layout = build_layout(prob, param, param_options)
+    prob = checked("problem.params", problems.make, problem, case, problem_params,
+                   problem_module)
+    layout = checked("param", build_layout, prob, param, param_options)
     optim.check_dimension(settings, layout.dim)
-    return prob, layout, settings
+    return prob, layout, optim.with_gradient_cost(settings, prob)
+
+
+def checked(key: str, func: Callable[..., T], *args: Any) -> T:
+    """``func(*args)``; an error other than ConfigError (a problem's or a map's own
+    ``TypeError``, ``ValueError``, ``KeyError``, ``IndexError`` on a bad value) becomes one
+    ConfigError on ``key``."""
+    try:
+        return func(*args)
+    except ConfigError:
+        raise
+    except (TypeError, ValueError, KeyError, IndexError) as exc:
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise ConfigError(key, f"invalid value: {text}") from None

@@ -27,6 +27,7 @@ import numpy as np
 from penaltyrun import __version__, problems
 from penaltyrun.penalty.layout import DecisionLayout
 from penaltyrun.problems.base import Problem, accepts_thresholds
+from penaltyrun.problems.hooks import hooks
 from penaltyrun.runner.plan import Job, config_hash
 from penaltyrun.runner.setup import build_layout
 
@@ -88,8 +89,9 @@ def evaluate_best(prob: Problem, mats: Mapping[str, np.ndarray], scalars: Mappin
     """
     detail = prob.evaluate(mats, scalars or None)
     held = None
-    if holdout and hasattr(prob, "holdout"):
-        held = prob.holdout(mats, scalars or None)
+    judge = hooks(prob).holdout if holdout else None
+    if judge is not None:
+        held = judge(mats, scalars or None)
     return detail, held
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 import penaltyrun
-from penaltyrun.api.compose import cell_spec, compose
+from penaltyrun.api.compose import compose, run_spec
 from penaltyrun.runner import config_hash
 
 #: One small cell: diagonal Zermelo, CMA-ES with 30 evaluations per start, 2 starts.
@@ -45,11 +45,10 @@ def test_a_built_in_cells_hash_is_unchanged():
     config = compose("zermelo", None, case=None, param="full", optimizer="pso",
                      optimizer_options=None, params=None,
                      runner={"seed": 20250422, "n_starts": 10})
-    spec = cell_spec(config)
+    spec = run_spec(config)
     assert config_hash(spec.hashed) == "111f4398a2da0ab1"
-    from penaltyrun.api.core import plan_cell
 
-    job = plan_cell(spec, "default")[0]
+    job = spec.plan("default")[0]
     assert job.job_id == "zermelo-default-full-pso-eab43454-s000"
 
 

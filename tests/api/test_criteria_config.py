@@ -10,8 +10,7 @@ import sys
 
 import pytest
 
-from penaltyrun.api.compose import cell_spec, compose
-from penaltyrun.api.core import plan_cell
+from penaltyrun.api.compose import compose, run_spec
 from penaltyrun.runner import config_hash
 
 #: Config hashes and first job ids of default cells, as computed before the criteria keys
@@ -33,8 +32,8 @@ def test_default_cells_hash_and_plan_as_before(problem, case):
                      optimizer_options=None, params=None,
                      runner={"seed": 20250422, "n_starts": 10})
     assert "criterion" in config["problem"]["params"]    # listed, left null
-    spec = cell_spec(config)
-    assert (config_hash(spec.hashed), plan_cell(spec, "default")[0].job_id) \
+    spec = run_spec(config)
+    assert (config_hash(spec.hashed), spec.plan("default")[0].job_id) \
         == PINNED[(problem, case)]
 
 
@@ -42,10 +41,10 @@ def test_a_set_criterion_changes_the_hash_and_the_job_id():
     config = compose("mpc_rendezvous", None, case=None, param="full", optimizer="pso",
                      optimizer_options=None, params={"criterion": "time_energy"},
                      runner={"seed": 20250422, "n_starts": 10})
-    spec = cell_spec(config)
+    spec = run_spec(config)
     old_hash, old_id = PINNED[("mpc_rendezvous", None)]
     assert config_hash(spec.hashed) != old_hash
-    assert plan_cell(spec, "default")[0].job_id != old_id
+    assert spec.plan("default")[0].job_id != old_id
 
 
 def _cli(args, cwd):

@@ -72,7 +72,7 @@ def test_bad_input_names_the_fix(kwargs, words):
 
 def test_problem_without_gradient_is_refused_in_one_line():
     with pytest.raises(ConfigError, match="no gradient"):
-        penaltyrun.evaluate("zermelo", {"K": [[1, 0], [0, 1]]}, gradient=True)
+        penaltyrun.evaluate("lyapunov_transfer", {"K": np.eye(5).tolist()}, gradient=True)
 
 
 def _cli(*args, cwd):

@@ -11,7 +11,7 @@ from cli_subprocess import FAST_JOBS, cli, cli_forked, one_error_line, report
 from hypothesis import given
 from hypothesis import strategies as st
 
-from penaltyrun.cliargs import matlab_to_yaml
+from penaltyrun.cli.args import matlab_to_yaml
 from penaltyrun.io import RESULTS_FILE
 
 LQR_FILE = textwrap.dedent("""\

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from penaltyrun import problems
-from penaltyrun.userconf import CONF_DIR
+from penaltyrun.cli.userconf import CONF_DIR
 
 K2 = "matrices.K=[[1.7421,0.9560],[0.9560,1.1414]]"
 #: Modules a refused command line must not import (heavy, and not needed to check it).

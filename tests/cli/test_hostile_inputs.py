@@ -14,8 +14,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from penaltyrun.cli.overrides import MAX_CHARS, MAX_VALUES
 from penaltyrun.io import collect
-from penaltyrun.overrides import MAX_CHARS, MAX_VALUES
 from penaltyrun.yamlsafe import MAX_ALIAS_VALUES, MAX_BYTES, MAX_DEPTH
 
 

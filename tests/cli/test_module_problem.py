@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 import penaltyrun
-from penaltyrun import userconf
+from penaltyrun.cli import userconf
 
 MODULE = textwrap.dedent('''
     import numpy as np

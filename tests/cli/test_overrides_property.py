@@ -10,6 +10,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from penaltyrun import cli
+from penaltyrun.cli.app import guard
+from penaltyrun.cli.preflight import preflight
 
 KEYS = ["mode", "case", "problem", "param", "optimizer", "+experiment", "runner.seed",
         "runner.n_starts", "runner.workers", "runner.backend", "runner.resume",
@@ -57,7 +59,7 @@ def test_preflight_accepts_or_gives_one_line(pairs, tmp_path_factory, capsys,
     monkeypatch.chdir(tmp_path_factory.mktemp("cwd"))
     argv = _argv(pairs)
     try:
-        cli._guard(lambda: cli.preflight(argv))
+        guard(lambda: preflight(argv))
     except SystemExit as exc:
         assert exc.code == cli.EXIT_USAGE, argv
         err = capsys.readouterr().err

@@ -11,7 +11,7 @@ import termios
 
 import pytest
 
-from penaltyrun import progress
+from penaltyrun.cli import progress
 from penaltyrun.errors import ConfigError
 
 RUN = ["runner.n_starts=2", "optimizer.n_particles=4", "optimizer.iters=2",

@@ -4,7 +4,7 @@ names; nothing else is trusted."""
 from omegaconf import OmegaConf
 
 from penaltyrun import problems
-from penaltyrun.cli import _trust_config_modules
+from penaltyrun.cli.app import _trust_config_modules
 
 
 def test_the_modules_of_the_users_config_are_trusted_for_its_report():

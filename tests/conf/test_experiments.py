@@ -25,7 +25,7 @@ def test_profile_composes(name):
 def test_profile_passes_the_preflight(name):
     """The command line's checks accept every shipped profile (a profile's list of scenario
     mappings once failed the list-of-numbers check and no study of it could start)."""
-    from penaltyrun.preflight import preflight
+    from penaltyrun.cli.preflight import preflight
 
     preflight(["-m", f"+experiment={name}"])
 
@@ -61,3 +61,22 @@ def test_multiscenario_profiles_build_disjoint_problems(name, kind):
               if v is not None}
     prob = problems.make(cfg.problem.name, cfg.case, params)
     assert isinstance(prob, MultiScenarioProblem) and len(prob.scenarios) == kind
+
+
+@pytest.mark.parametrize("name", ["robust_attitude", "robust_mpc"])
+def test_robust_profiles_follow_the_protocol(name):
+    """Robust tuning: at least 8 seeded training scenarios drawn by the problem, their mean,
+    a well-posed criterion, and a disjoint held-out set of at least 200 scenarios."""
+    from penaltyrun.problems.multiscenario import MultiScenarioProblem
+
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[f"+experiment={name}"])
+    params = {k: v for k, v in OmegaConf.to_container(cfg.problem.params, resolve=True).items()
+              if v is not None}
+    assert params["criterion"] == "time_energy" and params["train_aggregate"] == "mean"
+    assert cfg.runner.n_starts >= 10
+    prob = problems.make(cfg.problem.name, cfg.case, params)  # checks disjointness
+    assert isinstance(prob, MultiScenarioProblem) and len(prob.scenarios) >= 8
+    held = prob.holdout_keys()
+    assert len(held) >= 200
+    assert not held & {s.scenario_key() for s in prob.scenarios}

@@ -3,7 +3,8 @@ paper's PSO budgets; expanded as Hydra's multirun would (``mode=plan``'s cells).
 
 import pytest
 
-from penaltyrun import optim, planmode
+from penaltyrun import optim
+from penaltyrun.cli import planmode
 
 
 @pytest.mark.parametrize(("name", "swarm", "iters"), [("lowthrust_paper_50x50", 50, 50),

@@ -26,9 +26,9 @@ def pages() -> dict[str, str]:
 
 def test_every_config_key_is_listed(pages):
     text = pages["reference/config.md"]
-    for name, (cls, _) in OPTIMIZERS.items():
+    for name, entry in OPTIMIZERS.items():
         assert f"### `{name}`" in text
-        for field in dataclasses.fields(cls):
+        for field in dataclasses.fields(entry.settings):
             assert f"`optimizer.{field.name}`" in text
     for key in RUNNER_OPTIONS:
         assert f"`runner.{key}`" in text

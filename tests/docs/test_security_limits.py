@@ -2,7 +2,8 @@
 
 from pathlib import Path
 
-from penaltyrun import overrides, userconf, yamlsafe
+from penaltyrun import yamlsafe
+from penaltyrun.cli import overrides, userconf
 from penaltyrun.io import read
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "security.md"

@@ -118,9 +118,12 @@ def zermelo_study(tmp_path_factory) -> Path:
     multi = {"train_scenarios": [{"x0": [-6.0, 8.0]}]}
     jobs = []
     for param in ("diagonal", "geagsp"):
-        jobs += runner.plan_jobs("zermelo", "default", param, "pso", 3, 7, {}, {}, pso, {})
-        jobs += runner.plan_jobs("zermelo", "default", param, "pso", 2, 7, multi, {}, pso, {})
-        jobs += runner.plan_jobs("zermelo", "default", param, "grid", 1, 7, {}, {}, grid, {})
+        jobs += runner.plan_jobs("zermelo", "default", param, "pso", n_starts=3, root_seed=7,
+                                 optimizer_options=pso)
+        jobs += runner.plan_jobs("zermelo", "default", param, "pso", n_starts=2, root_seed=7,
+                                 problem_params=multi, optimizer_options=pso)
+        jobs += runner.plan_jobs("zermelo", "default", param, "grid", n_starts=1, root_seed=7,
+                                 optimizer_options=grid)
     runner.execute(jobs, tmp / "run")
     io.collect(tmp / "run")
     studies.merge_study(ROOT, "referee_zermelo", run_dir=tmp / "run", dest=tmp / "dest")
@@ -159,6 +162,7 @@ def test_a_template_naming_a_table_the_report_never_writes_fails(zermelo_study):
         results.report_table("holdout_zermelo")
 
 
+@pytest.mark.slow  # about 45 s on 2 cores (the slow suite regenerates every study)
 @pytest.mark.parametrize("name", FAST)
 def test_fast_study_regenerates(name, tmp_path):
     merged = run_reduced(name, tmp_path)

@@ -76,6 +76,7 @@ def test_eig_sym2_matches_eigh(a, b, c):
     np.testing.assert_allclose(K @ V, V @ np.diag([l1, l2]), rtol=0, atol=8e-16 * scale)
 
 
+@pytest.mark.slow
 def test_agrees_with_the_dop853_kernel():
     K = box_gains()
     t, J, dist, status, covered = closed(K)

@@ -99,7 +99,7 @@ def test_records_carry_their_package_versions_and_old_files_still_read(tmp_path)
     from penaltyrun.runner import plan_jobs
     from penaltyrun.runner.records import write_record
 
-    job = plan_jobs("zermelo", "default", "full", "pso", 1, 3)[0]
+    job = plan_jobs("zermelo", "default", "full", "pso", n_starts=1, root_seed=3)[0]
     write_record(tmp_path / "new", job, {**record(0, job_id=job.job_id), "git_commit": "abc"})
     collect(tmp_path / "new")
     old = pa.Table.from_pylist([normalize(record(1), "old")], schema=SCHEMA)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from penaltyrun.optim import gradient as zg
-from penaltyrun.problems import lqr, zermelo
+from penaltyrun.problems import lqr
+from penaltyrun.problems.lowthrust import lyapunov_transfer
 from penaltyrun.runner.setup import build_layout
 
 
@@ -48,7 +49,7 @@ def test_z_gradient_matches_central_differences(kind, dt):
 
 
 def test_without_gradient_hook_the_reason_is_one_line():
-    prob = zermelo.make_problem(zermelo.DEFAULT_CASE, {})
+    prob = lyapunov_transfer.make_problem(lyapunov_transfer.DEFAULT_CASE, {})
     layout = build_layout(prob, "diagonal", {})
     lb, ub = layout.bounds()
     out = zg.z_gradient(prob, layout, 0.5 * (lb + ub))

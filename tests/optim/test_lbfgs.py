@@ -9,6 +9,7 @@ import pytest
 from penaltyrun import optim
 from penaltyrun.errors import ConfigError
 from penaltyrun.optim.gradient import z_gradient
+from penaltyrun.optim.lbfgs import UnitCube
 from penaltyrun.problems import lqr
 from penaltyrun.runner.setup import build_layout
 
@@ -36,7 +37,7 @@ def _run(prob, kind, options, seed=11):
     def objective(Z):
         return prob.evaluate_batch(layout.split(Z)[0])
 
-    settings = optim.make_settings("lbfgs", options)
+    settings = optim.with_gradient_cost(optim.make_settings("lbfgs", options), prob)
     return optim.minimize("lbfgs", objective, lb, ub, settings, seed,
                           gradient=lambda z: z_gradient(prob, layout, z)), layout
 
@@ -53,6 +54,40 @@ def test_reaches_the_closed_form_optimum_to_1e_8(make, kind):
     assert abs(res.best_cost - prob.optimum) <= 1e-8 * prob.optimum
 
 
+@pytest.mark.parametrize("kind", [pytest.param("givens", marks=pytest.mark.slow), "diagonal"])
+def test_log_positive_searches_the_same_box_and_reaches_the_same_optimum(kind):
+    prob = lqr.make_problem("default", {})
+    options = {"starts": 1, "max_evals": 20000}
+    linear, _ = _run(prob, kind, options)
+    logged, layout = _run(prob, kind, {**options, "log_positive": True})
+    lb, ub = layout.bounds()
+    assert np.all(logged.best_z >= lb) and np.all(logged.best_z <= ub)
+    assert logged.best_cost == pytest.approx(linear.best_cost, rel=1e-8)
+    if kind == "givens":
+        assert abs(logged.best_cost - prob.optimum) <= 1e-8 * prob.optimum
+
+
+def test_unit_cube_log_scale_is_exact_both_ways_with_its_jacobian():
+    lb = np.array([0.05, 0.05, -np.pi, 0.0])
+    ub = np.array([50.0, 2.0, np.pi, 1.0])
+    cube = UnitCube(lb, ub, log_positive=True)
+    assert cube.log.tolist() == [True, True, False, False]
+    u = np.array([0.5, 0.25, 0.75, 0.3])
+    z = cube.to_box(u)
+    assert z[0] == pytest.approx(np.sqrt(0.05 * 50.0))  # the geometric middle
+    assert z[2] == pytest.approx(np.pi / 2) and z[3] == pytest.approx(0.3)
+    np.testing.assert_allclose(cube.to_cube(z), u, rtol=1e-13)
+    np.testing.assert_array_equal(cube.to_box([0.0, 0.0, 0.0, 0.0]), lb)
+    np.testing.assert_allclose(cube.to_box([1.0, 1.0, 1.0, 1.0]), ub, rtol=1e-15)
+    h = 1e-6
+    numeric = [(cube.to_box(u + h * e) - cube.to_box(u - h * e))[k] / (2 * h)
+               for k, e in enumerate(np.eye(4))]
+    np.testing.assert_allclose(cube.dz_du(z), numeric, rtol=1e-8)
+    linear = UnitCube(lb, ub)
+    assert not linear.log.any()
+    np.testing.assert_allclose(linear.to_box(u), lb + u * (ub - lb))
+
+
 def test_diagonal_map_stops_at_its_own_optimum_above_j_star():
     """The known-answer plant's J* needs a non-diagonal Q: the diagonal map ends at a
     first-order point of its own box, above J*."""
@@ -64,25 +99,10 @@ def test_diagonal_map_stops_at_its_own_optimum_above_j_star():
     assert np.max(np.abs(optim.gradient.projected_gradient(res.best_z, grad, lb, ub))) < 1e-6
 
 
-def test_budget_counts_each_gradient_as_grad_cost_evaluations():
+def test_the_budget_stops_a_run_without_a_start_limit():
+    """(How each gradient is charged: tests/optim/test_lbfgs_charge.py.)"""
     prob = lqr.make_problem("default", {})
-    calls = {"values": 0, "grads": 0}
-    layout = build_layout(prob, "givens", {})
-    lb, ub = layout.bounds()
-
-    def objective(Z):
-        calls["values"] += len(Z)
-        return prob.evaluate_batch(layout.split(Z)[0])
-
-    def gradient(z):
-        calls["grads"] += 1
-        return z_gradient(prob, layout, z)
-
-    settings = optim.make_settings("lbfgs", {"starts": 1, "max_evals": 10000, "grad_cost": 4})
-    res = optim.minimize("lbfgs", objective, lb, ub, settings, 3, gradient=gradient)
-    assert res.n_evals == calls["values"] + 4 * calls["grads"]
-    capped = optim.make_settings("lbfgs", {"starts": None, "max_evals": 200, "grad_cost": 4})
-    res = optim.minimize("lbfgs", objective, lb, ub, capped, 3, gradient=gradient)
+    res, _ = _run(prob, "givens", {"starts": None, "max_evals": 200, "grad_cost": 4}, seed=3)
     assert res.stop_reason == "max_evals" and res.n_evals <= 200
 
 
@@ -137,8 +157,8 @@ def test_gradient_polish_refines_any_optimizers_best_inside_the_budget():
     def objective(Z):
         return prob.evaluate_batch(layout.split(Z)[0])
 
-    settings = optim.make_settings("pso", {"max_evals": 600, "polish": "gradient",
-                                           "polish_share": 0.5})
+    settings = optim.with_gradient_cost(optim.make_settings(
+        "pso", {"max_evals": 600, "polish": "gradient", "polish_share": 0.5}), prob)
     res = optim.minimize("pso", objective, lb, ub, settings, 3,
                          gradient=lambda z: z_gradient(prob, layout, z))
     assert res.n_evals <= 600 and "+polish" in res.stop_reason
@@ -148,10 +168,12 @@ def test_gradient_polish_refines_any_optimizers_best_inside_the_budget():
 
 
 def test_problem_without_gradient_is_refused_before_any_job():
-    from penaltyrun.checks import check_gradient_available
-    from penaltyrun.problems import zermelo
+    from penaltyrun.cli.checks import check_gradient_available
+    from penaltyrun.problems.lowthrust import lyapunov_transfer, qlaw
 
-    prob = zermelo.make_problem(zermelo.DEFAULT_CASE, {})
+    with pytest.raises(ConfigError, match="piecewise in K"):  # the problem's own reason
+        check_gradient_available("lbfgs", {}, qlaw.make_problem(qlaw.DEFAULT_CASE, {}))
+    prob = lyapunov_transfer.make_problem(lyapunov_transfer.DEFAULT_CASE, {})
     with pytest.raises(ConfigError, match="optimizer: lbfgs needs the exact gradient"):
         check_gradient_available("lbfgs", {}, prob)
     with pytest.raises(ConfigError, match="optimizer.polish"):

@@ -120,7 +120,7 @@ def test_experiment_profiles_build_every_cell(profile, cells, swarm):
     from omegaconf import OmegaConf
 
     from penaltyrun import problems
-    from penaltyrun.cli import _setup
+    from penaltyrun.cli.spec import run_spec
 
     if profile.startswith("pso_matlab_fidelity"):
         try:
@@ -136,7 +136,7 @@ def test_experiment_profiles_build_every_cell(profile, cells, swarm):
         with initialize_config_dir(config_dir=conf, version_base=None):
             cfg = compose("config", overrides=overrides, return_hydra_config=True)
         sweep = OmegaConf.to_container(cfg.hydra.sweeper.params)
-        _, _, settings = _setup(cfg)
+        _, _, settings = run_spec(cfg).build()
         assert isinstance(settings, PSOMatlabSettings)
         assert settings.swarm_size == swarm
         assert settings.max_iterations == (10000 if swarm else None)

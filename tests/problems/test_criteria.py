@@ -51,6 +51,8 @@ def test_hashed_node_drops_only_unset_criterion_keys():
     node = {"name": "x", "params": {"criterion": None, "rho": 0.1, "t_max": None}}
     assert criteria.hashed_node(node) == {"name": "x", "params": {"rho": 0.1, "t_max": None}}
     assert node["params"]["criterion"] is None    # the input is not modified
+    quantile = {"name": "x", "params": {"train_quantile": None, "train_aggregate": None}}
+    assert criteria.hashed_node(quantile) == {"name": "x", "params": {"train_aggregate": None}}
 
 
 def test_time_energy_and_terminal_values():

@@ -9,24 +9,44 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import make
-from penaltyrun.problems.multiscenario import MultiScenarioProblem
+from penaltyrun.problems.multiscenario import (
+    DEFAULT_QUANTILE,
+    MultiScenarioProblem,
+    quantile_weights,
+)
 
 STARTS = [{"x0": (-8.0, 6.0)}, {"x0": (3.0, -4.0)}, {"x0": (1.0, 7.5)}]
 KS = np.stack([np.array([[1.7421, 0.9560], [0.9560, 1.1414]]), np.diag([0.8094, 0.1611]),
                np.eye(2)])
 
 
-@pytest.mark.parametrize("how", ["mean", "max"])
+def _sorted_quantile(values: np.ndarray, q: float) -> float:
+    """The linear-interpolation quantile by hand: sort, h = q (m - 1), interpolate."""
+    v = sorted(float(x) for x in values)
+    h = q * (len(v) - 1)
+    lo = int(np.floor(h))
+    hi = min(lo + 1, len(v) - 1)
+    return v[lo] + (h - lo) * (v[hi] - v[lo])
+
+
+@pytest.mark.parametrize("how", ["mean", "max", "quantile"])
 def test_zermelo_aggregate_matches_hand_computation(how):
-    prob = make("zermelo", None, {"train_scenarios": STARTS, "train_aggregate": how})
+    over = {"train_scenarios": STARTS, "train_aggregate": how}
+    if how == "quantile":
+        over["train_quantile"] = 0.75
+    prob = make("zermelo", None, over)
     assert isinstance(prob, MultiScenarioProblem)
     batch = prob.evaluate_batch({"K": KS})
     single = np.array([[make("zermelo", None, s).evaluate({"K": K})["cost"] for K in KS]
                        for s in STARTS])  # (scenario, candidate)
-    want = single.mean(axis=0) if how == "mean" else single.max(axis=0)
+    want = {"mean": single.mean(axis=0), "max": single.max(axis=0),
+            "quantile": np.array([_sorted_quantile(single[:, b], 0.75)
+                                  for b in range(single.shape[1])])}[how]
     np.testing.assert_allclose(batch.cost, want, rtol=1e-12)
     assert batch.converged.all()
     detail = prob.evaluate({"K": KS[0]})
@@ -35,6 +55,40 @@ def test_zermelo_aggregate_matches_hand_computation(how):
     json.dumps(detail)
 
 
+def test_quantile_level_defaults_and_is_recorded():
+    prob = make("zermelo", None, {"train_scenarios": STARTS, "train_aggregate": "quantile"})
+    assert prob.quantile == DEFAULT_QUANTILE == 0.9
+    assert prob.params.train_quantile == 0.9
+    assert prob.evaluate({"K": KS[0]})["train_quantile"] == 0.9
+    top = make("zermelo", None, {"train_scenarios": STARTS, "train_aggregate": "quantile",
+                                 "train_quantile": 1.0})
+    worst = make("zermelo", None, {"train_scenarios": STARTS, "train_aggregate": "max"})
+    np.testing.assert_array_equal(top.evaluate_batch({"K": KS}).cost,
+                                  worst.evaluate_batch({"K": KS}).cost)
+    assert make("zermelo", None, {"train_scenarios": STARTS}).params.train_quantile is None
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=1, max_size=12),
+       st.floats(0.01, 1.0))
+def test_quantile_weights_reproduce_the_quantile(costs, q):
+    """Where the quantile is differentiable its weights give it back; they sum to 1, are
+    non-negative and put weight on at most two scenarios."""
+    c = np.asarray(costs)
+    w = quantile_weights(c, q)
+    if w is None:  # a tie at the order statistics used: a kink, no weights
+        return
+    assert w.sum() == pytest.approx(1.0) and (w >= 0).all() and (w > 0).sum() <= 2
+    assert float(w @ c) == pytest.approx(float(np.quantile(c, q)), rel=1e-12, abs=1e-9)
+    assert float(w @ c) == pytest.approx(_sorted_quantile(c, q), rel=1e-12, abs=1e-9)
+
+
+def test_quantile_weights_none_at_a_tie():
+    assert quantile_weights(np.array([1.0, 3.0, 3.0, 0.0]), 0.9) is None
+    assert quantile_weights(np.array([1.0, 2.0, 3.0, 0.0]), 0.9) is not None
+
+
+@pytest.mark.slow
 def test_attitude_mean_over_training_attitudes():
     scen = [{"attitude": (60.0, 80.0, -60.0)}, {"attitude": (20.0, -30.0, 45.0)}]
     prob = make("attitude_lyapunov", "rest_to_rest", {"train_scenarios": scen})
@@ -53,6 +107,7 @@ def test_one_failing_scenario_fails_the_candidate():
     assert not prob.evaluate_batch({"K": KS[:1]}).converged[0]
 
 
+@pytest.mark.slow
 def test_lowthrust_departures_times_steps():
     scen = [{"nu0_deg": nu, "control_step_s": dt} for nu in (30.0, 200.0) for dt in (70.0, 90.0)]
     prob = make("qlaw", "C", {"train_scenarios": scen})
@@ -67,6 +122,14 @@ def test_lowthrust_departures_times_steps():
     ("zermelo", None, {"train_scenarios": [{"x0": (2.0, 0.0)}]}, "held-out"),
     ("zermelo", None, {"train_scenarios": [{}], "train_aggregate": "median"}, "aggregate"),
     ("zermelo", None, {"train_scenarios": [5]}, "not a mapping"),
+    ("zermelo", None, {"train_scenarios": [{}], "train_aggregate": "quantile",
+                       "train_quantile": 1.5}, r"train_quantile.*\(0, 1\]"),
+    ("zermelo", None, {"train_scenarios": [{}], "train_aggregate": "quantile",
+                       "train_quantile": 0.0}, r"train_quantile.*\(0, 1\]"),
+    ("zermelo", None, {"train_scenarios": [{}], "train_aggregate": "quantile",
+                       "train_quantile": "high"}, r"train_quantile.*\(0, 1\]"),
+    ("zermelo", None, {"train_scenarios": [{}], "train_quantile": 0.9},
+     "train_quantile.*aggregate is 'mean'"),
     ("zermelo", None, {"train_scenarios": [{"nonsense": 1}]}, "nonsense"),
     ("qlaw", "A", {"train_scenarios": [{}, {"control_step_s": 40.0}]},
      "scenario 1 .* is also in the held-out set"),

@@ -34,11 +34,14 @@ def test_user_gradient_chains_through_the_map_like_a_built_in():
 
 
 def test_lbfgs_reaches_the_optimum_of_a_user_cost(tmp_path):
-    prob = penaltyrun.from_cost(_cost, {"K": (2, (0.1, 10.0))}, gradient=_grad)
+    # the gradient of this cost is one numpy expression like the cost: about one evaluation
+    prob = penaltyrun.from_cost(_cost, {"K": (2, (0.1, 10.0))}, gradient=_grad,
+                                gradient_cost=1.0)
     rec = penaltyrun.tune(prob, param="givens", optimizer="lbfgs",
                           optimizer_options={"starts": 2, "max_evals": 2000}, n_starts=1,
                           seed=1, workers=1, run_dir=tmp_path / "run").records.iloc[0]
     assert rec["best_cost"] < 1e-12 and rec["grad_norm"] < 1e-6
+    assert rec["grad_cost"] == 1.0 and rec["n_gradients"] > 0
 
 
 def test_a_cost_without_gradient_says_so_and_a_bad_gradient_is_a_reason():

@@ -145,6 +145,7 @@ def test_evaluate_batch_matches_the_integrator_on_decoded_candidates(prob):
     np.testing.assert_allclose(batch.cost, ref.cost, rtol=1e-8)
 
 
+@pytest.mark.slow
 def test_non_symmetric_gain_is_integrated(prob):
     # outside the closed form (Kᵀ ≠ K); its symmetric part is PD, so the event fires
     K = np.array([[[1.0, 0.7], [-0.3, 0.8]], [[1.0, 0.2], [0.2, 0.5]]])

@@ -85,3 +85,27 @@ def test_basin_points_on_the_command_line(tmp_path, capsys):
     with pytest.raises(SystemExit):
         report_main(["--help"])
     assert f"(default {basins.REPORT_POINTS};" in " ".join(capsys.readouterr().out.split())
+
+
+def test_a_region_estimate_adds_its_column_and_its_contour(tmp_path):
+    """A problem's region estimate (e.g. a Lyapunov sub-level set): the table counts the grid
+    points inside it that converged, the text names it, the figure draws it."""
+    from penaltyrun.problems.basins import BasinAxes, BasinMap
+
+    axes = BasinAxes(("a", "b"), (-1.0, -1.0), (1.0, 1.0))
+    x = y = np.linspace(-1.0, 1.0, 4)
+    conv = np.ones((4, 4), bool)
+    conv[0, 0] = False
+    inside = np.zeros((4, 4), bool)
+    inside[1:3, 1:3] = True
+    inside[0, 0] = True
+    region = {"inside": inside, "level": 2.5, "certified": 1e-6, "label": "set {V ≤ c}"}
+    bm = BasinMap(axes, x, y, conv, np.ones((4, 4)), np.ones((4, 4)), 10.0, region)
+    assert bm.region_check() == (4, 5)
+    row = {"optimizer": "cmaes", "param": "diagonal"}
+    maps = {"diagonal": (row, bm)}
+    tab = basins.table(maps)
+    assert tab.columns.tolist() == [*basins.COLUMNS, basins.REGION_COLUMN]
+    assert tab[basins.REGION_COLUMN].tolist() == ["4/5"]
+    assert "set {V ≤ c}" in "\n".join(basins._region_lines(maps))
+    assert basins.figure(maps, "t", tmp_path / "b.png").stat().st_size > 5_000

@@ -13,8 +13,9 @@ def run_cells(run_dir, cells):
     jobs = []
     for problem, case, param, optimizer, n, params in cells:
         options = TINY if optimizer == "pso" else {}
-        jobs += runner.plan_jobs(problem, case, param, optimizer, n, 7, params, {}, options,
-                                 {"git_commit": "test"})
+        jobs += runner.plan_jobs(problem, case, param, optimizer, n_starts=n, root_seed=7,
+                                 problem_params=params, optimizer_options=options,
+                                 meta={"git_commit": "test"})
     runner.execute(jobs, run_dir)
     return io.collect(run_dir)
 
@@ -32,6 +33,7 @@ def attitude_report(tmp_path_factory):
     return build_report(root / "run", root / "report")
 
 
+@pytest.mark.slow
 def test_attitude_tables_figures_and_studies(attitude_report):
     text = (attitude_report / "report.md").read_text(encoding="utf-8")
     assert text.index("## Verdict") < text.index("## attitude_lqr / detumble")
@@ -93,14 +95,15 @@ def zermelo_run(tmp_path_factory):
     budget = {"max_evals": 90}
     jobs = []
     for param in ("diagonal", "full"):
-        jobs += runner.plan_jobs("zermelo", "default", param, "pso", 3, 7, {}, {},
-                                 {**budget, "n_particles": 6, "iters": 100}, {})
-        jobs += runner.plan_jobs("zermelo", "default", param, "cmaes", 3, 7, {}, {}, budget, {})
-        jobs += runner.plan_jobs("zermelo", "default", param, "grid", 1, 7, {}, {},
-                                 {"points_per_dim": 9, "n_local": 1, "local_max_evals": 40},
-                                 {})
-    jobs += runner.plan_jobs("zermelo", "default", "full", "pso", 2, 7, {}, {},
-                             {**budget, "n_particles": 6, "iters": 100}, {},
+        jobs += runner.plan_jobs("zermelo", "default", param, "pso", n_starts=3, root_seed=7,
+                                 optimizer_options={**budget, "n_particles": 6, "iters": 100})
+        jobs += runner.plan_jobs("zermelo", "default", param, "cmaes", n_starts=3, root_seed=7,
+                                 optimizer_options=budget)
+        jobs += runner.plan_jobs("zermelo", "default", param, "grid", n_starts=1, root_seed=7,
+                                 optimizer_options={"points_per_dim": 9, "n_local": 1,
+                                                    "local_max_evals": 40})
+    jobs += runner.plan_jobs("zermelo", "default", "full", "pso", n_starts=2, root_seed=7,
+                             optimizer_options={**budget, "n_particles": 6, "iters": 100},
                              warm_start_share=0.3)
     runner.execute(jobs, root / "run")
     return io.collect(root / "run")

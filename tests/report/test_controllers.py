@@ -24,8 +24,9 @@ def run(tmp_path_factory):
     root = tmp_path_factory.mktemp("controllers")
     jobs = []
     for param in ("diagonal", "full"):
-        jobs += runner.plan_jobs("zermelo", "default", param, "pso", 2, 7, SMALL_HOLDOUT,
-                                 FORCED, {"n_particles": 6, "iters": 5, "max_evals": 30}, {})
+        jobs += runner.plan_jobs("zermelo", "default", param, "pso", n_starts=2, root_seed=7,
+                                 problem_params=SMALL_HOLDOUT, param_options=FORCED,
+                                 optimizer_options={"n_particles": 6, "iters": 5, "max_evals": 30})
     runner.execute(jobs, root / "run")
     return io.collect(root / "run")
 

@@ -21,9 +21,10 @@ def results(tmp_path_factory):
     for problem, case, param, n in (("zermelo", "default", "diagonal", 2),
                                     ("zermelo", "default", "full", 2),
                                     ("attitude_lqr", "detumble", "full", 1)):
-        jobs += runner.plan_jobs(problem, case, param, "pso", n, 11, {"holdout_n": 0}
-                                 if problem != "zermelo" else {}, {}, TINY,
-                                 {"git_commit": "test"}, holdout=False)
+        params = {"holdout_n": 0} if problem != "zermelo" else {}
+        jobs += runner.plan_jobs(problem, case, param, "pso", n_starts=n, root_seed=11,
+                                 problem_params=params, optimizer_options=TINY,
+                                 meta={"git_commit": "test"}, holdout=False)
     runner.execute(jobs, root / "run")
     return io.collect(root / "run")
 

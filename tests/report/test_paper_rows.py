@@ -15,8 +15,9 @@ def companion_frame(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("companion")
     jobs = []
     for param in ("diagonal", "givens"):
-        jobs += runner.plan_jobs("attitude_lyapunov", "schaub_detumble", param, "pso", 2, 3,
-                                 {"holdout_n_perturbed": 1}, {}, TINY, {"git_commit": "test"})
+        jobs += runner.plan_jobs("attitude_lyapunov", "schaub_detumble", param, "pso", n_starts=2,
+                                 root_seed=3, problem_params={"holdout_n_perturbed": 1},
+                                 optimizer_options=TINY, meta={"git_commit": "test"})
     runner.execute(jobs, run_dir)
     return add_variant(io.read_results(io.collect(run_dir)))
 

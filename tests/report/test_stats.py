@@ -20,6 +20,7 @@ from penaltyrun.report.stats import (
     cell_summary,
     converged,
     holm,
+    jackknife_values,
     large_sample_ci,
 )
 from penaltyrun.report.tables import fmt, markdown, write_table
@@ -177,6 +178,57 @@ def test_bca_of_a_large_cell_takes_the_large_sample_interval_and_bounded_memory(
     assert peak < 6 * 8 * BOOTSTRAP_BATCH_VALUES, peak / 2**20
     ref_lo, ref_hi, _ = large_sample_ci(mid, "median")
     assert abs(lo - ref_lo) < 0.05 and abs(hi - ref_hi) < 0.05  # BCa ~ order statistics
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(0, 6), min_size=2, max_size=40), st.integers(0, 2**32 - 1))
+def test_jackknife_closed_forms_are_the_naive_leave_one_out_values(ints, seed):
+    """The O(n log n) leave-one-out median and O(n) mean against the statistic evaluated
+    on each of the n samples of n − 1 (ties, even and odd n)."""
+    x = np.asarray(ints, float) + np.random.default_rng(seed).normal(0.0, 1e-3) * \
+        (np.asarray(ints) % 2)
+    for statistic, func in (("median", np.median), ("mean", np.mean)):
+        naive = np.array([func(np.delete(x, i)) for i in range(x.size)])
+        np.testing.assert_allclose(jackknife_values(x, statistic), naive, rtol=1e-13, atol=0)
+
+
+@pytest.mark.parametrize("statistic, func", [("median", np.median), ("mean", np.mean)])
+def test_bca_with_closed_form_jackknife_is_scipys_interval(statistic, func):
+    """Random samples (continuous, rounded to ties, and a majority of one value, where
+    the median's jackknife is constant and BCa undefined): the interval, or the note, of
+    scipy's BCa with its O(n²) jackknife."""
+    import warnings
+
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        n = int(rng.integers(3, 80))
+        x = rng.lognormal(0.0, 0.5, n)
+        if trial % 3 == 1:
+            x = np.round(x, 1)
+        if trial % 5 == 2:
+            x[: n // 2 + 1] = x[0]
+        if np.ptp(x) == 0:
+            continue
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ref = sps.bootstrap((x,), func, method="BCa", n_resamples=999,
+                                rng=np.random.default_rng(trial)).confidence_interval
+        lo, hi, note = bca_ci(x, statistic, n_resamples=999, seed=trial)
+        if np.isfinite(ref.low) and np.isfinite(ref.high):
+            assert (lo, hi) == pytest.approx((ref.low, ref.high), rel=1e-12)
+            assert note == ""
+        else:
+            assert math.isnan(lo) and math.isnan(hi)
+            assert note == f"BCa undefined ({str(caught[0].message).split('.')[0]})"
+
+
+def test_bca_of_a_batched_sample_is_scipys_batched_interval():
+    """1200 values (resampled in batches of 4166): scipy's interval with that batch."""
+    x = np.random.default_rng(2).lognormal(0.0, 0.5, 1200)
+    lo, hi, _ = bca_ci(x, "median", seed=3)
+    ref = sps.bootstrap((x,), np.median, method="BCa", batch=4166,
+                        rng=np.random.default_rng(3)).confidence_interval
+    assert (lo, hi) == (ref.low, ref.high)
 
 
 # --------------------------------------------------------------------------- A12, Holm

@@ -81,8 +81,8 @@ def user_run(tmp_path_factory):
     problems.register("toy_user_report", "toy_user_report_mod")
     jobs = []
     for param in ("diagonal", "full"):
-        jobs += runner.plan_jobs("toy_user_report", "only", param, "pso", 3, 7, {}, {},
-                                 {"n_particles": 6, "iters": 5}, {},
+        jobs += runner.plan_jobs("toy_user_report", "only", param, "pso", n_starts=3, root_seed=7,
+                                 optimizer_options={"n_particles": 6, "iters": 5},
                                  problem_module="toy_user_report_mod")
     runner.execute(jobs, root / "run")
     io.collect(root / "run")

@@ -20,8 +20,8 @@ OPTIONS = {"pso": {"n_particles": 30, "iters": 1000, "max_evals": BUDGET},
 def test_every_job_respects_max_evals(tmp_path, optimizer):
     jobs = []
     for param in ("diagonal", "givens"):
-        jobs += runner.plan_jobs("zermelo", "default", param, optimizer, 2, 7, {}, {},
-                                 OPTIONS[optimizer], {"git_commit": "test"})
+        jobs += runner.plan_jobs("zermelo", "default", param, optimizer, n_starts=2, root_seed=7,
+                                 optimizer_options=OPTIONS[optimizer], meta={"git_commit": "test"})
     runner.execute(jobs, tmp_path)
     df = io.read_results(io.collect(tmp_path))
     assert len(df) == 4 and set(df["status"]) == {"ok"}
@@ -34,10 +34,11 @@ def test_every_job_respects_max_evals(tmp_path, optimizer):
 @pytest.mark.parametrize("optimizer", ["pso", "cmaes", "pso_matlab"])
 def test_warm_started_full_job_is_never_worse_than_its_diagonal_stage(tmp_path, optimizer):
     options = {**OPTIONS[optimizer], "max_evals": 500}
-    jobs = runner.plan_jobs("zermelo", "default", "full", optimizer, 1, 3, {}, {}, options,
-                            {"git_commit": "test"}, warm_start_share=0.4)
-    cold = runner.plan_jobs("zermelo", "default", "full", optimizer, 1, 3, {}, {}, options,
-                            {"git_commit": "test"})
+    jobs = runner.plan_jobs("zermelo", "default", "full", optimizer, n_starts=1, root_seed=3,
+                            optimizer_options=options, meta={"git_commit": "test"},
+                            warm_start_share=0.4)
+    cold = runner.plan_jobs("zermelo", "default", "full", optimizer, n_starts=1, root_seed=3,
+                            optimizer_options=options, meta={"git_commit": "test"})
     assert jobs[0].job_id != cold[0].job_id and jobs[0].seed == cold[0].seed
     record = json.loads(runner.execute(jobs, tmp_path)[0].read_text())
     warm = record["warm_start"]
@@ -50,6 +51,6 @@ def test_warm_started_full_job_is_never_worse_than_its_diagonal_stage(tmp_path, 
 
 
 def test_warm_start_is_ignored_for_the_diagonal_map():
-    jobs = runner.plan_jobs("zermelo", "default", "diagonal", "pso", 1, 3, {}, {},
-                            OPTIONS["pso"], {}, warm_start_share=0.3)
+    jobs = runner.plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=1, root_seed=3,
+                            optimizer_options=OPTIONS["pso"], warm_start_share=0.3)
     assert jobs[0].warm_start_share == 0.0

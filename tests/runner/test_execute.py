@@ -7,13 +7,15 @@ import numpy as np
 import pytest
 
 from penaltyrun import io, runner
+from penaltyrun.runner.spec import RunnerOptions
 
 FAST_PSO = {"n_particles": 10, "iters": 15, "ftol_iter": 5}
 
 
 def jobs(n=2, problem_params=None, param="diagonal", seed=1):
-    return runner.plan_jobs("zermelo", "default", param, "pso", n, seed,
-                            problem_params or {}, {}, FAST_PSO, {"git_commit": "test"})
+    return runner.plan_jobs("zermelo", "default", param, "pso", n_starts=n, root_seed=seed,
+                            problem_params=problem_params or {}, optimizer_options=FAST_PSO,
+                            meta={"git_commit": "test"})
 
 
 def test_records_written_per_job_and_collected(tmp_path):
@@ -64,15 +66,16 @@ def test_resume_skips_finished_and_retries_failed(tmp_path):
 
 def test_process_pool_matches_serial(tmp_path):
     serial = runner.run_job(jobs(1, seed=5)[0])
-    runner.execute(jobs(2, seed=5), tmp_path / "pool", workers=2)
+    runner.execute(jobs(2, seed=5), tmp_path / "pool", RunnerOptions(workers=2))
     pooled = json.loads(runner.job_path(tmp_path / "pool", jobs(1, seed=5)[0]).read_text())
     assert pooled["best_cost"] == serial["best_cost"]
     assert pooled["best_z"] == serial["best_z"]
 
 
 def test_full_map_job_reaches_paper_cost(tmp_path):
-    record = runner.run_job(runner.plan_jobs("zermelo", "default", "full", "pso", 1, 3, {}, {},
-                                             {"n_particles": 30, "iters": 100}, {})[0])
+    job = runner.plan_jobs("zermelo", "default", "full", "pso", n_starts=1, root_seed=3,
+                           optimizer_options={"n_particles": 30, "iters": 100})[0]
+    record = runner.run_job(job)
     assert record["status"] == "ok"
     assert record["best_cost"] == pytest.approx(24.82646, rel=1e-4)
 
@@ -80,7 +83,7 @@ def test_full_map_job_reaches_paper_cost(tmp_path):
 @pytest.mark.skipif(importlib.util.find_spec("distributed") is None,
                     reason="dask.distributed not installed (optional extra)")
 def test_dask_backend_runs_jobs(tmp_path):
-    written = runner.execute(jobs(2), tmp_path, workers=1, backend="dask")
+    written = runner.execute(jobs(2), tmp_path, RunnerOptions(workers=1, backend="dask"))
     assert len(written) == 2
     assert all(json.loads(p.read_text())["status"] == "ok" for p in written)
 
@@ -89,6 +92,6 @@ def test_bad_runner_settings(tmp_path):
     from penaltyrun.errors import ConfigError
 
     with pytest.raises(ConfigError, match="runner.workers"):
-        runner.execute(jobs(1), tmp_path, workers=0)
+        runner.execute(jobs(1), tmp_path, RunnerOptions(workers=0))
     with pytest.raises(ConfigError, match="allowed: local, dask"):
-        runner.execute(jobs(1), tmp_path, backend="slurm")
+        runner.execute(jobs(1), tmp_path, RunnerOptions(backend="slurm"))

@@ -15,6 +15,7 @@ from penaltyrun.runner import forecast as fc
 from penaltyrun.runner.job import Heartbeat
 from penaltyrun.runner.options import available_cores, check_runner_options, resolve_workers
 from penaltyrun.runner.plan import order_longest_first, plan_jobs
+from penaltyrun.runner.spec import RunnerOptions
 
 PSO = {"n_particles": 6, "iters": 4, "ftol": 0.0, "ftol_iter": 1}
 
@@ -54,7 +55,7 @@ def test_execute_dispatches_longest_first(tmp_path, monkeypatch):
     seen = []
     monkeypatch.setattr(ex, "run_job", lambda job: seen.append(job.job_id) or
                         {"job_id": job.job_id, "status": "ok"})
-    ex.execute(jobs, tmp_path, workers=1,
+    ex.execute(jobs, tmp_path, RunnerOptions(workers=1),
                expected_s={jobs[0].job_id: 1.0, jobs[1].job_id: 3.0, jobs[2].job_id: 2.0})
     assert seen == [jobs[1].job_id, jobs[2].job_id, jobs[0].job_id]
 

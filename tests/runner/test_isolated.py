@@ -58,8 +58,8 @@ def test_a_hanging_problem_costs_the_forecast_only(tmp_path, caplog):
 
     prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="hangs_forecast")
     with problems.hold(prob) as module:
-        jobs = plan_jobs("hangs_forecast", prob.case, "diagonal", "baseline", 2, 0,
-                         problem_module=module)
+        jobs = plan_jobs("hangs_forecast", prob.case, "diagonal", "baseline", n_starts=2,
+                         root_seed=0, problem_module=module)
         t0 = time.monotonic()
         with caplog.at_level(logging.WARNING):
             assert forecast.log_forecast(jobs, 2, 0, 1, time_limit_s=0.5) == {}
@@ -77,8 +77,8 @@ def test_a_problem_raising_an_interrupt_costs_the_forecast_only(exc, caplog):
 
     prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="raises_forecast")
     with problems.hold(prob) as module, caplog.at_level(logging.WARNING):
-        jobs = plan_jobs("raises_forecast", prob.case, "diagonal", "baseline", 2, 0,
-                         problem_module=module)
+        jobs = plan_jobs("raises_forecast", prob.case, "diagonal", "baseline", n_starts=2,
+                         root_seed=0, problem_module=module)
         assert forecast.log_forecast(jobs, 2, 0, 1) == {}
     lines = [r.getMessage() for r in caplog.records if "forecast" in r.getMessage()]
     assert lines == [f"forecast: not available ({exc.__name__} raised by the problem's code)"]

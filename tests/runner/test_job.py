@@ -34,8 +34,8 @@ def test_heartbeat_is_quiet_within_its_interval(caplog):
 def _baseline_job(problem, case, params, holdout=True):
     from penaltyrun.runner.plan import plan_jobs
 
-    return plan_jobs(problem, case, "diagonal", "baseline", 1, 3, params, {}, {}, {},
-                     holdout=holdout)[0]
+    return plan_jobs(problem, case, "diagonal", "baseline", n_starts=1, root_seed=3,
+                     problem_params=params, holdout=holdout)[0]
 
 
 def test_holdout_hook_stores_every_problems_held_out_results():
@@ -71,8 +71,8 @@ def test_run_job_records_the_same_result_with_and_without_cutoff():
     from penaltyrun.runner.job import run_job
     from penaltyrun.runner.plan import plan_jobs
 
-    job = plan_jobs("zermelo", "default", "full", "pso", 1, 5, {}, {},
-                    {"n_particles": 10, "iters": 15, "max_evals": 150}, {},
+    job = plan_jobs("zermelo", "default", "full", "pso", n_starts=1, root_seed=5,
+                    optimizer_options={"n_particles": 10, "iters": 15, "max_evals": 150},
                     holdout=False)[0]
     off = replace(job, cutoff=False)
     assert job.cutoff and job.job_id == off.job_id  # not part of the job's identity

@@ -83,12 +83,13 @@ def test_modules_named_by_problem_parameters_count_too(module):
 
 
 def test_the_job_ids_cover_the_module_s_source_and_only_then():
-    plain = plan_jobs("fit", "one", "full", "pso", 2, 1, problem_module="pkg.fit")
-    same = plan_jobs("fit", "one", "full", "pso", 2, 1, problem_module="pkg.fit",
+    plain = plan_jobs("fit", "one", "full", "pso", n_starts=2, root_seed=1,
+                      problem_module="pkg.fit")
+    same = plan_jobs("fit", "one", "full", "pso", n_starts=2, root_seed=1, problem_module="pkg.fit",
                      module_hash="")
-    a = plan_jobs("fit", "one", "full", "pso", 2, 1, problem_module="pkg.fit",
+    a = plan_jobs("fit", "one", "full", "pso", n_starts=2, root_seed=1, problem_module="pkg.fit",
                   module_hash="a" * 16)
-    b = plan_jobs("fit", "one", "full", "pso", 2, 1, problem_module="pkg.fit",
+    b = plan_jobs("fit", "one", "full", "pso", n_starts=2, root_seed=1, problem_module="pkg.fit",
                   module_hash="b" * 16)
     assert [j.job_id for j in plain] == [j.job_id for j in same]  # no hash: ids as before
     assert len({j.job_id for j in plain + a + b}) == 6

@@ -9,18 +9,18 @@ import pytest
 
 import penaltyrun
 from penaltyrun import problems
-from penaltyrun.api.compose import cell_spec, compose
-from penaltyrun.api.core import plan_cell
+from penaltyrun.api.compose import compose, run_spec
 from penaltyrun.errors import ConfigError
 from penaltyrun.runner import execute
 from penaltyrun.runner.objects import object_paths, pickled
+from penaltyrun.runner.spec import RunnerOptions
 
 
 def _jobs(prob, path, n_starts=2):
     config = compose(prob.name, path, case=None, param="full", optimizer="cmaes",
                      optimizer_options={"max_evals": 60}, params=None,
                      runner={"n_starts": n_starts, "seed": 1})
-    return plan_cell(cell_spec(config), prob.case, {})
+    return run_spec(config).plan(prob.case, {})
 
 
 def test_an_unpicklable_problem_is_refused_for_dask_before_any_worker_starts(tmp_path):
@@ -35,7 +35,7 @@ def test_an_unpicklable_problem_is_refused_for_dask_before_any_worker_starts(tmp
         jobs = _jobs(prob, path)
         assert object_paths(jobs) == ["object:locked"]
         with pytest.raises(ConfigError, match="cannot be sent to dask workers: cloudpickle"):
-            execute(jobs, tmp_path, workers=1, backend="dask")
+            execute(jobs, tmp_path, RunnerOptions(workers=1, backend="dask"))
     assert not list((tmp_path / "jobs").glob("*.json"))
 
 
@@ -58,8 +58,8 @@ def test_dask_gives_the_records_of_the_local_pool(tmp_path):
                                 {"K": (2, (0.1, 10.0))}, name="shipped")
     with problems.hold(prob) as path:
         jobs = _jobs(prob, path)
-        execute(jobs, tmp_path / "dask", workers=2, backend="dask")
-        execute(jobs, tmp_path / "local", workers=1)
+        execute(jobs, tmp_path / "dask", RunnerOptions(workers=2, backend="dask"))
+        execute(jobs, tmp_path / "local", RunnerOptions(workers=1))
     from penaltyrun.runner.records import read_record
 
     for job in jobs:

@@ -96,16 +96,18 @@ def test_config_hash():
 
 
 def test_job_id_covers_the_root_seed_and_the_holdout_setting():
-    base = plan_jobs("zermelo", "default", "full", "pso", 2, 1)
-    other_seed = plan_jobs("zermelo", "default", "full", "pso", 2, 2)
-    no_holdout = plan_jobs("zermelo", "default", "full", "pso", 2, 1, holdout=False)
+    base = plan_jobs("zermelo", "default", "full", "pso", n_starts=2, root_seed=1)
+    other_seed = plan_jobs("zermelo", "default", "full", "pso", n_starts=2, root_seed=2)
+    no_holdout = plan_jobs("zermelo", "default", "full", "pso", n_starts=2, root_seed=1,
+                           holdout=False)
     ids = [{j.job_id for j in jobs} for jobs in (base, other_seed, no_holdout)]
     assert not ids[0] & ids[1] and not ids[0] & ids[2] and not ids[1] & ids[2]
-    assert {j.job_id for j in plan_jobs("zermelo", "default", "full", "pso", 2, 1)} == ids[0]
+    assert {j.job_id for j in plan_jobs("zermelo", "default", "full", "pso", n_starts=2,
+                                        root_seed=1)} == ids[0]
 
 
 def test_n_starts_bound():
     from penaltyrun.runner.plan import MAX_N_STARTS
 
     with pytest.raises(ConfigError, match=f"limit of {MAX_N_STARTS}"):
-        plan_jobs("zermelo", "default", "full", "pso", MAX_N_STARTS + 1, 1)
+        plan_jobs("zermelo", "default", "full", "pso", n_starts=MAX_N_STARTS + 1, root_seed=1)

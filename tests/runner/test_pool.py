@@ -18,7 +18,8 @@ from penaltyrun.runner.pool import describe_exit, run_pool
 
 
 def _jobs(n):
-    return plan_jobs("zermelo", "default", "diagonal", "pso", n, 1, {}, {}, {}, {"run_id": "t"})
+    return plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=n, root_seed=1,
+                     meta={"run_id": "t"})
 
 
 def _fake_job(job, marker_dir: Path, kill_starts=(), always=False):
@@ -73,7 +74,7 @@ SCRIPT = textwrap.dedent("""
         time.sleep(120)
         return {}
 
-    jobs = plan_jobs("zermelo", "default", "diagonal", "pso", 2, 1, {}, {}, {}, {})
+    jobs = plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=2, root_seed=1)
     for _ in run_pool(jobs, 2, func=sleeper):
         pass
 """)
@@ -105,7 +106,8 @@ def _alive(pid):
 
 def test_an_optimizers_heavy_imports_happen_once_before_the_fork():
     """``import pyswarms`` is done in the parent (forked workers share it), only when a job
-    runs the pyswarms PSO; a module that cannot be imported is left to the job."""
+    runs the pyswarms PSO (its registry entry's ``shared_imports``); a module that cannot be
+    imported is left to the job."""
     import subprocess
     import sys
     import textwrap
@@ -119,7 +121,10 @@ def test_an_optimizers_heavy_imports_happen_once_before_the_fork():
         assert pool.import_shared([J(optimizer="pso"), J(optimizer="cmaes")]) == [
             "penaltyrun.optim.pso:load_pyswarms"]
         assert "pyswarms" in sys.modules
-        pool.SHARED_IMPORTS["pso"] = ("penaltyrun_no_such_module",)
+        import dataclasses
+        from penaltyrun import optim
+        optim.OPTIMIZERS["pso"] = dataclasses.replace(
+            optim.OPTIMIZERS["pso"], shared_imports=("penaltyrun_no_such_module",))
         assert pool.import_shared([J(optimizer="pso")]) == []
         print("ok")
     """)

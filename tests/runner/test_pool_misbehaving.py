@@ -19,7 +19,8 @@ from penaltyrun.runner.validate import record_problem
 
 
 def _jobs(n):
-    return plan_jobs("zermelo", "default", "diagonal", "pso", n, 1, {}, {}, {}, {"run_id": "t"})
+    return plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=n, root_seed=1,
+                     meta={"run_id": "t"})
 
 
 def _misbehaving(job, how: str, marker_dir: Path):

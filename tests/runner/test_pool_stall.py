@@ -12,7 +12,8 @@ from penaltyrun.runner.pool import cpu_ticks, run_pool
 
 
 def _jobs(n):
-    return plan_jobs("zermelo", "default", "diagonal", "pso", n, 1, {}, {}, {}, {"run_id": "t"})
+    return plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=n, root_seed=1,
+                     meta={"run_id": "t"})
 
 
 def _stopping_job(job, marker_dir: Path, stop_starts=(), always=False):

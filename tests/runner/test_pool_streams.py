@@ -16,7 +16,8 @@ SCRIPT = textwrap.dedent("""
 
     read_end, write_end = os.pipe()
     faulthandler.enable(file=write_end)  # as pytest does, with a copy of the terminal
-    jobs = plan_jobs("zermelo", "default", "diagonal", "pso", 1, 1, {}, {}, {}, {"run_id": "t"})
+    jobs = plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=1, root_seed=1,
+                     meta={"run_id": "t"})
     records = [rec for _, rec in run_pool(jobs, 1, max_retries=0, func=aborter)]
     faulthandler.disable()
     os.close(write_end)

@@ -10,7 +10,7 @@ from penaltyrun.runner.validate import SCHEMA_VERSION
 
 
 def _jobs(n):
-    return plan_jobs("zermelo", "default", "diagonal", "pso", n, 1, {}, {}, {}, {})
+    return plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=n, root_seed=1)
 
 
 def _record(job, **fields):

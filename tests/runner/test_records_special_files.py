@@ -9,7 +9,7 @@ from penaltyrun.runner.records import CORRUPT_DIR, job_path, load_record, write_
 
 
 def _jobs(n):
-    return plan_jobs("zermelo", "default", "diagonal", "pso", n, 1, {}, {}, {}, {})
+    return plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=n, root_seed=1)
 
 
 def _record(job):

@@ -11,18 +11,19 @@ import pytest
 
 from penaltyrun import io, runner
 from penaltyrun.runner import swarm
+from penaltyrun.runner.spec import RunnerOptions
 
 CHEAP = [("zermelo", "default"), ("attitude_lyapunov", "detumble"),
          ("attitude_lqr", "detumble"), ("qlaw", "C"), ("lyapunov_transfer", "C")]
-TIMING = ["wall_time_s", "started_at", "finished_at"]
+TIMING = ["wall_time_s", "started_at", "finished_at", "trace_cpu_s"]
 needs_dask = pytest.mark.skipif(importlib.util.find_spec("distributed") is None,
                                 reason="dask.distributed not installed (optional extra)")
 
 
 def job(problem="zermelo", case="default", optimizer="pso", options=None, **kw):
-    return runner.plan_jobs(problem, case, "full", optimizer, 1, 11, {}, {},
-                            options or {"n_particles": 12, "iters": 6}, {"config_hash": "x"},
-                            **kw)[0]
+    return runner.plan_jobs(problem, case, "full", optimizer, n_starts=1, root_seed=11,
+                            optimizer_options=options or {"n_particles": 12, "iters": 6},
+                            meta={"config_hash": "x"}, **kw)[0]
 
 
 @pytest.mark.parametrize(("problem", "case"), CHEAP)
@@ -53,8 +54,8 @@ def test_spec_key_follows_the_settings():
     assert a == swarm.ProblemSpec("zermelo", "default", "full")
     assert a.key == swarm.ProblemSpec.of(job()).key
     assert swarm.ProblemSpec.of(job(), "diagonal").key != a.key
-    other = runner.plan_jobs("zermelo", "default", "full", "pso", 1, 11, {"wind": 0.5}, {},
-                             {}, {})[0]
+    other = runner.plan_jobs("zermelo", "default", "full", "pso", n_starts=1, root_seed=11,
+                             problem_params={"wind": 0.5})[0]
     assert swarm.ProblemSpec.of(other).key != a.key
 
 
@@ -120,7 +121,7 @@ def local_cluster():
 
 
 def _rows(jobs, run_dir, **kw):
-    runner.execute(jobs, run_dir, **kw)
+    runner.execute(jobs, run_dir, RunnerOptions(**{"workers": 1, **kw}))
     df = pd.read_parquet(io.collect(run_dir, [j.job_id for j in jobs]))
     return df.drop(columns=TIMING + ["run_id"]).reset_index(drop=True)
 
@@ -149,8 +150,8 @@ def test_swarm_level_run_is_bitwise_the_serial_run(tmp_path, local_cluster, opti
 @needs_dask
 def test_warm_started_jobs_share_the_cluster(tmp_path, local_cluster):
     address, _ = local_cluster
-    jobs = runner.plan_jobs("zermelo", "default", "full", "pso", 3, 5, {}, {},
-                            {"n_particles": 8, "iters": 4, "max_evals": 40}, {},
+    jobs = runner.plan_jobs("zermelo", "default", "full", "pso", n_starts=3, root_seed=5,
+                            optimizer_options={"n_particles": 8, "iters": 4, "max_evals": 40},
                             warm_start_share=0.3)
     serial = _rows(jobs, tmp_path / "serial")
     dist = _rows(jobs, tmp_path / "dask", backend="dask", scheduler=address,
@@ -163,8 +164,9 @@ def test_bad_swarm_settings_name_the_key(tmp_path):
     from penaltyrun.errors import ConfigError
 
     with pytest.raises(ConfigError, match=r"runner.chunks: must be auto or a positive"):
-        runner.execute([job()], tmp_path, backend="dask", evaluate_on="dask", chunks=0)
+        runner.execute([job()], tmp_path,
+                       RunnerOptions(backend="dask", evaluate_on="dask", chunks=0))
     with pytest.raises(ConfigError, match=r"runner.evaluate_on: .*allowed: local, dask"):
-        runner.execute([job()], tmp_path, evaluate_on="gpu")
+        runner.execute([job()], tmp_path, RunnerOptions(evaluate_on="gpu"))
     with pytest.raises(ConfigError, match="runner.evaluate_on: dask needs runner.backend"):
-        runner.execute([job()], tmp_path, evaluate_on="dask")
+        runner.execute([job()], tmp_path, RunnerOptions(evaluate_on="dask"))

@@ -21,8 +21,8 @@ def default_pso() -> dict:
 @pytest.mark.parametrize(("param", "paper_K"), [("diagonal", PAPER_K_DIAGONAL),
                                                  ("full", PAPER_K_FULL)])
 def test_default_budget_finds_paper_matrix(param, paper_K):
-    jobs = runner.plan_jobs("zermelo", "default", param, "pso", 10, 20250422, {}, {},
-                            default_pso(), {})
+    jobs = runner.plan_jobs("zermelo", "default", param, "pso", n_starts=10, root_seed=20250422,
+                            optimizer_options=default_pso())
     hits = 0
     for job in jobs:
         record = runner.run_job(job)

@@ -51,7 +51,7 @@ import numpy as np
 from penaltyrun.dynamics import attitude as kernel
 from penaltyrun.dynamics import integrate
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import criteria
+from penaltyrun.problems import criteria, gradient_costs
 from penaltyrun.problems.attitude import criteria as attitude_criteria
 from penaltyrun.problems.attitude.frames import (
     ATTITUDE_TYPES,
@@ -86,7 +86,14 @@ from penaltyrun.problems.attitude.reference import (
     trajectory,
 )
 from penaltyrun.problems.attitude.scenarios import AttitudeScenarios
-from penaltyrun.problems.base import BatchEvaluation, ClosedLoop, MatrixSpec, ScalarSpec
+from penaltyrun.problems.base import (
+    BatchEvaluation,
+    ClosedLoop,
+    CostGradient,
+    GradientCost,
+    MatrixSpec,
+    ScalarSpec,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -302,6 +309,22 @@ class AttitudeProblem(AttitudeScenarios):
                                else res["objective"][0]),
             **attitude_criteria.detail(self.params, res),
         }
+
+    def gradient(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                 ) -> CostGradient:
+        """Cost of one candidate and its exact gradient with respect to its matrices under
+        ``criterion`` ``terminal`` or ``time_energy``
+        (:mod:`~penaltyrun.problems.attitude.gradient`), or the reason there is none (always
+        under ``deadline``)."""
+        from penaltyrun.problems.attitude.gradient import attitude_gradient
+
+        return attitude_gradient(self, mats)
+
+    def gradient_cost(self) -> GradientCost:
+        """What one gradient costs in evaluations for this law under this criterion:
+        measured by ``bench/attitude_gradient_cost.py``, table in ``bench/README.md``
+        (:func:`~penaltyrun.problems.gradient_costs.attitude_cost`)."""
+        return gradient_costs.attitude_cost(self.name, self.params.criterion)
 
     def simulate(
         self, mats: Mapping[str, np.ndarray], scalars: Mapping[str, float] | None = None,

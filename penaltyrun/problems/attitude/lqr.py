@@ -7,11 +7,11 @@ u = −K x to the NONLINEAR rigid body. The objective is the nonlinear closed-lo
 J = ∫ ½ uᵀu dt (not the LQR quadratic cost); failures are penalized as described in
 :mod:`penaltyrun.problems.attitude.common`. (αQ, αR) gives the same gain for every α > 0.
 
-The batch path solves the Riccati equations exactly by the stable invariant subspace of the
-Hamiltonian matrix (batched eigen-decomposition; the closed-loop poles are the selected
-eigenvalues, so no second eigen-decomposition is needed); candidates whose residual is not
-small are re-solved with :func:`scipy.linalg.solve_continuous_are`, and those without a
-stabilizing solution get status ``care_failure``.
+The gains come from the package's batched Riccati solver
+(:func:`penaltyrun.dynamics.riccati.lqr_gains`: the stable invariant subspace of the
+Hamiltonian matrix, re-solved by :func:`scipy.linalg.solve_continuous_are` where the residual
+is not small) with this problem's absolute stability margin :data:`STABILITY_MARGIN`;
+candidates without a stabilizing solution get status ``care_failure``.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from penaltyrun.dynamics import riccati
 from penaltyrun.problems.attitude import report as attitude_report
 from penaltyrun.problems.attitude.common import (
     CASE_PARAMS,
@@ -44,11 +45,10 @@ from penaltyrun.problems.base import MatrixSpec
 logger = logging.getLogger(__name__)
 
 NAME = "attitude_lqr"
-#: Relative Riccati residual above which the batched solution is re-solved by scipy.
-RESIDUAL_TOL = 1e-9
 #: A solution counts as stabilizing when every closed-loop eigenvalue of A − BK has real part
-#: below −STABILITY_MARGIN (1/s). Within eigenvalue bounds ≥ 1e-8 the slowest true pole is
-#: ~6e-4 1/s; round-off leaves the open-loop poles (all at 0) within ~1e-8 of 0.
+#: below −STABILITY_MARGIN (1/s), an absolute margin: within eigenvalue bounds ≥ 1e-8 the
+#: slowest true pole is ~6e-4 1/s; round-off leaves the open-loop poles (all at 0) within
+#: ~1e-8 of 0.
 STABILITY_MARGIN = 1e-7
 
 
@@ -72,23 +72,6 @@ def linear_model(inertia: Any) -> tuple[np.ndarray, np.ndarray]:
     return A, B
 
 
-def _residual(A: np.ndarray, S: np.ndarray, Q: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Relative Riccati residual ‖AᵀP + PA − PSP + Q‖ / (‖Q‖ + ‖P‖·(‖A‖ + ‖S‖‖P‖)), (B,)."""
-    At = np.swapaxes(A, -1, -2)
-    res = At @ P + P @ A - P @ S @ P + Q
-    nA = np.linalg.norm(A)
-    scale = (np.linalg.norm(Q, axis=(-2, -1))
-             + np.linalg.norm(P, axis=(-2, -1)) * (nA + np.linalg.norm(S, axis=(-2, -1))
-                                                   * np.linalg.norm(P, axis=(-2, -1))))
-    return np.linalg.norm(res, axis=(-2, -1)) / np.maximum(scale, 1e-300)
-
-
-def _stabilizing(A: np.ndarray, S: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Whether A − SP is Hurwitz with margin :data:`STABILITY_MARGIN`, per batch entry (B,)."""
-    lam = np.linalg.eigvals(A - S @ P)
-    return np.max(lam.real, axis=-1) < -STABILITY_MARGIN
-
-
 def lqr_gains(Q: Any, R: Any, inertia: Any) -> tuple[np.ndarray, np.ndarray]:
     """LQR gains K = R⁻¹BᵀP for a batch of penalties.
 
@@ -109,56 +92,12 @@ def lqr_gains(Q: Any, R: Any, inertia: Any) -> tuple[np.ndarray, np.ndarray]:
         Whether a stabilizing solution was found (A − BK Hurwitz, see
         :data:`STABILITY_MARGIN`).
     """
-    from scipy.linalg import solve_continuous_are
-
-    Q = np.asarray(Q, dtype=float)
-    R = np.asarray(R, dtype=float)
-    n_b = Q.shape[0]
     A, Bm = linear_model(inertia)
-    R_inv = np.linalg.inv(R)
-    S = Bm @ R_inv @ Bm.T
-    H = np.zeros((n_b, 12, 12))
-    H[:, :6, :6] = A
-    H[:, :6, 6:] = -S
-    H[:, 6:, :6] = -Q
-    H[:, 6:, 6:] = -A.T
-    P = np.zeros((n_b, 6, 6))
-    ok = np.zeros(n_b, dtype=bool)
-    with np.errstate(all="ignore"):
-        try:
-            lam, V = np.linalg.eig(H)
-            order = np.argsort(lam.real, axis=1)[:, :6]
-            lam_cl = np.take_along_axis(lam.real, order, axis=1)
-            X = np.take_along_axis(V, order[:, None, :], axis=2)
-            X1, X2 = X[:, :6, :], X[:, 6:, :]
-            good = lam_cl.max(axis=1) < -STABILITY_MARGIN
-            X1[~good] = np.eye(6)
-            try:
-                X1_inv = np.linalg.inv(X1)
-            except np.linalg.LinAlgError:  # an exactly singular X1: guard each entry
-                cond = np.linalg.cond(X1)
-                good &= np.isfinite(cond) & (cond < 1e12)
-                X1[~good] = np.eye(6)
-                X1_inv = np.linalg.inv(X1)
-            P = np.real(X2 @ X1_inv)
-            P = 0.5 * (P + np.swapaxes(P, 1, 2))
-            ok = good & np.all(np.isfinite(P), axis=(1, 2))
-            P = np.where(ok[:, None, None], P, 0.0)
-            # A − SP has the selected stable eigenvalues of H (the invariant subspace), so a
-            # small residual makes P the stabilizing solution with margin STABILITY_MARGIN;
-            # an ill-conditioned X1 shows up as a large residual and goes to scipy below.
-            ok &= _residual(A, S, Q, P) < RESIDUAL_TOL
-        except np.linalg.LinAlgError:
-            ok[:] = False
-    for b in np.flatnonzero(~ok):
-        try:
-            P[b] = solve_continuous_are(A, Bm, Q[b], R[b])
-            ok[b] = bool(np.all(np.isfinite(P[b])) and _stabilizing(A, S[b], P[b]))
-        except (np.linalg.LinAlgError, ValueError):
-            logger.debug("no stabilizing Riccati solution for candidate %d", b)
-            ok[b] = False
-    K = R_inv @ Bm.T @ P
-    K[~ok] = 0.0
+    # The numpy batch, not the compiled loop: the two agree to round-off, but a loop that
+    # arrives at the edge of the horizon turns round-off in K into 1e-7 of cost, and the
+    # committed attitude_lqr results were computed with the numpy batch.
+    K, ok, _ = riccati.lqr_gains(A, Bm, np.asarray(Q, dtype=float), np.asarray(R, dtype=float),
+                                 margin_abs=STABILITY_MARGIN, margin_rel=0.0, compiled=False)
     return K, ok
 
 
@@ -219,7 +158,6 @@ __all__ = [
     "DEFAULT_CASE",
     "VARIANT_IGNORE",
     "NAME",
-    "RESIDUAL_TOL",
     "STABILITY_MARGIN",
     "Params",
     "closed_form_gain",

@@ -17,6 +17,7 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import criteria, horizon
+from penaltyrun.problems.attitude import sublevel
 from penaltyrun.problems.attitude.frames import (
     euler_to_quaternion,
     perturbed_states,
@@ -156,6 +157,31 @@ class AttitudeScenarios:
         runs = prob.evaluate_grid(mats, att)
         return {"converged": runs["converged"], "cost": runs["cost"], "horizon": long_t,
                 "arrival_time": arrival_times(runs["converged"], runs["t_final"])}
+
+    def sublevel_set(self, mats: Mapping[str, Any]) -> sublevel.SubLevelSet | None:
+        """The sub-level-set estimate {V ≤ c} of the region of attraction of this law with
+        ``mats`` (:mod:`penaltyrun.problems.attitude.sublevel`); None under a torque limit
+        or when the linearized loop is unstable."""
+        return sublevel.estimate(self.gain(mats), self.inertia,
+                                 saturated=np.isfinite(self.params.saturation()))
+
+    def basin_region(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None,
+                     points: np.ndarray) -> dict[str, Any] | None:
+        """Which points (P, 2) of the basin plane (yaw, pitch; roll 0; the case's rates)
+        lie in the sampled sub-level set {V ≤ c} (``inside`` (P,) bool), with ``level`` c,
+        the ``certified`` level and a ``label``; None without an estimate."""
+        region = self.sublevel_set(mats)
+        if region is None:
+            return None
+        att = np.column_stack([points, np.zeros(len(points))])
+        q = euler_to_quaternion(att)
+        q = np.where(q[:, :1] < 0.0, -q, q)  # the runs start with q0 >= 0
+        w = np.broadcast_to(np.asarray(self.params.omega0, float), (len(q), 3))
+        x = np.column_stack([q[:, 1:], w])
+        return {"inside": region.value(x) <= region.sampled, "level": region.sampled,
+                "certified": region.certified,
+                "label": "sampled sub-level set {V ≤ c} of V = xᵀPx (Lyapunov equation "
+                         "of the linearized loop)"}
 
 
 __all__ = ["AttitudeScenarios"]

@@ -83,6 +83,9 @@ class LowThrustProblem:
         ``"min_time"`` or ``"min_fuel"``.
     scalars : tuple of ScalarSpec
         Extra decision variables (``eta_cut`` for the min-fuel Q-law).
+    no_gradient : str
+        Why the law's cost has no gradient (``no_gradient`` of
+        :func:`~penaltyrun.problems.base.gradient_support`); empty: not stated.
     """
 
     def __init__(
@@ -93,8 +96,10 @@ class LowThrustProblem:
         prm: np.ndarray,
         objective: str,
         scalars: tuple[ScalarSpec, ...] = (),
+        no_gradient: str = "",
     ) -> None:
         self.name = name
+        self.no_gradient = no_gradient
         self.case = case
         self.params = params
         self.objective = objective

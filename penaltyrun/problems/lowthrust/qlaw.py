@@ -7,6 +7,14 @@ below η_cut and costs the propellant (kg). In min-fuel mode η_cut is also an e
 variable (``scalars``), its config value is the default when no scalar is given.
 
 Cost of failures: see :mod:`penaltyrun.problems.lowthrust.common`.
+
+No gradient (:data:`NO_GRADIENT`): the cost is piecewise in K. In min-fuel mode the
+effectivity gate η ≥ η_cut switches the thrust on and off, so the propellant jumps when a
+coast arc appears or vanishes; in both modes the maximum rates carry |cos ω| and |sin ω|
+and the arrival is the first time every targeted element is inside its tolerance (the
+last element to enter changes with K), which gives kinks. An exact gradient would belong to
+a different law with a smoothed gate and smooth tolerances (a possible future variant), not
+to this one; a difference quotient across the switches is not a gradient.
 """
 
 from __future__ import annotations
@@ -38,6 +46,11 @@ from penaltyrun.problems.lowthrust.progress import NoProgressParams
 logger = logging.getLogger(__name__)
 
 OBJECTIVES = ("min_time", "min_fuel")
+#: Why the Q-law's cost has no gradient (one line; see the module docstring).
+NO_GRADIENT = ("the Q-law cost is piecewise in K (the effectivity gate switches the thrust "
+               "on and off, |cos ω|, |sin ω| in the maximum rates and the arrival test on "
+               "every targeted element give jumps and kinks); only a smoothed law would "
+               "have one")
 COAST_MODES = ("eta_a", "eta_r")
 
 
@@ -128,13 +141,14 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> LowThrustProblem:
     scalars = (ScalarSpec("eta_cut", (0.0, 1.0)),) if params.objective == "min_fuel" else ()
     logger.debug("qlaw case %s: %s", case, params)
     return LowThrustProblem("qlaw", case, params, kernel_params(params), params.objective,
-                            scalars)
+                            scalars, NO_GRADIENT)
 
 
 __all__ = [
     "CASES",
     "CASE_PARAMS",
     "DEFAULT_CASE",
+    "NO_GRADIENT",
     "VARIANT_IGNORE",
     "OBJECTIVES",
     "Params",

@@ -5,8 +5,8 @@ vectorized model (``dynamics``) linearized at the origin; the gain is the LQR ga
 tuned (Q, R); the cost is the closed-loop performance ∫ (xᵀ W_x x + uᵀ W_u u) dt averaged
 over the training starts ``x0``. Modules: :mod:`~penaltyrun.problems.lqr.plant` (sources
 and their checks), :mod:`~penaltyrun.problems.lqr.params` (parameters, the known-answer
-set-up), :mod:`~penaltyrun.problems.lqr.riccati` (batched gains),
-:mod:`~penaltyrun.problems.lqr.problem` (the problem object),
+set-up), :mod:`~penaltyrun.problems.lqr.problem` (the problem object, its gains from
+:mod:`penaltyrun.dynamics.riccati`),
 :mod:`~penaltyrun.problems.lqr.plots` (figures),
 :mod:`~penaltyrun.problems.lqr.expr` (arithmetic in the YAML),
 :mod:`~penaltyrun.problems.lqr.discrete` (discrete-time loops),

@@ -32,11 +32,11 @@ DEFAULT_CASE = "default"
 #: Keys that do not define the tuned objective (left out of :attr:`Params.setup`).
 NOT_SETUP = ("holdout_x0", "holdout_n", "holdout_seed", "holdout_horizon_factor",
              "holdout_t_max_cap", "cost_unit", "train_scenarios", "train_aggregate",
-             "train_sample", "train_seed", "setup", "constants")
+             "train_sample", "train_seed", "train_quantile", "setup", "constants")
 #: Keys whose strings are not arithmetic (names, paths, units, training scenarios).
 NOT_ARITHMETIC = ("plant_file", "plant", "dynamics", "cost_unit", "constants",
                   "train_scenarios", "train_aggregate", "train_sample", "train_seed",
-                  "criterion")
+                  "train_quantile", "criterion")
 
 #: The known-answer set-up (used when no plant is given).
 KNOWN_ANSWER: dict[str, Any] = {

@@ -2,7 +2,7 @@
 performance cost of the closed loop.
 
 Per candidate (Q, R): K = R⁻¹BᵀP from the Riccati equation of (A, B, Q, R)
-(:mod:`~penaltyrun.problems.lqr.riccati`), u = sat(−K x), and the cost
+(:mod:`~penaltyrun.dynamics.riccati`), u = sat(−K x), and the cost
 
     J = mean over x0 ∈ ``x0`` of ∫₀ᵀ (xᵀ W_x x + uᵀ W_u u) dt.
 
@@ -51,12 +51,14 @@ import numpy as np
 
 from penaltyrun.dynamics import linear_feedback as loop
 from penaltyrun.dynamics.linear import quadratic_cost
+from penaltyrun.dynamics.riccati import dlqr_gains, lqr_gains
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import criteria, horizon
+from penaltyrun.problems import criteria, gradient_costs, horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
     CostGradient,
+    GradientCost,
     MatrixSpec,
     ScalarSpec,
     check_spd,
@@ -68,7 +70,6 @@ from penaltyrun.problems.lqr import discrete
 from penaltyrun.problems.lqr import params as pm
 from penaltyrun.problems.lqr.gradient import lqr_gradient
 from penaltyrun.problems.lqr.plant import Plant
-from penaltyrun.problems.lqr.riccati import dlqr_gains, lqr_gains
 
 logger = logging.getLogger(__name__)
 
@@ -378,6 +379,13 @@ class LQRProblem:
         (:mod:`~penaltyrun.problems.lqr.gradient`), or the reason there is none."""
         Q, R = self._check(mats)
         return lqr_gradient(self, Q, R)
+
+    def gradient_cost(self) -> GradientCost:
+        """What one gradient costs in evaluations on this plant (its size including
+        integrators, continuous or discrete): measured by ``bench/gradient_cost.py`` and
+        ``bench/lqr_scaling_ratio.py``, tables in ``bench/README.md``
+        (:func:`~penaltyrun.problems.gradient_costs.lqr_cost`)."""
+        return gradient_costs.lqr_cost(self.plant.n_states, self.dt is not None)
 
     def simulate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None,
                  n_points: int = 400) -> dict[str, np.ndarray]:

@@ -55,7 +55,8 @@ def prediction_matrices(Ad: np.ndarray, Bd: np.ndarray, horizon: int
 
 
 def qp_matrices(Phi: np.ndarray, Gam: np.ndarray, Q: np.ndarray, R: np.ndarray,
-                P: np.ndarray, u_max: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                P: np.ndarray, u_max: np.ndarray, normalize: bool = True
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Scaled condensed QP data for a batch of weights (see the module docstring).
 
     Parameters
@@ -68,6 +69,9 @@ def qp_matrices(Phi: np.ndarray, Gam: np.ndarray, Q: np.ndarray, R: np.ndarray,
         Terminal weights.
     u_max : ndarray, shape (m,)
         Input bounds (m/s²).
+    normalize : bool
+        Divide H̃ and F̃ by the largest diagonal entry of H̃ (False: the input-scaled data
+        before that division; the QP's minimizer is the same).
 
     Returns
     -------
@@ -92,6 +96,8 @@ def qp_matrices(Phi: np.ndarray, Gam: np.ndarray, Q: np.ndarray, R: np.ndarray,
     H = H * scale[None, :, None] * scale[None, None, :]
     F = F * scale[None, :, None]
     H = 0.5 * (H + np.swapaxes(H, 1, 2))
+    if not normalize:
+        return H, F
     norm = np.max(np.diagonal(H, axis1=1, axis2=2), axis=1)
     return H / norm[:, None, None], F / norm[:, None, None]
 

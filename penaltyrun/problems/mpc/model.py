@@ -9,9 +9,10 @@ zero-order hold (matrix exponential of the augmented matrix [[A, B], [0, 0]]).
 The terminal weight P solves the discrete algebraic Riccati equation (DARE)
 P = AᵀPA − AᵀPB (R + BᵀPB)⁻¹ BᵀPA + Q for a batch of (Q, R) at once, by the structured
 doubling algorithm (SDA; Chu, Fan, Lin & Wang 2004), which converges quadratically for a
-stabilizable (A, B) and PD Q; candidates whose relative residual is not small are re-solved
-with :func:`scipy.linalg.solve_discrete_are`, and those still without a stabilizing
-solution are reported as failed.
+stabilizable (A, B) and PD Q (:func:`penaltyrun.dynamics.riccati.doubling_solutions`, the
+iteration the discrete plants of ``problem=lqr`` use too); candidates whose relative
+residual is not small are re-solved with :func:`scipy.linalg.solve_discrete_are`, and those
+still without a stabilizing solution are reported as failed.
 """
 
 from __future__ import annotations
@@ -21,12 +22,16 @@ from typing import Any
 
 import numpy as np
 
+from penaltyrun.dynamics.riccati import doubling_solutions
+
 logger = logging.getLogger(__name__)
 
 #: Relative DARE residual below which a solution is accepted.
 DARE_RESIDUAL_TOL = 1e-9
 #: Doubling steps at most (each squares the closed-loop contraction).
 SDA_MAX_STEPS = 80
+#: The doubling stops once no candidate's solution moves by more than this, relative.
+SDA_STEP_RTOL = 1e-15
 #: A solution counts as stabilizing when the closed-loop spectral radius is below this.
 STABLE_RADIUS = 1.0 - 1e-12
 
@@ -133,32 +138,11 @@ def solve_dare_batch(A: np.ndarray, B: np.ndarray, Q: Any, R: Any
 
     Q = np.asarray(Q, dtype=float)
     R = np.asarray(R, dtype=float)
-    nb, nx = Q.shape[0], A.shape[0]
-    eye = np.eye(nx)
-    with np.errstate(all="ignore"):
-        try:
-            Ak = np.broadcast_to(A, (nb, nx, nx)).copy()
-            Gk = B @ np.linalg.solve(R, np.broadcast_to(B.T, (nb,) + B.T.shape))
-            Hk = Q.copy()
-            for _ in range(SDA_MAX_STEPS):
-                W = eye + Gk @ Hk
-                WA = np.linalg.solve(W, Ak)                      # (I + G H)⁻¹ A
-                WG = np.linalg.solve(W, Gk)                      # (I + G H)⁻¹ G
-                At = np.swapaxes(Ak, 1, 2)
-                H_next = Hk + At @ Hk @ WA
-                Gk = Gk + Ak @ WG @ At
-                Ak = Ak @ WA
-                step = np.linalg.norm(H_next - Hk, axis=(1, 2))
-                Hk = H_next
-                if np.all(~np.isfinite(step) | (step <= 1e-15 * np.linalg.norm(Hk, axis=(1, 2)))):
-                    break
-            P = 0.5 * (Hk + np.swapaxes(Hk, 1, 2))
-            ok = np.all(np.isfinite(P), axis=(1, 2))
-            P[~ok] = 0.0
-            ok &= dare_residual(A, B, Q, R, P) < DARE_RESIDUAL_TOL
-        except np.linalg.LinAlgError:
-            P = np.zeros((nb, nx, nx))
-            ok = np.zeros(nb, dtype=bool)
+    P, ok = doubling_solutions(A, B, Q, R, SDA_MAX_STEPS, SDA_STEP_RTOL)
+    try:
+        ok &= dare_residual(A, B, Q, R, P) < DARE_RESIDUAL_TOL
+    except np.linalg.LinAlgError:
+        P, ok = np.zeros_like(P), np.zeros_like(ok)
     for b in np.flatnonzero(~ok):
         try:
             P[b] = solve_discrete_are(A, B, Q[b], R[b])

@@ -24,6 +24,9 @@ criteria ``time_energy`` and ``terminal`` (control energy Σ ½‖u_k‖² Tₛ 
 time, or plus a terminal penalty) are in :mod:`~penaltyrun.problems.mpc.criteria`.
 
 The MPC is invariant to a common scaling of Q and R (P scales with them).
+
+Gradient (``gradient`` hook): exact where every step's QP keeps its active set and the
+arrival step is fixed (:mod:`~penaltyrun.problems.mpc.gradient`); elsewhere the reason.
 """
 
 from __future__ import annotations
@@ -37,10 +40,12 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.problems import criteria, horizon
+from penaltyrun.problems import criteria, gradient_costs, horizon
 from penaltyrun.problems.base import (
     BatchEvaluation,
     ClosedLoop,
+    CostGradient,
+    GradientCost,
     MatrixSpec,
     ScalarSpec,
     check_spd,
@@ -217,6 +222,21 @@ class RendezvousMPC:
         m = self._check(mats)
         H, F, P, ok = self.controllers(m["Q"][None], m["R"][None])
         return H[0], F[0], P[0], bool(ok[0])
+
+    def gradient(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                 ) -> CostGradient:
+        """Cost of one (Q, R) and its exact gradient where every step's QP keeps its active
+        set (:mod:`~penaltyrun.problems.mpc.gradient`), or the reason there is none."""
+        from penaltyrun.problems.mpc.gradient import mpc_gradient
+
+        m = self._check(mats)
+        return mpc_gradient(self, m["Q"], m["R"])
+
+    def gradient_cost(self) -> GradientCost:
+        """What one gradient costs in evaluations under this criterion: measured by
+        ``bench/gradient_cost_zermelo_mpc.py``, table in ``bench/README.md``
+        (:func:`~penaltyrun.problems.gradient_costs.mpc_cost`)."""
+        return gradient_costs.mpc_cost(self.params.criterion)
 
     def _summary(self, res: ctl.LoopResult | None, sc: scen.Scenario) -> dict[str, Any]:
         p = self.params

@@ -134,6 +134,7 @@ def test_holdout_grid_plus_perturbed():
     assert np.all(held["omega_init"][:8] == 0.0)
 
 
+@pytest.mark.slow  # about 40 s: a fresh process compiles the attitude kernels
 def test_evaluate_mode_on_presets(tmp_path):
     mats, cost, _ = DIAGONAL_RUN
     args = [sys.executable, "-m", "penaltyrun.cli", "mode=evaluate",

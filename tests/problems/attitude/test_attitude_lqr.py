@@ -10,6 +10,7 @@ uniform in [0.01, 10], R in [0.1, 10]) × 3 initial conditions; ``slow``: 50 ran
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -49,6 +50,26 @@ def test_batched_gains_match_scipy():
             K_ref = np.linalg.solve(R[b], B.T @ P)
             np.testing.assert_allclose(K[b], K_ref, rtol=1e-7,
                                        atol=1e-9 * np.abs(K_ref).max())
+
+
+def test_committed_gains_reproduced_bit_for_bit():
+    """The gains of a committed study's best candidates (stored in their metrics) come out
+    of the shared Riccati solver bit for bit, so the committed costs do not move."""
+    import pandas as pd
+
+    study = Path(__file__).resolve().parents[3] / "studies" / "attitude_reproduce"
+    df = pd.read_parquet(study / "results.parquet",
+                         columns=["problem", "case", "problem_params", "matrices", "metrics"])
+    df = df[df["problem"] == "attitude_lqr"]
+    assert len(df) >= 50
+    for (case, params), group in df.groupby(["case", "problem_params"]):
+        inertia = make("attitude_lqr", case, json.loads(params)).inertia
+        mats = [json.loads(m) for m in group["matrices"]]
+        K, ok = lqr.lqr_gains(np.array([m["Q"] for m in mats]), np.array([m["R"] for m in mats]),
+                              inertia)
+        assert ok.all()
+        stored = np.array([json.loads(m)["gain"] for m in group["metrics"]])
+        np.testing.assert_array_equal(K, stored)
 
 
 def test_scale_invariance():

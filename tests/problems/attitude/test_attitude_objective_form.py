@@ -155,7 +155,8 @@ def test_companion_diagonal_cell_spends_the_authors_evaluations():
     root seed, the median evaluation count is within a factor 1.5 of the authors' 12 450
     (their range 4 560–35 160). (Under J the same cell spent about twice theirs; the
     seeded short run above shows the direction.)"""
-    jobs = plan_jobs("attitude_lyapunov", CASE, "diagonal", "pso_matlab", 20, ROOT_SEED)
+    jobs = plan_jobs("attitude_lyapunov", CASE, "diagonal", "pso_matlab", n_starts=20,
+                     root_seed=ROOT_SEED)
     runs = [_run(True, "neg_reciprocal", {}, seed=job.seed)[0] for job in jobs]
     assert all(r.stop_reason == "ftol" for r in runs)
     median = float(np.median([r.n_evals for r in runs]))

@@ -1,13 +1,13 @@
 """The compiled Riccati candidate loop of small plants (riccati.hamiltonian_compiled,
-dynamics/small_linear.py) against the batched numpy path it replaces there: the same
-statuses and gains to 1e-12, failures included."""
+dynamics/riccati.py and dynamics/small_linear.py) against the batched numpy path it replaces
+there: the same statuses and gains to 1e-12, failures included."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from penaltyrun.problems.lqr import riccati
+from penaltyrun.dynamics import riccati
 
 
 def _spd(rng, count, size, floor=1e-3):

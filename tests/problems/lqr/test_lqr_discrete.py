@@ -8,10 +8,10 @@ import textwrap
 import numpy as np
 import pytest
 
+from penaltyrun.dynamics.riccati import discrete_residual, dlqr_gains
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import lqr
 from penaltyrun.problems.lqr import discrete, reference
-from penaltyrun.problems.lqr.riccati import discrete_residual, dlqr_gains
 
 control = pytest.importorskip("control")
 

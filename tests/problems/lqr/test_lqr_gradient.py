@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm, solve_continuous_are, solve_discrete_are
 
-from penaltyrun.problems import base, lqr, zermelo
+from penaltyrun.problems import base, lqr
+from penaltyrun.problems.lowthrust import lyapunov_transfer
 
 H_CS = 1e-30  # complex step
 
@@ -188,20 +189,24 @@ def test_gradient_capability_is_optional_and_named():
     prob, _ = _plant(0, 3, 1)
     assert isinstance(prob, base.GradientProblem)
     assert base.gradient_support(prob) == ""
-    other = zermelo.make_problem(zermelo.DEFAULT_CASE, {})
+    other = lyapunov_transfer.make_problem(lyapunov_transfer.DEFAULT_CASE, {})
     reason = base.gradient_support(other)
     assert "no gradient" in reason and "\n" not in reason
 
 
-@pytest.mark.parametrize("how", ["mean", "max"])
+@pytest.mark.parametrize("how", ["mean", "max", "quantile"])
 def test_multi_scenario_gradient_is_the_aggregates(how):
-    """Several training scenarios: the gradient of their mean (max) against central
-    differences of the aggregate, never the base scenario's alone."""
+    """Several training scenarios: the gradient of their mean (max, 0.6 quantile: an
+    interpolation of two of three scenarios) against central differences of the aggregate,
+    never the base scenario's alone."""
     from penaltyrun import problems
 
-    prob = problems.make("lqr", None, {"train_scenarios": [{"x0": [[1, 0, 0]]},
-                                                           {"x0": [[0, 2, 1]]}],
-                                       "train_aggregate": how})
+    extra = {"train_quantile": 0.6} if how == "quantile" else {}
+    scenarios = [{"x0": [[1, 0, 0]]}, {"x0": [[0, 2, 1]]}]
+    if how == "quantile":
+        scenarios.append({"x0": [[0.5, -1, 2]]})
+    prob = problems.make("lqr", None, {"train_scenarios": scenarios,
+                                       "train_aggregate": how, **extra})
     Qt, R = np.diag([2.0, 1.0, 3.0]), np.diag([1.0, 0.5])
     grad = prob.gradient({"Q": Qt, "R": R})
     assert grad.exists
@@ -213,5 +218,6 @@ def test_multi_scenario_gradient_is_the_aggregates(how):
     h = 1e-3
     cd = (4 * (f(h / 2) - f(-h / 2)) / h - (f(h) - f(-h)) / (2 * h)) / 3
     assert float(np.sum(grad.matrices["Q"] * E)) == pytest.approx(cd, rel=1e-6)
-    plain = problems.make("zermelo", None, {"train_scenarios": [{"x0": (-8.0, 6.0)}]})
+    plain = problems.make("lyapunov_transfer", None,
+                          {"train_scenarios": [{"e0": 0.01}, {"e0": 0.02}]})
     assert "no gradient" in base.gradient_support(plain)

@@ -31,8 +31,8 @@ def cmaes_settings() -> dict:
 
 
 def best_cost(param: str, n_starts: int = 2) -> list[float]:
-    jobs = runner.plan_jobs("lqr", "default", param, "cmaes", n_starts, 20250422, {}, {},
-                            cmaes_settings(), {})
+    jobs = runner.plan_jobs("lqr", "default", param, "cmaes", n_starts=n_starts, root_seed=20250422,
+                            optimizer_options=cmaes_settings())
     out = []
     for job in jobs:
         record = runner.run_job(job)

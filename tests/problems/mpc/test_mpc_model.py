@@ -60,8 +60,15 @@ def test_doubling_dare_matches_scipy(seed):
     P, ok = solve_dare_batch(Ad, Bd, Q, R)
     assert ok.all()
     assert np.all(dare_residual(Ad, Bd, Q, R, P) < 1e-9)
+    K = np.linalg.solve(R + Bd.T @ P @ Bd, Bd.T @ P @ Ad)
+    assert np.all(np.abs(np.linalg.eigvals(Ad - Bd @ K)).max(axis=-1) < 1.0)
     for b in range(3):
-        ref = solve_discrete_are(Ad, Bd, Q[b], R[b])
+        try:
+            ref = solve_discrete_are(Ad, Bd, Q[b], R[b])
+        except ValueError:
+            # scipy's QZ reordering refuses some pairs of this conditioning (about 1 draw in
+            # 700); the residual and stability checks above still hold for them.
+            continue
         np.testing.assert_allclose(P[b], ref, rtol=0, atol=1e-7 * np.abs(ref).max())
 
 

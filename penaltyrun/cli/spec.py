@@ -1,10 +1,11 @@
-"""From one composed config (one cell of a sweep) to its problem and its jobs.
+"""From one composed config (one cell of a sweep) to its typed run specification.
 
-Shared by ``mode=optimize`` (:func:`penaltyrun.cli.run_optimize`) and ``mode=plan``
-(:mod:`penaltyrun.planmode`), so that a plan forecasts exactly the jobs a run would run;
-both plan through the run core (:mod:`penaltyrun.api.core`) that :func:`penaltyrun.tune`
-uses too.
-"""
+:func:`run_spec` is the one boundary: ``mode=optimize`` (:func:`penaltyrun.cli.app.run_optimize`),
+``mode=plan`` (:mod:`penaltyrun.cli.planmode`) and the preflight
+(:mod:`penaltyrun.cli.checks`) each turn the composed config into the cell's
+:class:`~penaltyrun.runner.spec.RunSpec` here, then build and plan it as the runner does, so
+that a plan forecasts exactly the jobs a run would run and the preflight refuses what the
+run would refuse."""
 
 from __future__ import annotations
 
@@ -93,58 +94,26 @@ def optimizer_options(cfg: DictConfig) -> dict[str, Any]:
     return {k: v for k, v in plain(cfg.optimizer).items() if k != "name"}
 
 
-def setup(cfg: DictConfig) -> tuple[Any, Any, Any]:
-    """Validated (problem, decision layout, optimizer settings) of the cell."""
-    from penaltyrun import runner
+def run_spec(cfg: DictConfig) -> Any:
+    """The one boundary from a composed config to the typed run specification: the cell's
+    :class:`~penaltyrun.runner.spec.RunSpec` (its nodes as plain data, the checked
+    :class:`~penaltyrun.runner.spec.RunnerOptions`, ``config_hash``'s input and the YAML).
 
-    return runner.build(cfg.problem.name, cfg.case, problem_params(cfg), cfg.param.name,
-                        plain(cfg.param), cfg.optimizer.name, optimizer_options(cfg),
-                        problem_module(cfg))
-
-
-def cell_spec(cfg: DictConfig) -> Any:
-    """The cell's :class:`~penaltyrun.api.core.CellSpec` (what the run core needs) from
-    the composed config: its nodes as plain data, ``config_hash``'s input and the YAML."""
-    from penaltyrun.api.core import CellSpec
+    Raises
+    ------
+    ConfigError
+        A ``runner.*`` option of the wrong type or out of range.
+    """
     from penaltyrun.problems.criteria import hashed_node
+    from penaltyrun.runner.spec import RunnerOptions, RunSpec
 
     hashed = {"problem": hashed_node(plain(cfg.problem)), "case": cfg.case,
               "param": plain(cfg.param),
               "optimizer": plain(cfg.optimizer), "seed": cfg.runner.seed}
-    return CellSpec(
+    return RunSpec(
         problem=cfg.problem.name, case=cfg.case, param=cfg.param.name,
         optimizer=cfg.optimizer.name, problem_params=problem_params(cfg),
         param_options=plain(cfg.param), optimizer_options=optimizer_options(cfg),
-        problem_module=problem_module(cfg), runner=plain(cfg.runner), hashed=hashed,
-        config_text=OmegaConf.to_yaml(cfg),
+        problem_module=problem_module(cfg), runner=RunnerOptions.from_mapping(plain(cfg.runner)),
+        hashed=hashed, config_text=OmegaConf.to_yaml(cfg),
         report_output=cfg.report.output or None, report_paper=bool(cfg.report.paper))
-
-
-def warm_start_share(cfg: DictConfig) -> float:
-    """Share of the budget spent on the diagonal stage (0: no warm start); see
-    :func:`penaltyrun.api.core.warm_start_share`."""
-    from penaltyrun.api import core
-
-    return core.warm_start_share(plain(cfg.runner), cfg.optimizer.name,
-                                 optimizer_options(cfg))
-
-
-def cell_jobs(cfg: DictConfig, case: str, meta: dict[str, Any] | None = None) -> list[Any]:
-    """The jobs of the cell (one per start), as :func:`penaltyrun.runner.plan_jobs` plans
-    them; ``case`` is the problem's resolved case."""
-    from penaltyrun.api import core
-
-    return core.plan_cell(cell_spec(cfg), case, meta)
-
-
-def local_workers(cfg: DictConfig) -> int | None:
-    """Worker processes of the cell on this machine (``runner.workers``, ``auto``
-    resolved); ``None`` for a remote dask scheduler (cluster size unknown here)."""
-    from penaltyrun.api import core
-
-    return core.local_workers(plain(cfg.runner))
-
-
-def forecast_samples(cfg: DictConfig) -> int:
-    """``runner.forecast_samples`` (8 if absent)."""
-    return int(cfg.runner.get("forecast_samples", 8))

@@ -6,9 +6,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from penaltyrun.cli.overrides import MAX_CHARS, MAX_VALUES, count_values, parse_each, split_argv
+from penaltyrun.cli.preflight import preflight
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import MAX_CHARS, MAX_VALUES, count_values, parse_each, split_argv
-from penaltyrun.preflight import preflight
 
 
 def test_an_option_value_with_equals_is_not_an_override():

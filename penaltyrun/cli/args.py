@@ -31,8 +31,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from penaltyrun.cli.overrides import check_size, parse_each, split_argv
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import check_size, parse_each, split_argv
 
 KEEP_FLAG = "--keep"
 #: What an evaluation that kept no run directory says on stderr.

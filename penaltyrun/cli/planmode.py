@@ -4,7 +4,7 @@ one screen, without running it.
 The cells are the ones Hydra would run: with ``-m``, the product of the sweeps of the
 command line and of the config's ``hydra.sweeper.params`` (as Hydra's basic sweeper builds
 it); without, the one cell of the command line. For each cell the jobs are planned exactly
-as a run plans them (:func:`penaltyrun.cells.cell_jobs`) and forecast by
+as a run plans them (:meth:`penaltyrun.runner.spec.RunSpec.plan`) and forecast by
 :func:`penaltyrun.runner.forecast.forecast_cell` (budgets from the optimizer settings, CPU
 per evaluation from ``runner.forecast_samples`` random candidates, measured once per problem,
 case and map). Nothing is written: no run directory, no records.
@@ -23,7 +23,8 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from penaltyrun import cells, userconf
+from penaltyrun.cli import spec as cells
+from penaltyrun.cli import userconf
 from penaltyrun.runner import forecast as fc
 from penaltyrun.runner.options import available_cores
 
@@ -89,12 +90,13 @@ def forecast_cells(cfgs: Sequence[DictConfig], stream: Any = None) -> list[fc.Ce
     timings: dict[str, fc.Timing] = {}
     out = []
     for i, cfg in enumerate(cfgs, start=1):
-        prob, _, _ = cells.setup(cfg)
-        jobs = cells.cell_jobs(cfg, prob.case)
+        spec = cells.run_spec(cfg)
+        prob, _, _ = spec.build()
+        jobs = spec.plan(prob.case)
         key = _timing_key(jobs[0])
         if tty:
             print(f"\rtiming cell {i}/{len(cfgs)} ...", end="", file=stream, flush=True)
-        cell = fc.forecast_cell(jobs, cells.forecast_samples(cfg), int(cfg.runner.seed),
+        cell = fc.forecast_cell(jobs, spec.runner.forecast_samples, int(spec.runner.seed),
                                 timings.get(key))
         timings[key] = cell.timing
         out.append(cell)
@@ -122,7 +124,7 @@ def _row(cell: fc.CellForecast, workers: int | None) -> str:
 def render(cells_fc: Sequence[fc.CellForecast], cfgs: Sequence[DictConfig],
            multirun: bool, model: fc.WallModel = fc.job_level_wall) -> str:
     """The plan screen: one row per cell, totals, this machine and 64 / 512 cores."""
-    workers = cells.local_workers(cfgs[0])
+    workers = cells.run_spec(cfgs[0]).runner.local_workers()
     n_jobs = sum(len(c.jobs) for c in cells_fc)
     samples = max((len(c.timing.samples_s) for c in cells_fc), default=0)
     how = "multirun: Hydra runs the cells one after another" if multirun else "one cell"

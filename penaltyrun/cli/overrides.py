@@ -1,7 +1,7 @@
 """Hydra's override parser, one override at a time, so that a bad one names its own key.
 
-The command-line checks (:mod:`penaltyrun.cliargs`) and the preflight
-(:mod:`penaltyrun.preflight`) both parse the overrides before Hydra runs; both use
+The command-line checks (:mod:`penaltyrun.cli.args`) and the preflight
+(:mod:`penaltyrun.cli.preflight`) both parse the overrides before Hydra runs; both use
 :func:`parse_each`. Each caller keeps its own wording of Hydra's message (``describe``).
 """
 

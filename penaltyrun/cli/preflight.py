@@ -2,7 +2,7 @@
 
 :func:`preflight` parses the overrides, checks config-group choices against the files Hydra
 will search (penaltyrun's ``conf/`` and the user's directories) and composes the config once
-to catch unknown keys and type errors; :mod:`penaltyrun.checks` checks the values.
+to catch unknown keys and type errors; :mod:`penaltyrun.cli.checks` checks the values.
 """
 
 from __future__ import annotations
@@ -11,9 +11,10 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import cells, checks, userconf
+from penaltyrun.cli import checks, userconf
+from penaltyrun.cli import spec as cells
+from penaltyrun.cli.overrides import check_size, check_sweep_size, parse_each, split_argv
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import check_size, check_sweep_size, parse_each, split_argv
 
 GROUPS = ("problem", "param", "optimizer", "experiment")
 #: Hydra settings the preflight needs to check the run directory.

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from penaltyrun.cli.preflight import preflight
+from penaltyrun.cli.quickcheck import check_plain_values, literal
 from penaltyrun.errors import ConfigError
-from penaltyrun.preflight import preflight
-from penaltyrun.quickcheck import check_plain_values, literal
 
 REFUSED = [
     ["runner.n_starts=0"], ["runner.n_starts=-3"], ["runner.n_starts=1.5"],
@@ -70,7 +70,7 @@ def test_left_to_the_preflight(argv):
 def test_a_choice_misplaced_in_the_current_directory_gets_the_preflights_hint(
         tmp_path, monkeypatch):
     """``problem=mine`` with ``mine.yaml`` lying in the current directory: the hint of
-    :func:`penaltyrun.userconf.misplaced`, as the preflight gives it."""
+    :func:`penaltyrun.cli.userconf.misplaced`, as the preflight gives it."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "mine.yaml").write_text("name: zermelo\n")
     argv = ["problem=mine"]
@@ -87,7 +87,7 @@ def test_numbers_are_read_as_hydra_reads_them(text):
     left alone (``_SKIP``)."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from penaltyrun.quickcheck import _SKIP
+    from penaltyrun.cli.quickcheck import _SKIP
 
     value = literal(text)
     if value is _SKIP:

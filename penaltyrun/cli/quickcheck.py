@@ -19,8 +19,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from penaltyrun.cli.overrides import split_argv
 from penaltyrun.errors import ConfigError
-from penaltyrun.overrides import split_argv
 
 #: Options after which the quick check still applies (other options, e.g. ``--cfg`` or a
 #: user config directory, leave everything to the preflight).
@@ -75,7 +75,7 @@ def check_plain_values(argv: list[str]) -> None:
             continue
         values[key] = value
         if key == "mode":
-            from penaltyrun.checks import MODES
+            from penaltyrun.cli.modes import MODES
 
             if value not in MODES:
                 raise ConfigError("mode", f"unknown mode {value!r}", allowed=MODES)
@@ -92,9 +92,9 @@ def check_plain_values(argv: list[str]) -> None:
 def _check_choices(argv: list[str], values: dict[str, Any]) -> None:
     """A plain config-group choice (``param=bogus``) that no file of penaltyrun's own
     config directory names: the preflight's line, with its hint when such a file lies
-    elsewhere (:func:`penaltyrun.userconf.misplaced`) or the allowed names."""
-    from penaltyrun import userconf
-    from penaltyrun.preflight import GROUPS
+    elsewhere (:func:`penaltyrun.cli.userconf.misplaced`) or the allowed names."""
+    from penaltyrun.cli import userconf
+    from penaltyrun.cli.preflight import GROUPS
 
     for group in GROUPS:
         value = values.get(group)
@@ -127,8 +127,8 @@ def _check_optimizer(values: dict[str, Any]) -> None:
     shipped optimizer file's other options (:func:`penaltyrun.optim.make_settings`), as the
     preflight checks them. Left to the preflight: a mode that does not read the optimizer,
     an optimizer file that is not penaltyrun's own or names others, a key it does not list."""
-    from penaltyrun.checks import JOB_MODES
-    from penaltyrun.userconf import CONF_DIR
+    from penaltyrun.cli.modes import JOB_MODES
+    from penaltyrun.cli.userconf import CONF_DIR
 
     given = {k.removeprefix("optimizer."): v for k, v in values.items()
              if k.startswith("optimizer.")}

@@ -25,7 +25,7 @@ from pathlib import Path
 from penaltyrun import yamlsafe
 from penaltyrun.errors import ConfigError
 
-CONF_DIR = Path(__file__).resolve().parent / "conf"
+CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 #: A dotted module path (``my_pkg.my_module``) given as ``problem=``.
 _MODULE_PATH = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)+$")
 #: Hydra's options that take a value: long form, short form.
@@ -84,7 +84,8 @@ def normalize_argv(argv: list[str]) -> list[str]:
 
     ``problem.params.X=v`` becomes ``++problem.params.X=v`` (set or add): a problem's
     parameters are the fields of its ``Params`` dataclass, listed in its YAML file or not;
-    the preflight refuses names that are not fields (:func:`penaltyrun.cells.with_params_schema`).
+    the preflight refuses names that are not fields
+    (:func:`penaltyrun.cli.spec.with_params_schema`).
 
     ``problem=my_pkg.my_module`` names a problem module by its path
     (:func:`module_problems`).

@@ -14,20 +14,13 @@ import importlib.util
 import textwrap
 from pathlib import Path
 
-from penaltyrun import userconf
+from penaltyrun.cli import modes, userconf
 from penaltyrun.errors import ConfigError
 
 GROUPS = ("problem", "param", "optimizer", "experiment")
 WIDTH = 92
 INDENT = 13
 
-MODES = (
-    ("optimize", "run the cell's optimizer starts; write results.parquet, jobs/, report/"),
-    ("evaluate", "cost of the matrices given as matrices.K=[[...]] (or z=[...]; +gradient=true "
-                 "adds d cost / d z); one JSON line on stdout"),
-    ("report", "tables and figures from results: report.input=<results.parquet or folder>"),
-    ("plan", "forecast jobs, evaluations and time of a cell or a sweep; runs nothing"),
-)
 EXAMPLES = (
     ("penaltyrun problem=attitude_lqr case=rest_to_rest param=diagonal",
      "one cell, 10 starts"),
@@ -132,7 +125,7 @@ def _literal_cases(module: str, depth: int = 3) -> tuple[str, ...] | None:
 def _registry() -> dict[str, str]:
     """penaltyrun's problem registry (``penaltyrun.problems.REGISTRY``), read from the
     package's source so that numpy is not imported for the help."""
-    path = Path(__file__).resolve().parent / "problems" / "__init__.py"
+    path = Path(__file__).resolve().parent.parent / "problems" / "__init__.py"
     try:
         tree = ast.parse(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, SyntaxError):
@@ -189,7 +182,7 @@ def render(argv: list[str]) -> str:
         "with -m, comma lists (param=diagonal,full) sweep several cells.",
         "",
         "modes (mode=...; default optimize):",
-        *[f"  {name:<10} {text}" for name, text in MODES],
+        *[f"  {mode.name:<10} {mode.help}" for mode in modes.TABLE],
         "",
         "groups (GROUP=CHOICE; * default; +experiment=NAME for a study profile, with -m):",
     ]

@@ -1,6 +1,6 @@
 """Preflight checks of a composed config, before Hydra creates a run directory.
 
-Called by :func:`penaltyrun.preflight.preflight` on the config composed from the command line:
+Called by :func:`penaltyrun.cli.preflight.preflight` on the config composed from the command line:
 every option's type and range (runner, report, optimizer, parameterization, problem, case),
 keys that the shipped config does not know (``+foo=1``), the run directory (can it be
 created?) and, for the dask backend, the scheduler (can it be reached?). Each problem is
@@ -18,18 +18,18 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from penaltyrun import cells
+from penaltyrun.cli import spec as cells
+from penaltyrun.cli.modes import JOB_MODES, MODES
 from penaltyrun.errors import ConfigError
 from penaltyrun.typed import is_number
 
-MODES = ("optimize", "evaluate", "report", "plan")
-#: Modes that plan optimizer jobs (``plan`` forecasts them without running them).
-JOB_MODES = ("optimize", "plan")
 #: Subtrees whose keys are free (candidate matrices / scalars of ``mode=evaluate``).
 FREE_KEYS = ("matrices", "scalars")
 #: Keys a user may add with ``+key=value`` (``mode=evaluate`` only): ``gradient``.
 EVALUATE_EXTRAS = ("gradient",)
-REPORT_OPTIONS = {"input": (str, type(None)), "output": (str, type(None)), "paper": (bool,)}
+#: Settings every search optimizer reads that only some presets list, added with
+#: ``+key=value`` (the charge per gradient of ``polish=gradient``).
+OPTIONAL_KEYS = ("optimizer.grad_cost",)
 
 
 def plain(node: Any) -> Any:
@@ -44,7 +44,8 @@ def unknown_keys(cfg: Any, base: Any, prefix: str = "") -> tuple[str, list[str]]
         return None
     for key, value in cfg.items():
         dotted = f"{prefix}{key}"
-        if dotted in FREE_KEYS or dotted in EVALUATE_EXTRAS or dotted == "hydra":
+        if dotted in FREE_KEYS or dotted in EVALUATE_EXTRAS or dotted in OPTIONAL_KEYS \
+                or dotted == "hydra":
             continue
         if key not in base:
             return dotted, sorted(str(k) for k in base)
@@ -71,18 +72,6 @@ def check_known_keys(cfg: Mapping[str, Any], base: Mapping[str, Any]) -> None:
     if deleted:
         raise ConfigError(deleted[0], "is required and cannot be removed (~key); set a value "
                                       "instead")
-
-
-def check_report_options(options: Mapping[str, Any]) -> None:
-    """Check ``report.input``, ``report.output`` (path or null), ``report.paper`` (bool)."""
-    for key, value in options.items():
-        types = REPORT_OPTIONS.get(key)
-        if types is None:
-            raise ConfigError(f"report.{key}", "unknown report option",
-                              allowed=sorted(REPORT_OPTIONS))
-        if not isinstance(value, types) or (isinstance(value, str) and not value.strip()):
-            what = "true or false" if types == (bool,) else "a path or null"
-            raise ConfigError(f"report.{key}", f"must be {what}, got {value!r}")
 
 
 def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
@@ -261,12 +250,13 @@ def check_config(cfg: DictConfig, connect: bool = True,
     ConfigError
         The first problem found, naming its key.
     """
-    from penaltyrun import optim, penalty, problems, runner
+    from penaltyrun import problems, runner
+    from penaltyrun.runner.setup import checked
 
     mode = cfg.get("mode")
     if mode not in MODES:
         raise ConfigError("mode", f"unknown mode {mode!r}", allowed=MODES)
-    check_report_options(plain(cfg.get("report")) or {})
+    runner.check_report_options(plain(cfg.get("report")) or {})
     runner.check_runner_options(plain(cfg.get("runner")) or {},
                                 connect=connect and mode == "optimize")
     check_output_dir((plain(cfg.get("report")) or {}).get("output"))
@@ -277,31 +267,18 @@ def check_config(cfg: DictConfig, connect: bool = True,
         for group in FREE_KEYS:
             check_matrix_entries(plain(cfg.get(group)) or {}, group)
     if mode in JOB_MODES:
-        optim.make_settings(cfg.optimizer.name, _options(cfg, "optimizer"))
-        if cfg.param.name not in penalty.KINDS:
-            raise ConfigError("param", f"unknown parameterization {cfg.param.name!r}",
-                              allowed=penalty.KINDS)
         check_param_options(_options(cfg, "param"))
-    params = {k: v for k, v in (plain(cfg.problem.get("params")) or {}).items()
-              if v is not None}
+    params = cells.problem_params(cfg)
     if base is not None:
         check_like_defaults(params, plain(base.problem.get("params")) or {}, "problem.params")
-    prob = _checked("problem.params", problems.make, cfg.problem.name, cfg.get("case"),
-                    params, cfg.problem.get("module") or None)
-    if mode in JOB_MODES:
-        _checked("param", runner.build_layout, prob, cfg.param.name, _options(cfg, "param"))
-        check_gradient_available(cfg.optimizer.name, _options(cfg, "optimizer"), prob)
-
-
-def _checked(key: str, func: Any, *args: Any) -> Any:
-    """``func(*args)``; an error other than ConfigError becomes a ConfigError on ``key``."""
-    try:
-        return func(*args)
-    except ConfigError:
-        raise
-    except (TypeError, ValueError, KeyError, IndexError) as exc:
-        text = " ".join(str(exc).split()) or type(exc).__name__
-        raise ConfigError(key, f"invalid value: {text}") from None
+    if mode not in JOB_MODES:
+        checked("problem.params", problems.make, cfg.problem.name, cfg.get("case"), params,
+                cells.problem_module(cfg))
+        return
+    spec = cells.run_spec(cfg)  # the cell as the runner builds and plans it
+    prob, _, _ = spec.build()
+    spec.warm_start_share()
+    check_gradient_available(spec.optimizer, spec.optimizer_options, prob)
 
 
 def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) -> None:

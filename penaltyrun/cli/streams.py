@@ -10,8 +10,7 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-#: Exit code of a file operation the machine refused (see ``penaltyrun.cli.EXIT_CODES``).
-EXIT_ENVIRONMENT = 5
+from penaltyrun.errors import EXIT_ENVIRONMENT
 
 
 def print_error(line: str) -> None:

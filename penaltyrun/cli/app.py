@@ -1,9 +1,9 @@
 """Command line: ``penaltyrun`` (Hydra app: optimize / evaluate / report / plan) and
 ``penaltyrun-report`` (report from Parquet files).
 
-``penaltyrun --help`` is penaltyrun's own (:mod:`penaltyrun.clihelp`), ``--hydra-help``
+``penaltyrun --help`` is penaltyrun's own (:mod:`penaltyrun.cli.helptext`), ``--hydra-help``
 Hydra's; flags, sweeps without ``-m`` and Hydra's own errors are checked by
-:mod:`penaltyrun.cliargs`. ``mode=evaluate`` writes nothing unless ``--keep`` or
+:mod:`penaltyrun.cli.args`. ``mode=evaluate`` writes nothing unless ``--keep`` or
 ``hydra.run.dir`` is given.
 
 Every user error (unknown names, bad values, malformed matrices) ends with one readable
@@ -14,7 +14,6 @@ exit code 128 + signal number (130, 143, 129). Exit codes: :data:`EXIT_CODES`.
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import os
@@ -25,8 +24,24 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from penaltyrun import __version__, cells, checks, cliargs, clihelp, quickcheck, userconf
+from penaltyrun import __version__
+from penaltyrun.cli import args as cliargs
+from penaltyrun.cli import helptext, modes, quickcheck, spec, userconf
+from penaltyrun.cli.preflight import preflight
+from penaltyrun.cli.streams import (
+    ensure_utf8_mode,
+    flush_stdout,
+    print_error,
+    print_for_reader,
+    stdout_broken,
+    stdout_error_line,
+    watch_stdout,
+)
 from penaltyrun.errors import (
+    EXIT_ABORTED,
+    EXIT_ENVIRONMENT,
+    EXIT_JOBS_FAILED,
+    EXIT_USAGE,
     ConfigError,
     EnvironmentProblemError,
     ResultsUnreadableError,
@@ -36,53 +51,20 @@ from penaltyrun.errors import (
     describe_os_error,
     signal_name,
 )
-from penaltyrun.preflight import preflight
-from penaltyrun.streams import (
-    EXIT_ENVIRONMENT,
-    end_if_pipe_closed,
-    ensure_utf8_mode,
-    flush_stdout,
-    print_error,
-    print_for_reader,
-    stdout_broken,
-    stdout_error_line,
-    watch_stdout,
-)
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
 
+    from penaltyrun.runner.spec import RunnerOptions
+
 logger = logging.getLogger("penaltyrun")
 
-MODES = checks.MODES
-EXIT_OK = 0
-EXIT_USAGE = 2
-EXIT_JOBS_FAILED = 3
-EXIT_ABORTED = 4
-EXIT_INTERRUPTED = 130
-#: Exit code → meaning (also in README "Errors and exit codes").
-EXIT_CODES = {
-    EXIT_OK: "success (every job recorded ok or diverged)",
-    1: "internal error (a bug: please report the traceback)",
-    EXIT_USAGE: "bad command line or config, a run directory in use by another run, or no "
-                "readable results (one line on stderr)",
-    EXIT_JOBS_FAILED: "the run finished but at least one job is recorded `failed` or "
-                      "`timeout`",
-    EXIT_ABORTED: "the run could not go on (dask: scheduler lost or no worker for "
-                  "runner.worker_timeout s); finished jobs are kept",
-    EXIT_ENVIRONMENT: "the machine refused a file operation (disk full, no permission, "
-                      "read-only file system, output not writable): one line naming the "
-                      "path; finished jobs are kept",
-    128 + signal.SIGINT: "stopped by Ctrl-C (SIGINT); finished jobs are kept",
-    128 + signal.SIGTERM: "stopped by SIGTERM; finished jobs are kept",
-    128 + signal.SIGHUP: "stopped by SIGHUP; finished jobs are kept",
-}
 #: Runs of this process (several in a multirun) that ended with failed jobs.
 FAILED_RUNS: list[str] = []
 
 
-_plain = cells.plain
-problem_params, problem_module, _setup = cells.problem_params, cells.problem_module, cells.setup
+_plain = spec.plain
+problem_params, problem_module = spec.problem_params, spec.problem_module
 
 
 def run_optimize(cfg: DictConfig) -> Path:
@@ -92,21 +74,21 @@ def run_optimize(cfg: DictConfig) -> Path:
 
     from penaltyrun.api import core
 
-    spec = cells.cell_spec(cfg)
+    cell = spec.run_spec(cfg)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
-    path = core.run_cell(spec, run_dir, progress=lambda jobs: _progress(cfg, jobs, run_dir))
+    path = core.run_cell(cell, run_dir,
+                         progress=lambda jobs: _progress(cell.runner, jobs, run_dir))
     summarize(path, run_dir)
     return path
 
 
-def _progress(cfg: DictConfig, jobs: list[Any], run_dir: Path) -> Any:
+def _progress(rc: RunnerOptions, jobs: list[Any], run_dir: Path) -> Any:
     """tqdm bar over the jobs on a terminal (``runner.progress``), else plain log lines."""
-    from penaltyrun import progress
+    from penaltyrun.cli import progress
 
-    rc = cfg.runner
-    done = progress.finished_before(jobs, run_dir, bool(rc.resume), bool(rc.retry_failed))
-    return progress.job_bar(len(jobs), done, progress.wanted(rc.get("progress", "auto")),
-                            workers=progress.slots(rc, len(jobs) - done))
+    done = progress.finished_before(jobs, run_dir, rc.resume, rc.retry_failed)
+    return progress.job_bar(len(jobs), done, progress.wanted(rc.progress),
+                            workers=progress.slots(rc.as_dict(), len(jobs) - done))
 
 
 def summarize(path: Path, run_dir: Path) -> dict[str, int]:
@@ -184,7 +166,7 @@ def run_report(cfg: DictConfig) -> Path:
     return out
 
 
-def _guard(func: Callable[[], Any]) -> Any:
+def guard(func: Callable[[], Any]) -> Any:
     """Run ``func``; turn user errors into one line on stderr and exit code 2, a run that
     cannot go on into one line and exit code 4, and Ctrl-C / SIGTERM / SIGHUP into one line
     and exit code 128 + signal number (finished jobs are on disk already)."""
@@ -256,35 +238,30 @@ def _discard_run_dir() -> None:
 def _hydra_main() -> None:
     """Run the Hydra app (:func:`_task` on the config Hydra composes from ``sys.argv``).
     Hydra is imported here, after the checks that need no config
-    (:mod:`penaltyrun.quickcheck`)."""
+    (:mod:`penaltyrun.cli.quickcheck`)."""
     import hydra
 
-    hydra.main(version_base="1.3", config_path="conf", config_name="config")(_task)()
+    hydra.main(version_base="1.3", config_path="../conf", config_name="config")(_task)()
 
 
 def _task(cfg: DictConfig) -> None:
     """Hydra's task: run the mode of the composed config ``cfg``."""
     def dispatch() -> Any:
-        if cfg.mode not in MODES:
-            raise ConfigError("mode", f"unknown mode {cfg.mode!r}", allowed=MODES)
+        mode = modes.BY_NAME.get(cfg.mode)
+        if mode is None:
+            raise ConfigError("mode", f"unknown mode {cfg.mode!r}", allowed=modes.MODES)
         try:
-            return {"optimize": run_optimize, "evaluate": run_evaluate, "report": run_report,
-                    "plan": _print_cell_plan}[cfg.mode](cfg)
+            return mode.runner()(cfg)
         except ConfigError:
             _discard_run_dir()
             raise
 
     try:
-        _guard(dispatch)
+        guard(dispatch)
     except Exception as exc:  # a bug in penaltyrun: a traceback, not a Hydra error line
         cliargs.mark_task_error(exc)
         raise
 
-
-def _print_cell_plan(cfg: DictConfig) -> None:
-    from penaltyrun import planmode
-
-    planmode.print_cell_plan(cfg)
 
 
 def use_file_backend() -> None:
@@ -305,7 +282,7 @@ def print_version(argv: list[str]) -> bool:
 def main() -> None:
     """Entry point of ``penaltyrun``: check the command line, then run the Hydra app.
 
-    ``--help`` is penaltyrun's own (:mod:`penaltyrun.clihelp`), ``--hydra-help`` Hydra's.
+    ``--help`` is penaltyrun's own (:mod:`penaltyrun.cli.helptext`), ``--hydra-help`` Hydra's.
     Exits with :data:`EXIT_JOBS_FAILED` (3) when a run ended with failed jobs.
     """
     ensure_utf8_mode(sys.argv)
@@ -313,108 +290,30 @@ def main() -> None:
     logging.raiseExceptions = False  # a broken stdout is one line at the end, not tracebacks
     watch_stdout()
     argv = sys.argv[1:]
-    if _guard(lambda: print_version(argv)):
+    if guard(lambda: print_version(argv)):
         return flush_stdout()
     if "--hydra-help" in argv:
         return _hydra_main()
-    if clihelp.wants_help(argv):
-        return print_for_reader(clihelp.render(argv))
+    if helptext.wants_help(argv):
+        return print_for_reader(helptext.render(argv))
     install_signal_handlers()
     argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(argv)))
-    _guard(lambda: quickcheck.check_plain_values(argv))
-    args = _guard(lambda: cliargs.check_options(argv))
-    parsed = _guard(lambda: cliargs.check_sweeps(args.overrides, args.multirun))
+    guard(lambda: quickcheck.check_plain_values(argv))
+    args = guard(lambda: cliargs.check_options(argv))
+    parsed = guard(lambda: cliargs.check_sweeps(args.overrides, args.multirun))
     with cliargs.hydra_errors():  # Hydra's errors, also from the preflight's composition
-        mode = _guard(lambda: preflight(argv))
+        mode = guard(lambda: preflight(argv))
         if mode == "plan":
-            from penaltyrun import planmode
+            from penaltyrun.cli import planmode
 
             if planmode.intercepts(argv):  # forecast only: Hydra runs nothing
-                _guard(lambda: planmode.run(argv))
+                guard(lambda: planmode.run(argv))
                 return flush_stdout()
         extra: list[str] = []
         if mode == "evaluate" and not (args.cfg or args.info or args.shell_completion):
             extra = cliargs.evaluate_overrides(parsed, args.multirun, keep)
         sys.argv = [sys.argv[0], *argv, *extra]
-        _guard(_hydra_main)
+        guard(_hydra_main)
     flush_stdout()
     if FAILED_RUNS:
         sys.exit(EXIT_JOBS_FAILED)
-
-
-def report_main(argv: list[str] | None = None) -> None:
-    """Entry point of ``penaltyrun-report INPUT [-o OUTPUT] [--no-paper] [--export DIR]``."""
-    parser = argparse.ArgumentParser(
-        prog="penaltyrun-report",
-        description="Tables and figures from penaltyrun results (Parquet only).")
-    parser.add_argument("input", help="results.parquet or a folder searched recursively")
-    parser.add_argument("-o", "--output", help="output folder (default <input>/report)")
-    parser.add_argument("--no-paper", action="store_true",
-                        help="leave out the paper's numbers")
-    parser.add_argument("--export", metavar="DIR",
-                        help="also write each cell's best matrices to DIR as JSON and MATLAB "
-                             ".mat files (with index.csv)")
-    parser.add_argument("--problem-module", metavar="NAME=MODULE", action="append",
-                        default=[],
-                        help="run the report hooks of user problem NAME from MODULE (its "
-                             "folder on PYTHONPATH); without it, reading results imports no "
-                             "module named in them (repeatable)")
-    parser.add_argument("--plant-module", metavar="MODULE", action="append", default=[],
-                        help="import MODULE for an LQR plant or dynamics the results name "
-                             "(module:function), to draw its figures (repeatable)")
-    parser.add_argument("--basin-points", metavar="N", type=int, default=None,
-                        help="grid points per axis of the basin-of-attraction maps of the "
-                             "best diagonal and full gains (default 16; 0: no maps)")
-    parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
-    if argv is None:
-        ensure_utf8_mode(sys.argv)
-    use_file_backend()
-    watch_stdout()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit:  # --help, --version or a usage error: printed already
-        end_if_pipe_closed()
-        raise
-    from penaltyrun import problems, report
-
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    install_signal_handlers()
-    src = Path(args.input)
-
-    def build() -> None:
-        if not src.exists():
-            raise ConfigError("input", f"{src} does not exist")
-        checks.check_output_dir(args.output, "-o")
-        for item in args.problem_module:
-            name, sep, module_path = item.partition("=")
-            if not sep or not name.strip():
-                raise ConfigError("--problem-module", f"{item!r} is not NAME=MODULE (e.g. "
-                                  "--problem-module cartpole=mylab.problems.cartpole)")
-            problems.register(name.strip(), module_path)
-        for module_path in args.plant_module:
-            problems.trust.allow_module(module_path)
-        out = Path(args.output) if args.output else \
-            (src.parent if src.is_file() else src) / "report"
-        maps = {} if args.basin_points is None else {"basin_points": args.basin_points}
-        if maps and not (maps["basin_points"] == 0 or 2 <= maps["basin_points"] <= 200):
-            raise ConfigError("--basin-points", f"must be 0 (no maps) or 2 to 200, got "
-                              f"{args.basin_points}")
-        report.build_report(src, out, paper=not args.no_paper, **maps)
-        print(f"report written to {out}")
-        if args.export:
-            _export(src, Path(args.export))
-
-    _guard(build)
-    flush_stdout()
-
-
-def _export(src: Path, out: Path) -> None:
-    """``penaltyrun-report --export DIR``: best matrices of each cell as JSON and .mat."""
-    from penaltyrun.report.export import export_best
-
-    files = export_best(src, out)
-    print(f"best matrices of {(len(files) - 1) // 2} cells exported to {out}")
-
-
-if __name__ == "__main__":
-    main()

@@ -1,9 +1,10 @@
-"""Preflight checks of a composed config (penaltyrun/checks.py)."""
+"""Preflight checks of a composed config (penaltyrun/cli/checks.py)."""
 
 import pytest
 
-from penaltyrun import checks
+from penaltyrun.cli import checks
 from penaltyrun.errors import ConfigError
+from penaltyrun.runner.options import check_report_options
 
 
 def test_run_dir_checks(tmp_path):
@@ -30,6 +31,15 @@ def test_unknown_and_deleted_keys():
         checks.check_known_keys({"runner": {"seed": 1}, "matrices": {}}, base)
 
 
+def test_the_charge_per_gradient_may_be_added_after_any_preset():
+    base = {"optimizer": {"name": "cmaes", "polish": "gradient"}}
+    checks.check_known_keys({"optimizer": {"name": "cmaes", "polish": "gradient",
+                                           "grad_cost": 3.0}}, base)
+    with pytest.raises(ConfigError, match="optimizer.grad_costs: unknown config key"):
+        checks.check_known_keys({"optimizer": {"name": "cmaes", "polish": "gradient",
+                                               "grad_costs": 3.0}}, base)
+
+
 @pytest.mark.parametrize(("values", "fragment"), [
     ({"x0": "abc"}, "list of 2 numbers"), ({"x0": [1, 2, 3]}, "list of 2 numbers"),
     ({"t_max": True}, "a number"), ({"t_max": "1"}, "a number"), ({"flag": 1}, "true or"),
@@ -42,11 +52,11 @@ def test_problem_params_like_defaults(values, fragment):
 
 
 def test_report_and_param_options():
-    checks.check_report_options({"input": None, "output": "x", "paper": True})
+    check_report_options({"input": None, "output": "x", "paper": True})
     with pytest.raises(ConfigError, match="report.paper"):
-        checks.check_report_options({"paper": "maybe"})
+        check_report_options({"paper": "maybe"})
     with pytest.raises(ConfigError, match="report.nope"):
-        checks.check_report_options({"nope": 1})
+        check_report_options({"nope": 1})
     checks.check_param_options({"eig_bounds": None, "cayley_bound": 100.0})
     for bad in ({"eig_bounds": [2, 1]}, {"eig_bounds": "x"}, {"cayley_bound": 0}):
         with pytest.raises(ConfigError):
@@ -79,7 +89,7 @@ def test_matrix_entries_must_be_numbers():
 def test_command_line_values_are_checked_against_the_profiles_problems():
     """A profile that sweeps ``problem`` with a command-line ``case`` list: the cases are
     checked against the profile's problems, not against the default problem."""
-    from penaltyrun.preflight import preflight
+    from penaltyrun.cli.preflight import preflight
 
     assert preflight(["-m", "+experiment=lowthrust_baseline", "case=A,C"]) == "optimize"
     with pytest.raises(ConfigError, match="case: unknown case 'Z' for problem"):
@@ -89,7 +99,7 @@ def test_command_line_values_are_checked_against_the_profiles_problems():
 
 
 def test_sweeper_params_on_the_command_line_are_one_line():
-    from penaltyrun.preflight import preflight
+    from penaltyrun.cli.preflight import preflight
 
     with pytest.raises(ConfigError, match="bogus=a,b with -m"):
         preflight(["-m", "mode=plan", "hydra.sweeper.params.bogus=1"])
@@ -103,15 +113,15 @@ def test_yaml_infinity_on_the_command_line_names_the_spelling_that_works():
 
 
 def test_the_root_folder_as_a_choice_is_one_line():
-    from penaltyrun.preflight import preflight
+    from penaltyrun.cli.preflight import preflight
 
     with pytest.raises(ConfigError, match="not a path"):
         preflight(["problem=/", "mode=plan"])
 
 
 def test_an_experiment_profile_sweep_beyond_the_size_limit_is_one_error(tmp_path):
-    from penaltyrun.overrides import MAX_VALUES
-    from penaltyrun.preflight import preflight
+    from penaltyrun.cli.overrides import MAX_VALUES
+    from penaltyrun.cli.preflight import preflight
 
     (tmp_path / "experiment").mkdir()
     values = ",".join(map(str, range(MAX_VALUES + 1)))
@@ -125,3 +135,23 @@ def test_an_experiment_profile_sweep_beyond_the_size_limit_is_one_error(tmp_path
         "      runner.seed: range(0,1000000)\n")
     with pytest.raises(ConfigError, match="sweep of 1000000 values"):
         preflight(["--config-dir", str(tmp_path), "+experiment=big", "-m", "mode=plan"])
+
+
+def test_a_sweep_cell_whose_grid_is_too_large_fails_in_the_preflight():
+    """The preflight builds each cell as the runner does (with the optimizer's dimension
+    check): a later cell of a sweep that the runner would refuse is refused before any
+    cell runs."""
+    from penaltyrun.cli.preflight import preflight
+
+    with pytest.raises(ConfigError, match="optimizer: grid search is for at most 4 decision "
+                                          "variables; this problem and map have 5"):
+        preflight(["-m", "problem=zermelo,lqr", "optimizer=grid", "param=diagonal",
+                   "hydra.sweep.dir=/tmp/penaltyrun-preflight-never-written"])
+
+
+def test_a_warm_start_without_budget_fails_in_the_preflight():
+    from penaltyrun.cli.preflight import preflight
+
+    with pytest.raises(ConfigError, match="runner.warm_start: needs an evaluation budget"):
+        preflight(["problem=zermelo", "runner.warm_start=true",
+                   "hydra.run.dir=/tmp/penaltyrun-preflight-never-written"])

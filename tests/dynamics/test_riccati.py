@@ -1,0 +1,152 @@
+"""The package's one batched Riccati solver (penaltyrun/dynamics/riccati.py) against
+scipy's solve_continuous_are and python-control's lqr on random stabilizable plants, through
+both of its paths (the compiled candidate loop of small plants and the numpy batch), and its
+stability margin: absolute (attitude_lqr's), relative to ‖A‖ (problem=lqr's), or both."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from scipy.linalg import solve_continuous_are
+
+from penaltyrun.dynamics import riccati
+
+control = pytest.importorskip("control")
+
+
+def _spd(rng: np.random.Generator, count: int, size: int, lo: float, hi: float) -> np.ndarray:
+    """``count`` random SPD matrices with eigenvalues log-uniform in [lo, hi]."""
+    out = np.empty((count, size, size))
+    for c in range(count):
+        V, _ = np.linalg.qr(rng.normal(size=(size, size)))
+        out[c] = (V * np.exp(rng.uniform(np.log(lo), np.log(hi), size))) @ V.T
+    return 0.5 * (out + np.swapaxes(out, 1, 2))
+
+
+def _plant(rng: np.random.Generator, n: int, m: int, controllable: bool
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """A random plant, unstable in general; ``controllable=False`` appends a stable mode that
+    the input does not reach (stabilizable, not controllable)."""
+    A = rng.normal(size=(n, n)) / np.sqrt(n) + 0.3 * np.eye(n)
+    B = rng.normal(size=(n, m))
+    if controllable:
+        return A, B
+    A2 = np.zeros((n + 1, n + 1))
+    A2[:n, :n] = A
+    A2[n, n] = -0.7
+    A2[:n, n] = rng.normal(size=n)  # the stable mode drives the others
+    return A2, np.vstack([B, np.zeros((1, m))])
+
+
+@pytest.fixture(params=["compiled", "numpy"])
+def path(request, monkeypatch):
+    """Run the test through the compiled candidate loop and through the numpy batch."""
+    monkeypatch.setattr(riccati, "COMPILED_MAX_STATES", 64 if request.param == "compiled" else 0)
+    return request.param
+
+
+@pytest.mark.parametrize("n, m", [(1, 1), (2, 1), (3, 2), (6, 3), (9, 2)])
+@pytest.mark.parametrize("controllable", [True, False])
+def test_gains_match_scipy_and_python_control(n, m, controllable, path):
+    rng = np.random.default_rng(100 * n + 10 * m + controllable)
+    A, B = _plant(rng, n, m, controllable)
+    k = A.shape[0]
+    Q, R = _spd(rng, 8, k, 1e-3, 1e2), _spd(rng, 8, m, 1e-2, 1e2)
+    K, ok, failure = riccati.lqr_gains(A, B, Q, R)
+    assert ok.all() and not failure.any()
+    for c in range(len(Q)):
+        P = solve_continuous_are(A, B, Q[c], R[c])
+        K_scipy = np.linalg.solve(R[c], B.T @ P)
+        K_ctrl, _, poles = control.lqr(A, B, Q[c], R[c])
+        scale = np.abs(K_scipy).max()
+        np.testing.assert_allclose(K[c], K_scipy, rtol=0, atol=1e-8 * scale)
+        np.testing.assert_allclose(K[c], K_ctrl, rtol=0, atol=1e-8 * scale)
+        np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(A - B @ K[c])),
+                                   np.sort_complex(poles), rtol=1e-7, atol=1e-9)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), m=st.integers(1, 3),
+       alpha=st.floats(1e-3, 1e3))
+def test_stabilizing_solution_of_any_plant(seed, n, m, alpha):
+    """Property: for any random plant and penalties the gain is python-control's, the loop
+    is Hurwitz, and (αQ, αR) gives the same gain. Plants close to uncontrollable (whose
+    gains no solver gets to 1e-7) are left out."""
+    rng = np.random.default_rng(seed)
+    A, B = _plant(rng, n, m, True)
+    assume(np.linalg.cond(control.ctrb(A, B)) < 1e4)
+    Q, R = _spd(rng, 2, n, 1e-2, 1e2), _spd(rng, 2, m, 1e-1, 1e1)
+    K, ok, _ = riccati.lqr_gains(A, B, np.concatenate([Q, alpha * Q]),
+                                 np.concatenate([R, alpha * R]))
+    assert ok.all()
+    for c in range(2):
+        K_ctrl = control.lqr(A, B, Q[c], R[c])[0]
+        scale = max(1.0, np.abs(K_ctrl).max())
+        np.testing.assert_allclose(K[c], K_ctrl, rtol=0, atol=1e-7 * scale)
+        np.testing.assert_allclose(K[2 + c], K[c], rtol=0, atol=1e-7 * scale)
+        assert np.linalg.eigvals(A - B @ K[c]).real.max() < 0.0
+
+
+def test_margin_is_the_larger_of_absolute_and_relative():
+    A = 100.0 * np.eye(2)  # ‖A‖_F = 141.42…
+    assert riccati.margin(A) == pytest.approx(riccati.STABILITY_MARGIN * 100.0 * np.sqrt(2))
+    assert riccati.margin(0.005 * A) == riccati.STABILITY_MARGIN  # ‖A‖ < 1: floored at 1
+    assert riccati.margin(A, margin_abs=1e-7, margin_rel=0.0) == 1e-7
+    assert riccati.margin(A, margin_abs=1e-7, margin_rel=1e-8) == pytest.approx(1.4142e-6,
+                                                                                rel=1e-4)
+    assert riccati.margin(A, margin_abs=1e-5, margin_rel=1e-8) == 1e-5
+
+
+def test_absolute_margin_rejects_a_slow_loop(path):
+    """ẋ = u with Q = q, R = 1: K = √q and the pole −√q. A pole at −5e-8 passes the default
+    relative margin (1e-9 here) but not an absolute 1e-7 (attitude_lqr's)."""
+    A, B = np.zeros((1, 1)), np.ones((1, 1))
+    Q = np.array([[[2.5e-15]], [[1.0]]])
+    R = np.ones((2, 1, 1))
+    K, ok, failure = riccati.lqr_gains(A, B, Q, R)
+    assert ok.tolist() == [True, True]
+    np.testing.assert_allclose(K[:, 0, 0], [5e-8, 1.0], rtol=1e-6)
+    K, ok, failure = riccati.lqr_gains(A, B, Q, R, margin_abs=1e-7, margin_rel=0.0)
+    assert ok.tolist() == [False, True]
+    assert K[0, 0, 0] == 0.0 and failure[0] > 0.0 and K[1, 0, 0] == pytest.approx(1.0)
+
+
+def test_relative_margin_scales_with_the_plant(path):
+    """The same slow pole (−1e-6) passes with ‖A‖_F ≈ 1 and fails once a fast stable mode
+    makes ‖A‖_F = 1e4 (margin 1e-5 with the default relative 1e-9)."""
+    B = np.array([[1.0], [0.0]])
+    Q = np.array([[[1e-12, 0.0], [0.0, 1.0]]])
+    R = np.ones((1, 1, 1))
+    for fast, expected in ((-1.0, True), (-1e4, False)):
+        A = np.diag([0.0, fast])
+        _, ok, _ = riccati.lqr_gains(A, B, Q, R)
+        assert ok.tolist() == [expected]
+
+
+def test_discrete_margin():
+    """x⁺ = x + u with Q = 4/15, R = 1: P = 2/3 and the loop pole 1/(1 + P) = 0.6, inside
+    the unit circle, but not inside 1 − 0.5."""
+    A, B = np.ones((1, 1)), np.ones((1, 1))
+    Q, R = np.full((1, 1, 1), 4.0 / 15.0), np.ones((1, 1, 1))
+    K, ok, _ = riccati.dlqr_gains(A, B, Q, R)
+    assert ok.all() and K[0, 0, 0] == pytest.approx(0.4, rel=1e-10)
+    K, ok, _ = riccati.dlqr_gains(A, B, Q, R, margin_abs=0.5)
+    assert not ok.any() and K[0, 0, 0] == 0.0
+
+
+def test_the_doubling_iteration_solves_the_discrete_equation_like_scipy():
+    from scipy.linalg import solve_discrete_are
+
+    rng = np.random.default_rng(11)
+    A = rng.normal(size=(4, 4)) * 0.6
+    B = rng.normal(size=(4, 2))
+    Q = np.stack([np.diag(rng.uniform(0.1, 10.0, 4)) for _ in range(5)])
+    R = np.stack([np.diag(rng.uniform(0.1, 10.0, 2)) for _ in range(5)])
+    P, finite = riccati.doubling_solutions(A, B, Q, R)
+    assert finite.all()
+    for c in range(5):
+        ref = solve_discrete_are(A, B, Q[c], R[c])
+        np.testing.assert_allclose(P[c], ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+    assert np.all(riccati.discrete_residual(A, B, Q, R, P) < 1e-12)

@@ -1,0 +1,113 @@
+"""Lazy reading: the text and list columns stay in the files, and are read for a group of
+rows with exactly the values an eager read gives (row groups, duplicates, re-judged
+held-out data and unfinished runs included)."""
+
+import json
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from penaltyrun.io import read
+from penaltyrun.io.read import LAZY_COLUMNS, ROW, SOURCE, declared_rows, fill_columns
+from penaltyrun.io.schema import RESULTS_FILE, SCHEMA, normalize
+from penaltyrun.runner.records import write_text_atomic
+
+
+def record(start, **overrides):
+    rec = {"job_id": f"zermelo-default-full-pso-abc-s{start:03d}", "problem": "zermelo",
+           "case": "default", "param": "full", "optimizer": "pso", "start": start,
+           "seed": start, "status": "ok", "best_cost": 1.0 + start, "n_evals": 10,
+           "config_hash": "h1", "matrices": {"K": [[1.0 + start, 0.0], [0.0, 2.0]]},
+           "trace_evals": list(range(1, start % 4 + 2)),
+           "trace_best": [5.0 - k for k in range(start % 4 + 1)],
+           "error": None if start % 5 else f"boom {start}",
+           "holdout": {"cost": [float(start)]},
+           "optimizer_settings": {"n_particles": 20}}
+    rec.update(overrides)
+    return rec
+
+
+def write_file(path, records, group_rows):
+    """``records`` as a results file of row groups of ``group_rows`` rows."""
+    path.mkdir(parents=True, exist_ok=True)
+    table = pa.Table.from_pylist([normalize(r, path.name) for r in records], schema=SCHEMA)
+    pq.write_table(table, path / RESULTS_FILE, row_group_size=group_rows)
+    return path / RESULTS_FILE
+
+
+def same(a, b):
+    """Equal values, list columns and NaN included."""
+    def key(v):
+        if isinstance(v, float) and np.isnan(v):
+            return "nan"
+        return json.dumps(np.asarray(v).tolist() if hasattr(v, "__len__") and
+                          not isinstance(v, str) else v, default=str)
+    return [key(v) for v in a] == [key(v) for v in b]
+
+
+@pytest.fixture
+def folder(tmp_path):
+    """Two results files (the second of several row groups, one job also in the first)
+    and an unfinished run (job records only)."""
+    write_file(tmp_path / "a", [record(i) for i in range(5)], 2)
+    write_file(tmp_path / "b", [record(i, config_hash="h2") for i in range(23)]
+               + [record(0)], 4)
+    jobs = tmp_path / "c" / "jobs"
+    jobs.mkdir(parents=True)
+    for i in range(3):
+        r = record(i, config_hash="h3")
+        write_text_atomic(jobs / f"{r['job_id']}.json", json.dumps(r))
+    return tmp_path
+
+
+def test_lazy_frame_leaves_the_per_row_columns_in_the_files(folder):
+    eager = read.read_results(folder)
+    lazy = read.read_results(folder, lazy=True)
+    assert len(lazy) == len(eager) == 5 + 23 + 3  # the duplicate job counted once
+    assert not set(LAZY_COLUMNS) & set(lazy.columns)
+    assert {SOURCE, ROW} <= set(lazy.columns) and not {SOURCE, ROW} & set(eager.columns)
+    assert lazy["job_id"].tolist() == eager["job_id"].tolist()
+    assert declared_rows(folder) == 5 + 24
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_filled_columns_equal_an_eager_read(folder, seed):
+    eager = read.read_results(folder)
+    lazy = read.read_results(folder, lazy=True)
+    rows = np.random.default_rng(seed).permutation(len(lazy))[:17]  # any order, any file
+    filled = fill_columns(lazy.iloc[rows], ["matrices", "trace_evals", "trace_best",
+                                            "error", "holdout"])
+    assert filled.index.tolist() == lazy.index[rows].tolist()
+    for column in ("matrices", "trace_evals", "trace_best", "error", "holdout"):
+        assert same(filled[column], eager[column].iloc[rows]), column
+
+
+def test_fill_columns_keeps_a_frame_that_has_them_and_refuses_one_that_cannot(folder):
+    eager = read.read_results(folder)
+    assert fill_columns(eager, ["matrices"]) is eager
+    with pytest.raises(KeyError, match="do not say which file"):
+        fill_columns(eager.drop(columns="matrices"), ["matrices"])
+    with pytest.raises(KeyError, match="not results columns"):
+        fill_columns(read.read_results(folder, lazy=True), ["nonsense"])
+    empty = fill_columns(read.read_results(folder, lazy=True).iloc[:0], ["matrices"])
+    assert "matrices" in empty and empty.empty
+
+
+def test_re_judged_held_out_data_replace_the_stored_ones_when_filled(folder):
+    long = pa.table({"job_id": [record(1)["job_id"]], "config_hash": ["h1"],
+                     "holdout": [json.dumps({"cost": [99.0]})]})
+    pq.write_table(long, folder / "a" / "holdout_long.parquet")
+    eager = read.read_results(folder)
+    lazy = read.read_results(folder, lazy=True)
+    filled = fill_columns(lazy, ["holdout"])
+    assert same(filled["holdout"], eager["holdout"])
+    assert '"cost": [99.0]' in "".join(filled["holdout"].dropna())
+
+
+def test_a_file_that_lost_rows_since_it_was_read_is_an_error(folder):
+    lazy = read.read_results(folder / "b", lazy=True)
+    write_file(folder / "b", [record(0)], 4)
+    with pytest.raises(ValueError, match="fewer rows"):
+        fill_columns(lazy, ["matrices"])

@@ -69,8 +69,8 @@ def one_start(method: str, func: Callable, lb: np.ndarray, ub: np.ndarray,
               spent: list[float], evals: int, seed: int) -> tuple[float, float, int]:
     """(total CPU s, problem CPU s, evaluations) of one start."""
     name = method.split("/")[0]
-    optim.OPTIMIZERS["cmaes"] = (CMAESSettings, run_pycma if method == "cmaes/pycma"
-                                 else run_cmaes)
+    optim.OPTIMIZERS["cmaes"] = optim.Optimizer(
+        CMAESSettings, run_pycma if method == "cmaes/pycma" else run_cmaes)
     settings = make_settings(name, {"max_evals": evals})
     spent[0] = 0.0
     t0 = time.process_time()
@@ -103,7 +103,7 @@ def main() -> None:
         for r in range(args.repeats):
             for m in METHODS[r % len(METHODS):] + METHODS[:r % len(METHODS)]:
                 out[m].append(one_start(m, func, lb, ub, spent, args.evals, r + 1))
-    optim.OPTIMIZERS["cmaes"] = (CMAESSettings, run_cmaes)
+    optim.OPTIMIZERS["cmaes"] = optim.Optimizer(CMAESSettings, run_cmaes)
     opt_us = {m: [(t - p) / n * 1e6 for t, p, n in v] for m, v in out.items()}
     print(f"\n{'method':12s} {'start CPU s':>26s} {'optimizer share':>26s} "
           f"{'optimizer µs/evaluation':>30s} {'problem µs/evaluation':>30s}")

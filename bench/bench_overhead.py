@@ -44,10 +44,11 @@ from machine import machine
 OLD_REFUSAL = """
 import sys
 import hydra  # imported by penaltyrun.cli at module level before
-import penaltyrun.cli
-from penaltyrun import cliargs, userconf
+import penaltyrun.cli.app
+from penaltyrun.cli import args as cliargs
+from penaltyrun.cli import userconf
 from penaltyrun.errors import ConfigError
-from penaltyrun.preflight import preflight
+from penaltyrun.cli.preflight import preflight
 
 argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(sys.argv[1:])))
 try:
@@ -145,7 +146,7 @@ def bench_job(pairs: int) -> str:
     from penaltyrun.runner import job as job_module
     from penaltyrun.runner.plan import plan_jobs
 
-    job = plan_jobs("zermelo", "default", "full", "baseline", 1, 0)[0]
+    job = plan_jobs("zermelo", "default", "full", "baseline", n_starts=1, root_seed=0)[0]
     clock = KernelClock()
     zermelo.simulate_batch = clock.wrap(zermelo.simulate_batch)
     zermelo.closed_batch = clock.wrap(zermelo.closed_batch)
@@ -231,8 +232,8 @@ def _aggregate_before(res: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 @contextlib.contextmanager
 def lqr_before() -> Iterator[None]:
     """problem=lqr's batched numpy path, as before."""
-    from penaltyrun.dynamics import linear
-    from penaltyrun.problems.lqr import problem, riccati
+    from penaltyrun.dynamics import linear, riccati
+    from penaltyrun.problems.lqr import problem
 
     with patched(riccati, "COMPILED_MAX_STATES", 0), \
             patched(linear, "COMPILED_MAX_STATES", 0), \

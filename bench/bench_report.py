@@ -14,9 +14,25 @@ Three kinds of process run on the same input:
 load of a shared machine; the script prints every run, then the min and median ratios
 base/report and report/read.
 
+``--large N`` instead writes N synthetic job rows (12 cells of one problem case, the
+writer of the report's memory tests, ``tests/report/large_results.py``) and times the
+report of them alone (read lazily above 100 000 rows), with its progress bar off.
+
+``--bca`` times the BCa interval of one cell (:func:`penaltyrun.report.stats.bca_ci`, its
+jackknife in closed form) against :func:`scipy.stats.bootstrap` (its jackknife evaluates
+the statistic on n samples of n − 1) for samples of 1 000 to 5 000 values, and checks that
+the intervals agree.
+
+``--same A B`` compares two report folders: the same file names, every table and text file
+byte for byte, every figure pixel for pixel (how "the same report" is checked when the
+code that draws it changes).
+
 Usage::
 
     python bench/bench_report.py [--input studies] [--base e37fb9b] [--repeats 1] [--no-base]
+    python bench/bench_report.py --large 1000000
+    python bench/bench_report.py --bca
+    python bench/bench_report.py --same REPORT_A REPORT_B
 """
 
 from __future__ import annotations
@@ -64,13 +80,91 @@ def _row(name: str, m: dict[str, float]) -> str:
     return f"| {name} | {m['cpu']:.1f} | {m['wall']:.1f} | {m['rss']:.0f} |"
 
 
+def large(rows: int) -> None:
+    """Print CPU, wall and peak RSS of the report of ``rows`` synthetic job rows."""
+    sys.path.insert(0, str(ROOT / "tests" / "report"))
+    from large_results import write_large_results
+
+    print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; {rows} synthetic rows")
+    with tempfile.TemporaryDirectory() as tmp:
+        src = write_large_results(Path(tmp) / "results", rows)
+        m = measure(REPORT.replace("'-o', sys.argv[2]", "'-o', sys.argv[2], '--progress', "
+                                   "'false'"), [str(src), f"{tmp}/report"], str(ROOT))
+    print("| run | CPU s | wall s | peak RSS MB |\n|---|---|---|---|")
+    print(_row(f"report of {rows} rows", m))
+
+
+def bca() -> None:
+    """Print the CPU of the BCa intervals (median and mean) of lognormal samples, this
+    tree's closed-form jackknife against scipy's, and the largest relative difference."""
+    import numpy as np
+    from scipy import stats
+
+    from penaltyrun.report.stats import bca_ci
+
+    print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; BCa, 9999 resamples")
+    print("| n | statistic | bca_ci CPU s | scipy.stats.bootstrap CPU s | max rel. diff |")
+    print("|---|---|---|---|---|")
+    for n in (1000, 2000, 5000):
+        x = np.random.default_rng(n).lognormal(0.0, 0.5, n)
+        batch = max(2, 5_000_000 // n // 2 * 2) if n * 9999 > 5_000_000 else None
+        for name, func in (("median", np.median), ("mean", np.mean)):
+            t0 = time.process_time()
+            lo, hi, _ = bca_ci(x, name, seed=1)
+            t1 = time.process_time()
+            ref = stats.bootstrap((x,), func, method="BCa", batch=batch,
+                                  rng=np.random.default_rng(1)).confidence_interval
+            t2 = time.process_time()
+            diff = max(abs(lo - ref.low) / abs(ref.low), abs(hi - ref.high) / abs(ref.high))
+            print(f"| {n} | {name} | {t1 - t0:.2f} | {t2 - t1:.2f} | {diff:.1e} |")
+
+
+def same(a: Path, b: Path) -> bool:
+    """Print how two report folders differ (names, text bytes, figure pixels); True if
+    they hold the same files, tables and pixels."""
+    import numpy as np
+    from PIL import Image
+
+    names = sorted(p.name for p in a.iterdir())
+    other = sorted(p.name for p in b.iterdir())
+    ok = names == other
+    if not ok:
+        print("files only in one folder:", sorted(set(names) ^ set(other)))
+    pixels, texts = [], []
+    for name in sorted(set(names) & set(other)):
+        if name.endswith(".png"):
+            x, y = (np.asarray(Image.open(d / name)) for d in (a, b))
+            if x.shape != y.shape or not np.array_equal(x, y):
+                pixels.append(f"{name}: {x.shape} / {y.shape}")
+        elif (a / name).read_bytes() != (b / name).read_bytes():
+            texts.append(name)
+    n_png = sum(n.endswith(".png") for n in names)
+    print(f"{len(names)} files ({n_png} figures); text files that differ: {texts or 'none'}; "
+          f"figures whose pixels differ: {len(pixels)}")
+    for line in pixels:
+        print("  ", line)
+    return ok and not pixels and not texts
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--input", default=str(ROOT / "studies"))
     parser.add_argument("--base", default="main", help="git revision of the 'before' code")
     parser.add_argument("--repeats", type=int, default=1, help="interleaved pairs")
     parser.add_argument("--no-base", action="store_true", help="time this tree only")
+    parser.add_argument("--large", type=int, metavar="N", help="report N synthetic rows")
+    parser.add_argument("--bca", action="store_true", help="time the BCa intervals")
+    parser.add_argument("--same", nargs=2, metavar=("A", "B"), type=Path,
+                        help="compare two report folders")
     args = parser.parse_args()
+    if args.bca:
+        bca()
+        return
+    if args.same:
+        raise SystemExit(0 if same(*args.same) else 1)
+    if args.large:
+        large(args.large)
+        return
     print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; input {args.input}")
     with tempfile.TemporaryDirectory() as tmp:
         base_tree = None

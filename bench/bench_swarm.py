@@ -120,11 +120,12 @@ def throughput(client, n: int = 200) -> float:
 
 def qlaw_start(client, case: str, particles: int, iters: int, overhead_cpu: float) -> None:
     """Serial vs 2-chunk distributed seeded PSO start; prints times and the speed-ups."""
-    job = plan_jobs("qlaw", case, "full", "pso", 1, 20251130, {}, {},
-                    {"n_particles": particles, "iters": iters, "ftol_iter": 100}, {},
+    job = plan_jobs("qlaw", case, "full", "pso", n_starts=1, root_seed=20251130,
+                    optimizer_options={"n_particles": particles, "iters": iters, "ftol_iter": 100},
                     holdout=False)[0]
-    run_job(plan_jobs("qlaw", case, "full", "baseline", 1, 1, {}, {}, {}, {},
-                      holdout=False)[0])  # load the kernels in this process first
+    # load the kernels in this process first
+    run_job(plan_jobs("qlaw", case, "full", "baseline", n_starts=1, root_seed=1,
+                      holdout=False)[0])
     c0, w0 = time.process_time(), time.perf_counter()
     serial = run_job(job)
     cpu_s, wall_s = time.process_time() - c0, time.perf_counter() - w0

@@ -61,7 +61,7 @@ def main() -> None:
             lb, ub = layout.bounds()
             max_evals = int(cell.max_evals.iloc[0])
             for engine, run in ENGINES.items():
-                optim.OPTIMIZERS["cmaes"] = (CMAESSettings, run)
+                optim.OPTIMIZERS["cmaes"] = optim.Optimizer(CMAESSettings, run)
                 t0 = time.process_time()
                 for seed in cell.seed:
                     with threadpool_limits(limits=1, user_api="blas"):
@@ -81,7 +81,7 @@ def main() -> None:
             done = pairwise(pd.DataFrame([r for r in rows if r["case"] == f"{case}/{param}"]))
             print(done[["case", "median_a", "median_b", "best_a", "best_b", "a12_b_beats_a",
                         "p_mwu"]].to_string(index=False, header=False), flush=True)
-    optim.OPTIMIZERS["cmaes"] = (CMAESSettings, run_cmaes)
+    optim.OPTIMIZERS["cmaes"] = optim.Optimizer(CMAESSettings, run_cmaes)
     df = pd.DataFrame(rows)
     table = pairwise(df)[["case", "n_a", "n_b", "best_a", "best_b", "median_a", "median_b",
                           "a12_b_beats_a", "p_mwu", "p_holm"]]

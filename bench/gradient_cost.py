@@ -5,20 +5,21 @@ Per plant size n (random plants, m = max(1, n // 2) inputs, n + 1 starts, full m
 evaluation (``evaluate_batch`` of one candidate, as L-BFGS-B asks for it) and of one
 gradient (:func:`penaltyrun.optim.gradient.z_gradient`: the Riccati and cost adjoints plus
 the map's VJP), interleaved in pairs on the same candidates; prints the min and median of
-the per-pair ratios. The median over the sizes is the constant ``GRADIENT_COST`` of
-``optimizer=lbfgs`` (penaltyrun/optim/lbfgs.py). Usage:
+the per-pair ratios (:func:`timing.gradient_vs_evaluation`). With ``lqr_scaling_ratio.py``
+these medians are what ``problem=lqr`` declares one gradient to cost per plant size
+(:meth:`penaltyrun.problems.lqr.LQRProblem.gradient_cost`), the charge of ``optimizer=lbfgs``
+and ``optimizer.polish=gradient``. Usage:
 ``python bench/gradient_cost.py [--sizes 2 4 8 16] [--pairs 30] [--discrete]``.
 """
 
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 from machine import machine
+from timing import gradient_vs_evaluation
 
-from penaltyrun.optim.gradient import z_gradient
 from penaltyrun.problems import lqr
 from penaltyrun.runner.setup import build_layout
 
@@ -34,17 +35,6 @@ def plant(n: int, seed: int, dt: float | None) -> lqr.LQRProblem:
     return lqr.make_problem("default", {"A": A.tolist(), "B": B.tolist(), "dt": dt,
                                         "x0": rng.normal(size=(n + 1, n)).tolist(),
                                         "t_max": 20.0})
-
-
-def evaluate_one(prob: lqr.LQRProblem, layout, z: np.ndarray) -> None:
-    """One single-candidate evaluation, as L-BFGS-B asks for it."""
-    prob.evaluate_batch(layout.split(z[None])[0])
-
-
-def timed(func, *args) -> float:
-    t0 = time.process_time()
-    func(*args)
-    return time.process_time() - t0
 
 
 def main() -> None:
@@ -66,15 +56,9 @@ def main() -> None:
             Z = lb + (ub - lb) * rng.uniform(0.3, 0.7, size=(args.pairs, lb.size))
             Z[:, : prob.matrices[0].size] = rng.uniform(0.5, 5.0, (args.pairs,
                                                                   prob.matrices[0].size))
-            z_gradient(prob, layout, Z[0])  # warm-up (imports, caches)
-            ev, gr = [], []
-            for z in Z:
-                ev.append(timed(evaluate_one, prob, layout, z))
-                gr.append(timed(z_gradient, prob, layout, z))
-            ratio = np.asarray(gr) / np.maximum(np.asarray(ev), 1e-9)
-            medians.append(float(np.median(ratio)))
-            print(f"{n:>3} {kind:>9} {1e3 * np.median(ev):8.3f} {1e3 * np.median(gr):8.3f} "
-                  f"{ratio.min():9.2f} {np.median(ratio):12.2f}")
+            timing = gradient_vs_evaluation(prob, layout, Z)
+            medians.append(float(np.median(timing.ratio)))
+            print(f"{n:>3} {kind:>9} {timing.row()}", flush=True)
     print(f"median ratio over sizes and maps: {np.median(medians):.2f}")
 
 

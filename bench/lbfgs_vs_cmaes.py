@@ -5,7 +5,8 @@ with eigenvalues in [0.5, 5], so J* is reached at Q = W_x, R = W_u inside the bo
 ``givens``; one start per optimizer and seed, interleaved. A wrapped objective notes the
 CPU time (``time.process_time``) and evaluations at which the best cost first comes within
 1e-6 of J*; CMA-ES gets ``--cmaes-evals`` evaluations (× n), lbfgs ``--lbfgs-evals``
-evaluation-equivalents (a gradient charged as ``GRADIENT_COST`` evaluations). Prints per
+evaluation-equivalents (a gradient charged what ``problem=lqr`` declares for the plant's
+size, :meth:`~penaltyrun.problems.lqr.LQRProblem.gradient_cost`). Prints per
 size the median CPU and evaluations to reach J* and the CMA-ES / lbfgs CPU ratio (min and
 median over the seeds). Usage:
 ``OPENBLAS_NUM_THREADS=1 python bench/lbfgs_vs_cmaes.py [--sizes 4 8] [--seeds 3]``.
@@ -14,13 +15,11 @@ median over the seeds). Usage:
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 from machine import machine
+from timing import cpu_to_target
 
-from penaltyrun import optim
-from penaltyrun.optim.gradient import z_gradient
 from penaltyrun.problems import lqr
 from penaltyrun.runner.setup import build_layout
 
@@ -47,29 +46,10 @@ def race(name: str, prob: lqr.LQRProblem, budget: int, seed: int
          ) -> tuple[float, float, float]:
     """(CPU s, evaluations) until the best cost is within RTOL of J* (inf if never), and
     the CPU s of the whole run."""
-    layout = build_layout(prob, "givens", {})
-    lb, ub = layout.bounds()
-    target = prob.optimum * (1.0 + RTOL)
-    hit: list[float] = []
-    t0 = time.process_time()
-    counter = {"n": 0}
-
-    def objective(Z: np.ndarray):
-        out = prob.evaluate_batch(layout.split(Z)[0])
-        counter["n"] += len(Z)
-        if not hit and np.min(out.cost) <= target:
-            hit.append(time.process_time() - t0)
-        return out
-
     options = {"max_evals": budget} if name == "cmaes" else {"max_evals": budget,
                                                               "starts": None}
-    res = optim.minimize(name, objective, lb, ub, optim.make_settings(name, options), seed,
-                         gradient=lambda z: z_gradient(prob, layout, z))
-    total = time.process_time() - t0
-    if not hit:
-        return float("inf"), float("inf"), total
-    reached = next(n for n, c in zip(res.trace_evals, res.trace_best) if c <= target)
-    return hit[0], float(reached), total
+    return cpu_to_target(name, prob, build_layout(prob, "givens", {}), options, seed,
+                         prob.optimum * (1.0 + RTOL))
 
 
 def main() -> None:

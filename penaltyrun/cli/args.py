@@ -51,9 +51,9 @@ def pop_keep(argv: list[str]) -> tuple[list[str], bool]:
 
 def _hydra_parser() -> Any:
     """Hydra's own argument parser, raising :class:`ConfigError` instead of exiting."""
-    from hydra._internal.utils import get_args_parser
+    from penaltyrun.cli.hydra_private import args_parser
 
-    parser = get_args_parser()
+    parser = args_parser()
 
     def error(message: str) -> None:
         text = message.replace("unrecognized arguments", "unknown option")

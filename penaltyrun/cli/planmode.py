@@ -3,11 +3,12 @@ one screen, without running it.
 
 The cells are the ones Hydra would run: with ``-m``, the product of the sweeps of the
 command line and of the config's ``hydra.sweeper.params`` (as Hydra's basic sweeper builds
-it); without, the one cell of the command line. For each cell the jobs are planned exactly
-as a run plans them (:meth:`penaltyrun.runner.spec.RunSpec.plan`) and forecast by
+it, :func:`sweep_combinations`); without, the one cell of the command line. For each cell
+the jobs are planned exactly as a run plans them
+(:meth:`penaltyrun.runner.spec.RunSpec.plan`) and forecast by
 :func:`penaltyrun.runner.forecast.forecast_cell` (budgets from the optimizer settings, CPU
-per evaluation from ``runner.forecast_samples`` random candidates, measured once per problem,
-case and map). Nothing is written: no run directory, no records.
+per evaluation from ``runner.forecast_samples`` random candidates, measured once per
+problem, case and map). Nothing is written: no run directory, no records.
 
 Hydra's multirun runs the cells one after another, each cell's jobs in parallel; the
 screen gives the wall time of that, and for a cluster also of all cells at once (one
@@ -16,6 +17,7 @@ screen gives the wall time of that, and for a cluster also of all cells at once 
 
 from __future__ import annotations
 
+import itertools
 import json
 import sys
 from collections.abc import Sequence
@@ -25,6 +27,7 @@ from omegaconf import DictConfig
 
 from penaltyrun.cli import spec as cells
 from penaltyrun.cli import userconf
+from penaltyrun.errors import ConfigError
 from penaltyrun.runner import forecast as fc
 from penaltyrun.runner.options import available_cores
 
@@ -50,11 +53,29 @@ def _first_values(parsed: Sequence[Any]) -> list[str]:
     return out
 
 
+def sweep_combinations(parsed: Sequence[Any]) -> list[list[str]]:
+    """Every cell of a multirun as its list of ``key=value`` overrides, built as Hydra's basic
+    sweeper builds them: one list of values per key (a later override of a key replaces an
+    earlier one, so the command line wins over ``hydra.sweeper.params``), their product in
+    the order the keys first appear."""
+    per_key: dict[str, list[str]] = {}
+    for o in parsed:
+        key = o.get_key_element()
+        if not o.is_sweep_override():
+            per_key[key] = [f"{key}={o.get_value_element_as_str()}"]
+        elif o.is_discrete_sweep():
+            per_key[key] = [f"{key}={v}" for v in o.sweep_string_iterator()]
+        else:
+            raise ConfigError(key, "an interval() sweep needs a sweeper plugin (optuna, ax); "
+                                   "Hydra's basic sweeper runs lists and ranges: use "
+                                   "choice(...) or range(...)")
+    return [list(c) for c in itertools.product(*per_key.values())]
+
+
 def expand_cells(argv: list[str]) -> tuple[list[DictConfig], bool]:
     """The composed config of every cell the command line would run, and whether it is a
     multirun (``-m``)."""
     from hydra import compose
-    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     source, argv = userconf.parse_source(argv)
@@ -72,7 +93,7 @@ def expand_cells(argv: list[str]) -> tuple[list[DictConfig], bool]:
             return [first], False
         sweep = dict(first.hydra.sweeper.get("params") or {})
         lines = [f"{k}={v}" for k, v in sweep.items()] + [o.input_line for o in task]
-        combos = BasicSweeper.split_arguments(parser.parse_overrides(lines), None)[0]
+        combos = sweep_combinations(parser.parse_overrides(lines))
         return [compose(config_name=source.config_name, overrides=list(c) + hydra_args)
                 for c in combos], True
 

@@ -163,6 +163,7 @@ def parse_source(argv: list[str]) -> tuple[ConfigSource, list[str]]:
         if not extra.is_dir():
             raise ConfigError("--config-dir", f"{extra} is not a directory")
         dirs = (extra,)
+        _check_shadowed(primary, extra)
     if "--config-name" in found:  # a group's file named as the primary config
         for folder in (primary, *dirs):
             if (folder / f"{name}.yaml").is_file():
@@ -171,6 +172,27 @@ def parse_source(argv: list[str]) -> tuple[ConfigSource, list[str]]:
         raise ConfigError("--config-name" if "--config-name" in found else "--config-path",
                           f"no primary config {name}.yaml in {primary}")
     return ConfigSource(primary, name, dirs), rest
+
+
+def _check_shadowed(primary: Path, extra: Path) -> None:
+    """Refuse a ``--config-dir`` file named like a config of the primary config's folder.
+
+    Hydra searches the primary folder (penaltyrun's ``conf/`` unless ``--config-path``)
+    before a ``--config-dir``, so such a file would be ignored without a word.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and a new name for it.
+    """
+    for path in sorted(extra.glob("*/*.yaml")):
+        group, name = path.parent.name, path.stem
+        if (primary / group / path.name).is_file():
+            owner = "penaltyrun's own" if primary == CONF_DIR else f"the one in {_shown(primary)}"
+            raise ConfigError("--config-dir", f"{_shown(path)} has the name of {owner} "
+                              f"{group}={name}, which Hydra finds first, so yours would be "
+                              f"ignored: rename it (e.g. {name}_mine.yaml) and pass "
+                              f"{group}={name}_mine")
 
 
 def _check_primary(path: Path) -> None:
@@ -205,17 +227,11 @@ def _check_primary(path: Path) -> None:
 @contextmanager
 def hydra_context(source: ConfigSource) -> Iterator[None]:
     """Initialize Hydra's global state with the search path Hydra's app will use."""
-    from hydra._internal.hydra import Hydra
-    from hydra._internal.utils import create_config_search_path
-    from hydra.core.config_search_path import SearchPathQuery
     from hydra.core.global_hydra import GlobalHydra
 
-    search_path = create_config_search_path(str(source.primary))
-    for extra in source.config_dirs:  # as Hydra's own --config-dir handling does
-        search_path.prepend(provider="command-line", path=f"file://{extra}",
-                            anchor=SearchPathQuery(provider="schema"))
-    GlobalHydra.instance().clear()
-    Hydra.create_main_hydra2("penaltyrun", search_path)  # initializes GlobalHydra
+    from penaltyrun.cli.hydra_private import init_global_hydra
+
+    init_global_hydra("penaltyrun", source.primary, source.config_dirs)
     try:
         yield
     finally:

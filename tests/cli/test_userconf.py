@@ -163,3 +163,12 @@ def test_version_is_penaltyrun_s(tmp_path):
                              "report_main()", "--version"], capture_output=True, text=True,
                             timeout=120)
     assert report.stdout.strip() == f"penaltyrun {__version__}"
+
+
+def test_a_config_dir_file_named_like_a_builtin_is_one_line(tmp_path):
+    """Hydra finds penaltyrun's own problem/zermelo.yaml before the user's: refused with the
+    fix instead of being ignored without a word."""
+    write(tmp_path / "myconf" / "problem" / "zermelo.yaml",
+          "name: zermelo\nparams:\n  x0: [3.0, 4.0]\n")
+    line = one_error_line(cli("--config-dir", "myconf", "problem=zermelo", *TINY, cwd=tmp_path))
+    assert "myconf/problem/zermelo.yaml" in line and "pass problem=zermelo_mine" in line

@@ -27,6 +27,8 @@ one instead.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -155,6 +157,32 @@ def hamiltonian_compiled(A: np.ndarray, S: np.ndarray, Q: np.ndarray, mu: float 
         return hamiltonian_solutions(A, S, Q, mu)
 
 
+def _rescue(P: np.ndarray, ok: np.ndarray, res: np.ndarray, kind: str, *,
+            solve: Callable[[int], np.ndarray],
+            residual_of: Callable[[int, np.ndarray], Any],
+            stabilizing: Callable[[int, np.ndarray], Any]) -> None:
+    """Solve the candidates the batch could not (``~ok``) one at a time with scipy's
+    Schur-method solver ``solve(c)``, in place.
+
+    A finite solution whose relative residual is below 1e3 · :data:`RESIDUAL_TOL` and that
+    is stabilizing with the margin replaces the batch's (``ok[c]`` set); otherwise ``res[c]``
+    keeps the lower of the two residuals. ``kind`` (continuous, discrete) names the
+    equation in the debug log of a candidate scipy cannot solve either.
+    """
+    for c in np.flatnonzero(~ok):
+        try:
+            Pc = solve(c)
+        except (np.linalg.LinAlgError, ValueError):
+            logger.debug("no %s Riccati solution for candidate %d", kind, c)
+            continue
+        if not np.all(np.isfinite(Pc)):
+            continue
+        rc = float(residual_of(c, Pc))
+        res[c] = min(res[c], rc)
+        if rc < 1e3 * RESIDUAL_TOL and bool(stabilizing(c, Pc)):
+            P[c], ok[c], res[c] = Pc, True, rc
+
+
 def lqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, *,
               margin_abs: float = 0.0, margin_rel: float = STABILITY_MARGIN,
               compiled: bool | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -198,18 +226,10 @@ def lqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, *,
     solve = hamiltonian_compiled if compiled else hamiltonian_solutions
     with np.errstate(all="ignore"):
         P, res, ok = solve(A, S, Q, mu)
-        for c in np.flatnonzero(~ok):
-            try:
-                Pc = solve_continuous_are(A, B, Q[c], R[c])
-            except (np.linalg.LinAlgError, ValueError):
-                logger.debug("no Riccati solution for candidate %d", c)
-                continue
-            if not np.all(np.isfinite(Pc)):
-                continue
-            rc = float(residual(A, S[c], Q[c], Pc))
-            res[c] = min(res[c], rc)
-            if _stabilizing(A, S[c], Pc, mu) and rc < 1e3 * RESIDUAL_TOL:
-                P[c], ok[c], res[c] = Pc, True, rc
+        _rescue(P, ok, res, "continuous",
+                solve=lambda c: solve_continuous_are(A, B, Q[c], R[c]),
+                residual_of=lambda c, Pc: residual(A, S[c], Q[c], Pc),
+                stabilizing=lambda c, Pc: _stabilizing(A, S[c], Pc, mu))
     K = R_inv @ B.T @ P
     K[~ok] = 0.0
     return K, ok, np.where(ok, 0.0, res)
@@ -327,18 +347,11 @@ def dlqr_gains(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray,
         except np.linalg.LinAlgError:
             res = np.full(Q.shape[0], np.inf)
             ok = np.zeros(Q.shape[0], dtype=bool)
-        for c in np.flatnonzero(~ok):
-            try:
-                Pc = solve_discrete_are(A, B, Q[c], R[c])
-            except (np.linalg.LinAlgError, ValueError):
-                logger.debug("no discrete Riccati solution for candidate %d", c)
-                continue
-            if not np.all(np.isfinite(Pc)):
-                continue
-            rc = float(discrete_residual(A, B, Q[c], R[c], Pc))
-            res[c] = min(res[c], rc)
-            if rc < 1e3 * RESIDUAL_TOL and _schur_stable(A, B, _discrete_gain(A, B, R[c], Pc), mu):
-                P[c], ok[c], res[c] = Pc, True, rc
+        _rescue(P, ok, res, "discrete",
+                solve=lambda c: solve_discrete_are(A, B, Q[c], R[c]),
+                residual_of=lambda c, Pc: discrete_residual(A, B, Q[c], R[c], Pc),
+                stabilizing=lambda c, Pc: _schur_stable(A, B, _discrete_gain(A, B, R[c], Pc),
+                                                        mu))
         K = _discrete_gain(A, B, R, P)
     K[~ok] = 0.0
     return K, ok, np.where(ok, 0.0, res)

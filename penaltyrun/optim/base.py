@@ -60,6 +60,16 @@ def global_rng_kept() -> Iterator[None]:
         np.random.set_state(state)  # noqa: NPY002
 
 
+def missing_gradient_charge(problem: str | None = None) -> ConfigError:
+    """The refusal of a run that uses exact gradients when neither ``optimizer.grad_cost``
+    nor the problem (``problem``: its name, if known) says what one gradient costs."""
+    who = f"problem {problem!r}" if problem else "the problem"
+    return ConfigError("optimizer.grad_cost", f"{who} does not declare what one exact "
+                       "gradient costs in evaluations (its gradient_cost hook); set "
+                       "optimizer.grad_cost to the CPU time of one gradient over that of "
+                       "one evaluation")
+
+
 def require_int(key: str, value: object, least: int, allow_none: bool = False) -> None:
     """Raise :class:`ConfigError` naming ``optimizer.<key>`` unless ``value`` is an integer
     ≥ ``least`` (or ``None`` where allowed)."""

@@ -27,6 +27,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from penaltyrun.errors import ConfigError
+from penaltyrun.optim.base import missing_gradient_charge
 from penaltyrun.penalty import DecisionLayout, NotDifferentiableError
 from penaltyrun.problems.base import CostGradient, GradientCost, gradient_support
 from penaltyrun.problems.hooks import hooks
@@ -146,11 +147,7 @@ def with_gradient_cost(settings: S, problem: Any) -> S:
         return settings
     declared = declared_gradient_cost(problem)
     if declared is None:
-        name = getattr(problem, "name", type(problem).__name__)
-        raise ConfigError("optimizer.grad_cost", f"problem {name!r} does not declare what one "
-                          "exact gradient costs in evaluations (its gradient_cost hook); set "
-                          "optimizer.grad_cost to the CPU time of one gradient over that of "
-                          "one evaluation")
+        raise missing_gradient_charge(getattr(problem, "name", type(problem).__name__))
     return replace(settings, grad_cost=declared.evaluations)
 
 

@@ -45,6 +45,7 @@ from penaltyrun.optim.base import (
     OptimResult,
     as_counting,
     main_budget,
+    missing_gradient_charge,
     require_int,
 )
 
@@ -125,9 +126,7 @@ def require_charge(grad_cost: float | None) -> float:
         gradient costs.
     """
     if grad_cost is None:
-        raise ConfigError("optimizer.grad_cost", "the problem does not declare what one exact "
-                          "gradient costs in evaluations; set optimizer.grad_cost (the CPU "
-                          "time of one gradient over that of one evaluation)")
+        raise missing_gradient_charge()
     return float(grad_cost)
 
 

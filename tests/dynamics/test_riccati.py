@@ -150,3 +150,40 @@ def test_the_doubling_iteration_solves_the_discrete_equation_like_scipy():
         ref = solve_discrete_are(A, B, Q[c], R[c])
         np.testing.assert_allclose(P[c], ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
     assert np.all(riccati.discrete_residual(A, B, Q, R, P) < 1e-12)
+
+
+def test_candidates_the_batch_misses_are_solved_by_scipy(monkeypatch):
+    """Where the batched solvers give nothing, each candidate is solved by scipy's Schur
+    method (continuous and discrete): the gains of a direct scipy solve, every one ok; an
+    unstabilizable plant stays not ok with an infinite residual."""
+    from scipy.linalg import solve_discrete_are
+
+    rng = np.random.default_rng(11)
+    A, B = _plant(rng, 4, 2, True)
+    Q, R = _spd(rng, 3, 4, 0.1, 10.0), _spd(rng, 3, 2, 0.1, 10.0)
+
+    def nothing(A, S, Q, mu):
+        return np.full(Q.shape, np.nan), np.full(Q.shape[0], np.inf), np.zeros(Q.shape[0], bool)
+
+    monkeypatch.setattr(riccati, "hamiltonian_compiled", nothing)
+    monkeypatch.setattr(riccati, "hamiltonian_solutions", nothing)
+    monkeypatch.setattr(riccati, "doubling_solutions", lambda A, B, Q, R, max_iter: (
+        np.full(Q.shape, np.nan), np.zeros(Q.shape[0], bool)))
+    K, ok, failure = riccati.lqr_gains(A, B, Q, R)
+    assert ok.all() and (failure == 0).all()
+    for c in range(3):
+        ref = np.linalg.solve(R[c], B.T @ solve_continuous_are(A, B, Q[c], R[c]))
+        np.testing.assert_allclose(K[c], ref, rtol=1e-10, atol=1e-12)
+    Ad = np.eye(4) + 0.1 * A
+    Bd = 0.1 * B
+    K, ok, failure = riccati.dlqr_gains(Ad, Bd, Q, R)
+    assert ok.all() and (failure == 0).all()
+    for c in range(3):
+        P = solve_discrete_are(Ad, Bd, Q[c], R[c])
+        ref = np.linalg.solve(R[c] + Bd.T @ P @ Bd, Bd.T @ P @ Ad)
+        np.testing.assert_allclose(K[c], ref, rtol=1e-10, atol=1e-12)
+    unstabilizable = np.diag([1.0, 2.0, -1.0, -2.0])
+    B0 = np.zeros((4, 2))
+    B0[2:, :] = np.eye(2)  # the input reaches only the stable modes
+    K, ok, failure = riccati.lqr_gains(unstabilizable, B0, Q, R)
+    assert not ok.any() and np.isinf(failure).all() and (K == 0).all()

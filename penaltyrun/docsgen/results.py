@@ -397,8 +397,18 @@ class Context:
         """Problem parameter ``key`` as the study's records carry it (``problem_params``;
         ``None`` where unset). Records that disagree give their distinct values as text,
         joined by " / " (a study that mixes settings says so instead of showing one)."""
+        return self._recorded(name, "problem_params", key)
+
+    def optimizer_setting(self, name: str, key: str) -> Any:
+        """Optimizer setting ``key`` (``polish``, ``polish_share``, ...) as the study's
+        records carry it (``optimizer_settings``), as :meth:`problem_params`."""
+        return self._recorded(name, "optimizer_settings", key)
+
+    def _recorded(self, name: str, column: str, key: str) -> Any:
+        """``key`` of the JSON column ``column`` over the study's records: the one value,
+        or the distinct values as text joined by " / "."""
         values = sorted({json.dumps(json.loads(text or "{}").get(key), sort_keys=True)
-                         for text in self.study(name).df["problem_params"]})
+                         for text in self.study(name).df[column]})
         if len(values) == 1:
             return json.loads(values[0])
         return " / ".join(values)
@@ -510,6 +520,7 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                        verdict=ctx.verdict, answers=ctx.answers,
                        held_out_words=ctx.held_out_words, basins=ctx.basins,
                        late_gain=ctx.late_gain, problem_params=ctx.problem_params,
+                       optimizer_setting=ctx.optimizer_setting,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        full_matrix=(figures or explanation.Figures(root)).full_matrix,
                        multi_column=multi_column,

@@ -1,5 +1,5 @@
 """The robust-tuning page's template functions: the late gain from the anytime traces, the
-recorded problem parameters, and the page and answer row pending until their data is
+recorded problem parameters and optimizer settings, and the page and answer row pending until their data is
 committed (the page filled from real data: ``tests/docs/test_studies.py``)."""
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ def _frame() -> pd.DataFrame:
         "n_evals": [100, 100, 100, 100],
         "problem_params": [json.dumps({"train_sample": 8, "rho": 1e-3})] * 3
         + [json.dumps({"train_sample": 4, "rho": 1e-3})],
+        "optimizer_settings": [json.dumps({"polish": "gradient", "polish_share": 0.2})] * 4,
     })
 
 
@@ -60,6 +61,8 @@ def test_problem_params_agree_or_say_that_they_differ(tmp_path):
     assert ctx.problem_params("s", "rho") == 1e-3
     assert ctx.problem_params("s", "train_sample") == "4 / 8"
     assert ctx.problem_params("s", "train_quantile") is None
+    assert ctx.optimizer_setting("s", "polish") == "gradient"
+    assert ctx.optimizer_setting("s", "polish_share") == 0.2
 
 
 @pytest.mark.slow

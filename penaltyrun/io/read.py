@@ -80,7 +80,7 @@ KEEP_COLUMNS = (*IDENTITY_COLUMNS, "config_hash", "schema_version")
 #: :func:`fill_columns` reads them for the rows that need them.
 LAZY_COLUMNS = ("error", "best_z", "z_names", "matrices", "scalars", "metrics", "holdout",
                 "closed_loop", "cl_eig_real", "cl_eig_imag", "active_bounds", "gradient_note",
-                "history", "trace_evals", "trace_best", "config", "packages")
+                "history", "trace_evals", "trace_best", "trace_cpu_s", "config", "packages")
 #: Columns of a lazily read frame: the file (or job-record folder) each row comes from,
 #: and its position in that file.
 SOURCE, ROW = "_source", "_row"

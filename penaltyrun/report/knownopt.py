@@ -26,9 +26,12 @@ from penaltyrun.io.schema import decode_json
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.anytime import CELL
 from penaltyrun.report.bestknown import with_problem_variant
+from penaltyrun.report.rows import TRACE_COLUMNS, has, with_columns
 
 #: Relative tolerance of "reached the known optimum".
 RTOL = 1e-6
+#: Per-row columns the table reads (a lazily read frame reads them one cell at a time).
+ROW_COLUMNS_USED = ("metrics", "matrices", "best_z", *TRACE_COLUMNS, "trace_cpu_s")
 #: Evaluation methods whose cost the known optimum bounds from below (up to the horizon):
 #: the closed-form continuous loop and the stepped discrete loop of a linear plant without
 #: input limits (``problem=lqr``).
@@ -120,12 +123,13 @@ def reach_table(df: pd.DataFrame, rtol: float = RTOL) -> pd.DataFrame:
     that never reached J* did not reach it within that much CPU), the relative gap of the
     final best (``gap_median``, ``gap_min``: best/J* − 1) and the budget ``max_evals``.
     """
-    if df.empty or "metrics" not in df:
+    if df.empty or not has(df, "metrics"):
         return pd.DataFrame()
     df = with_problem_variant(df)
     df = df[(df["optimizer"] != "baseline") & ~df["status"].isin(NO_RESULT_STATUSES)]
     rows = []
     for key, g in df.groupby(CELL, sort=True):
+        g = with_columns(g, ROW_COLUMNS_USED)  # a lazily read frame: this cell's rows only
         optimum = np.array([known_optimum(r) for _, r in g.iterrows()])
         if not np.all(np.isfinite(optimum)) or np.ptp(optimum) > 1e-12 * abs(optimum[0]):
             continue

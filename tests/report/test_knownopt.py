@@ -133,3 +133,21 @@ def test_ratio_relation(bound_a, bound_b, cpu_b, expected):
     a = pd.Series({"cpu_s_all_median": 1.0, "cpu_s_all_bound": bound_a})
     b = pd.Series({"cpu_s_all_median": cpu_b, "cpu_s_all_bound": bound_b})
     assert ratio_relation(a, b) == expected
+
+
+def test_a_lazily_read_study_gives_the_same_time_to_the_known_optimum():
+    """A large results set is read lazily (metrics and traces left in the file): the
+    table is the one of the same file read whole, not left out."""
+    from pathlib import Path
+
+    from penaltyrun.io.read import LAZY_COLUMNS, read_results
+    from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS
+    from penaltyrun.report.stats import add_variant
+
+    src = Path(__file__).resolve().parents[2] / "studies" / "lqr_scaling" / "results.parquet"
+    whole = reach_table(add_variant(read_results(src, REPORT_COLUMNS)))
+    lazy_df = add_variant(read_results(src, FRAME_COLUMNS, lazy=True))
+    assert "trace_cpu_s" in LAZY_COLUMNS and "trace_cpu_s" not in lazy_df
+    lazy = reach_table(lazy_df)
+    assert len(whole) == 16
+    pd.testing.assert_frame_equal(lazy.astype(whole.dtypes.to_dict()), whole)

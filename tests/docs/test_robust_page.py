@@ -1,6 +1,7 @@
 """The robust-tuning page's template functions: the late gain from the anytime traces, the
-recorded problem parameters and optimizer settings, and the page and answer row pending until their data is
-committed (the page filled from real data: ``tests/docs/test_studies.py``)."""
+recorded problem parameters and optimizer settings, and the page and answer row pending
+until their data is committed (the page filled from real data:
+``tests/docs/test_studies.py``)."""
 
 from __future__ import annotations
 

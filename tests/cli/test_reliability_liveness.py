@@ -18,6 +18,15 @@ from cli_subprocess import FAST_JOBS, SLOW_JOBS, cli, one_error_line, popen, wai
 from penaltyrun.io import RESULTS_FILE
 
 
+def _cpu_seconds(proc: psutil.Process) -> float:
+    """User + system CPU seconds of ``proc``; NaN once it has exited (a short-lived child
+    of the runner, e.g. the ``git`` that reads the commit, can end between two reads)."""
+    try:
+        return sum(proc.cpu_times()[:2])
+    except psutil.NoSuchProcess:
+        return float("nan")
+
+
 @pytest.mark.slow  # about 10 s: waits out the stall timeout
 def test_stopped_pool_worker_is_killed_and_its_job_retried(tmp_path):
     run = tmp_path / "run"
@@ -26,9 +35,10 @@ def test_stopped_pool_worker_is_killed_and_its_job_retried(tmp_path):
     try:
         wait_for_records(run)
         workers = psutil.Process(proc.pid).children()
-        used = {p.pid: sum(p.cpu_times()[:2]) for p in workers}
+        used = {p.pid: _cpu_seconds(p) for p in workers}
         time.sleep(0.5)  # the worker that is running a job is the one using CPU
-        victim = max(workers, key=lambda p: sum(p.cpu_times()[:2]) - used[p.pid])
+        spent = {p: _cpu_seconds(p) - used[p.pid] for p in workers}
+        victim = max((p for p in workers if spent[p] == spent[p]), key=spent.__getitem__)
         victim.suspend()  # SIGSTOP
         out, err = proc.communicate(timeout=600)
     finally:

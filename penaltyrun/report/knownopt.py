@@ -26,12 +26,13 @@ from penaltyrun.io.schema import decode_json
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.anytime import CELL
 from penaltyrun.report.bestknown import with_problem_variant
-from penaltyrun.report.rows import TRACE_COLUMNS, has, with_columns
+from penaltyrun.report.rows import TRACE_COLUMNS, full_row, has, with_columns
 
 #: Relative tolerance of "reached the known optimum".
 RTOL = 1e-6
-#: Per-row columns the table reads (a lazily read frame reads them one cell at a time).
-ROW_COLUMNS_USED = ("metrics", "matrices", "best_z", *TRACE_COLUMNS, "trace_cpu_s")
+#: Per-row columns the table reads for every start (a lazily read frame reads them one cell
+#: at a time); the matrices only for a cell's first row (its size).
+ROW_COLUMNS_USED = ("metrics", "best_z", *TRACE_COLUMNS, "trace_cpu_s")
 #: Evaluation methods whose cost the known optimum bounds from below (up to the horizon):
 #: the closed-form continuous loop and the stepped discrete loop of a linear plant without
 #: input limits (``problem=lqr``).
@@ -141,7 +142,7 @@ def reach_table(df: pd.DataFrame, rtol: float = RTOL) -> pd.DataFrame:
         gaps = g["best_cost"].astype(float).to_numpy() / ref - 1.0
         budget = g["max_evals"].dropna() if "max_evals" in g else pd.Series(dtype=float)
         rows.append({
-            **dict(zip(CELL, key)), "size": _size(g.iloc[0]),
+            **dict(zip(CELL, key)), "size": _size(full_row(g, g.index[0])),
             "dim": len(g.iloc[0]["best_z"]), "optimum": ref, "rtol": rtol, "target": target,
             "n_starts": len(g), "n_reached": int(reached.sum()),
             **_stats(hits[reached, 0], "evals_to_reach"),

@@ -29,7 +29,7 @@ NO_RESULT_STATUSES = (FAILED, TIMEOUT)
 #: Version of the record / results schema this code writes (the history:
 #: :data:`penaltyrun.io.schema.SCHEMA_HISTORY`). Records of a newer version are refused:
 #: their meaning is unknown here.
-SCHEMA_VERSION = 9
+SCHEMA_VERSION = 10
 
 # Kinds of values, worded as the record checks name them in their messages.
 INT = "an integer"
@@ -121,12 +121,15 @@ FIELDS: dict[str, Field] = {
                           "grad_cost × n_gradients"),
     "n_gradients": Field(INT, "exact gradients charged in n_evals (lbfgs, polish=gradient; "
                               "0: none)"),
+    "polish_evals": Field(INT, "evaluations (evaluation-equivalents) of n_evals spent by the "
+                               "polish (optimizer.polish) after the search; 0: none"),
     "grad_cost": Field(NUMBER, "evaluations charged per exact gradient: what the problem "
                                "declares one gradient to cost, or optimizer.grad_cost (null: "
                                "no gradient charged)"),
     "n_iters": Field(INT, "optimizer iterations"),
     "stop_reason": Field(TEXT, "ftol (stall) | iters | max_evals (budget) | restarts | "
-                               "grid+local, '+polish' after a local polish"),
+                               "grid+local; after a polish '+polish' (ended on its own "
+                               "criteria), '+polish:no_gradient' or '+polish:max_evals'"),
     "n_nonfinite": Field(INT, "non-finite costs replaced by a penalty"),
     "history": Field(NUMBERS, "best cost after each iteration"),
     "trace_evals": Field(INTS, "anytime trace: cumulative evaluations at each improvement "

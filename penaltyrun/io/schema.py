@@ -37,13 +37,15 @@ logger = logging.getLogger(__name__)
 #: earlier files read back with them null; 8: the anytime trace's CPU time
 #: (``trace_cpu_s``) — earlier files read back with it null; 9: what exact gradients were
 #: charged in ``n_evals`` (``n_gradients``, ``grad_cost``) — earlier files read back with
-#: them null.
+#: them null; 10: the polish's share of ``n_evals`` (``polish_evals``) — earlier files read
+#: back with it null.
 SCHEMA_HISTORY = {3: "anytime traces, warm start", 4: "timestamp columns",
                   5: "packages column; job id covers runner.seed and runner.holdout",
                   6: "closed-loop diagnostics columns (closed_loop, cl_*)",
                   7: "first-order columns (grad_norm, active_bounds, gradient_note)",
                   8: "CPU time of the anytime trace (trace_cpu_s)",
-                  9: "gradients charged in n_evals (n_gradients, grad_cost)"}
+                  9: "gradients charged in n_evals (n_gradients, grad_cost)",
+                  10: "the polish's share of n_evals (polish_evals)"}
 RESULTS_FILE = "results.parquet"
 
 #: Arrow type of each kind of :data:`penaltyrun.jobrecord.FIELDS`.

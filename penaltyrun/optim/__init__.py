@@ -13,7 +13,7 @@ gradient).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -179,13 +179,15 @@ def _minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarr
     if settings.polish == "none":
         return result
     counted.limit = settings.max_evals
+    searched = counted.n_evals
     if settings.polish == "gradient":
         outcome = gradient_polish(counted, counted.best_z, lb, ub, gradient,
                                   settings.grad_cost)
     else:
         outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
-    stop = result.stop_reason + ("+polish" if outcome != "max_evals" else "+polish:max_evals")
-    return counted.result(result.history, result.n_iters, stop)
+    stop = result.stop_reason + ("+polish" if outcome == "converged" else f"+polish:{outcome}")
+    return replace(counted.result(result.history, result.n_iters, stop),
+                   polish_evals=counted.n_evals - searched)
 
 
 #: Imported on first use: the gradient helpers need the problems and the parameterizations

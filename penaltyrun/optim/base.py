@@ -175,7 +175,8 @@ class OptimResult:
         Iterations (generations) performed.
     stop_reason : str
         ``"ftol"`` (stall rule), ``"iters"`` (iteration limit), ``"max_evals"`` (evaluation
-        budget spent) or optimizer-specific text; ``"+polish"`` is appended after a polish.
+        budget spent) or optimizer-specific text; after a polish ``"+polish"`` (it ended
+        on its own criteria), ``"+polish:no_gradient"`` or ``"+polish:max_evals"``.
     n_nonfinite : int
         Evaluations that returned a non-finite cost (replaced by the penalty).
     trace_evals, trace_best : list
@@ -190,6 +191,9 @@ class OptimResult:
         Exact gradients charged in ``n_evals`` (``optimizer=lbfgs``, ``polish=gradient``).
     grad_cost : float or None
         Evaluations charged per gradient; ``None`` when no gradient was charged.
+    polish_evals : int
+        Evaluations (evaluation-equivalents) of ``n_evals`` spent by the polish
+        (``optimizer.polish``); 0 without one.
     """
 
     best_cost: float
@@ -204,6 +208,7 @@ class OptimResult:
     trace_cpu_s: list[float] = field(default_factory=list)
     n_gradients: int = 0
     grad_cost: float | None = None
+    polish_evals: int = 0
 
 
 class CountingObjective:

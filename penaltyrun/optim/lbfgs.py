@@ -23,7 +23,9 @@ measured by the benchmarks in ``bench/``) unless ``optimizer.grad_cost`` says ot
 gradients charged and the charge per gradient.
 
 A point where the gradient does not exist (a status other than ``converged``, a
-non-differentiable map) ends that local run (``no_gradient``); the next start follows.
+non-differentiable map) is stepped back from (:func:`backtracking_run`): the run restarts
+from its best point with a gradient inside a trust region that excludes the failed point.
+A start without a gradient ends that start (``no_gradient``); the next start follows.
 """
 
 from __future__ import annotations
@@ -159,31 +161,61 @@ class UnitCube:
         return np.where(self.log, np.asarray(z, float) * self.span, self.span)
 
 
-def local_run(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray, ub: np.ndarray,
-              gradient: GradientFn, charge: float, options: LBFGSSettings
-              ) -> tuple[str, int]:
-    """One L-BFGS-B run from ``z0`` in the unit cube of [lb, ub] with exact gradients.
+@dataclass
+class LocalRun:
+    """Outcome of one L-BFGS-B run (:func:`local_run`).
+
+    Attributes
+    ----------
+    message : str
+        scipy's message, or ``no_gradient: <reason>`` when a point it asked for has no
+        gradient.
+    iterations : int
+        L-BFGS-B iterations (0 when the run ended without a gradient).
+    anchor : ndarray, shape (dim,), or None
+        The lowest-cost point of the run at which the gradient existed, in the unit cube
+        (None: not even the start had one).
+    failed_at : ndarray, shape (dim,), or None
+        The point without a gradient that ended the run, in the unit cube.
+    """
+
+    message: str
+    iterations: int
+    anchor: np.ndarray | None = None
+    failed_at: np.ndarray | None = None
+
+    @property
+    def no_gradient(self) -> bool:
+        """The run ended at a point without a gradient."""
+        return self.message.startswith("no_gradient")
+
+
+def local_run(counted: CountingObjective, u0: np.ndarray, cube: UnitCube,
+              gradient: GradientFn, charge: float, options: LBFGSSettings,
+              region: tuple[np.ndarray, np.ndarray] | None = None) -> LocalRun:
+    """One L-BFGS-B run from ``u0`` in the unit cube of [lb, ub] with exact gradients.
 
     Parameters
     ----------
     counted : CountingObjective
         The run's objective (values counted, traced and capped there).
-    z0 : ndarray, shape (dim,)
-        Start point (clipped into the box).
-    lb, ub : ndarray, shape (dim,)
+    u0 : ndarray, shape (dim,)
+        Start point in the unit cube.
+    cube : UnitCube
+        The map between the box and the cube.
     gradient : callable
         z → an object with ``grad`` (ndarray or None) and ``reason``.
     charge : float
         Evaluations charged per gradient.
     options : LBFGSSettings
-        ``maxiter``, ``ftol``, ``gtol``, ``maxcor``, ``log_positive``.
+        ``maxiter``, ``ftol``, ``gtol``, ``maxcor``.
+    region : (ndarray, ndarray), optional
+        Lower and upper corners (cube units) of the part of the cube the run may search
+        (default: the whole cube).
 
     Returns
     -------
-    message : str
-        scipy's message, or ``no_gradient: <reason>``.
-    iterations : int
-        L-BFGS-B iterations (0 when the run ended without a gradient).
+    LocalRun
 
     Raises
     ------
@@ -192,8 +224,10 @@ def local_run(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray, ub: np
     """
     from scipy.optimize import minimize
 
-    cube = UnitCube(lb, ub, options.log_positive)
+    low, high = region if region is not None else (np.zeros(cube.lb.size),
+                                                   np.ones(cube.lb.size))
     scale = [0.0]
+    best: dict[str, Any] = {"value": math.inf, "u": None, "failed": None}
 
     def fun(u: np.ndarray) -> tuple[float, np.ndarray]:
         z = cube.to_box(u)
@@ -204,20 +238,90 @@ def local_run(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray, ub: np
         counted.charge_gradient(charge)  # before the work: past the budget it is not made
         out = gradient(z)
         if out.grad is None:
+            best["failed"] = np.array(u, float)
             raise NoGradientError(out.reason)
         if not scale[0]:
             scale[0] = max(abs(value), 1e-300)
+        if value < best["value"]:
+            best["value"], best["u"] = value, np.array(u, float)
         return value / scale[0], np.asarray(out.grad) * cube.dz_du(z) / scale[0]
 
     try:
-        res = minimize(fun, cube.to_cube(z0), jac=True, method="L-BFGS-B",
-                       bounds=[(0.0, 1.0)] * lb.size,
+        res = minimize(fun, np.clip(u0, low, high), jac=True, method="L-BFGS-B",
+                       bounds=list(zip(low, high)),
                        options={"maxiter": options.maxiter, "ftol": options.ftol,
                                 "gtol": options.gtol, "maxcor": options.maxcor,
                                 "maxfun": 20 * options.maxiter})
     except NoGradientError as exc:
-        return f"no_gradient: {exc}", 0
-    return str(res.message), int(res.nit)
+        return LocalRun(f"no_gradient: {exc}", 0, best["u"], best["failed"])
+    return LocalRun(str(res.message), int(res.nit), best["u"])
+
+
+#: Local runs one :func:`backtracking_run` makes at most (each after the previous one ended
+#: at a point without a gradient, or on the edge of its trust region).
+MAX_LOCAL_RUNS = 30
+#: Smallest trust-region half-width (unit-cube units) a backtracking run shrinks to.
+MIN_RADIUS = 1e-9
+#: Fractions of the way to the cube's centre a start without a gradient is moved, one after
+#: the other, until the gradient exists (a search's best often lies where a map has no
+#: derivative, e.g. GEAGSP with an angle on its bound).
+NUDGES = (1e-4, 1e-2, 1e-1)
+
+
+def backtracking_run(counted: CountingObjective, z0: np.ndarray, cube: UnitCube,
+                     gradient: GradientFn, charge: float, options: LBFGSSettings
+                     ) -> tuple[str, int]:
+    """L-BFGS-B from ``z0`` that steps back from points without a gradient.
+
+    L-BFGS-B needs the gradient at every point it tries. When a trial point has none (a
+    status change, a map's singular set), the run is restarted from the best point where
+    the gradient existed, confined to a box around it (trust region, cube units) half as
+    wide as the distance to the failed point, so the next steps stay where the cost is
+    smooth. A run that converges on the edge of its trust region is restarted from its
+    best point with the region doubled (the whole cube once it covers it). A start without
+    a gradient is moved towards the cube's centre by the fractions :data:`NUDGES` in turn
+    until one has a gradient (the start itself stays evaluated: the best is never worse).
+    It ends when a run converges inside its region, when no nudged start has a gradient,
+    or after :data:`MAX_LOCAL_RUNS` runs or a region below :data:`MIN_RADIUS`.
+
+    Returns
+    -------
+    message : str
+        The last run's message (``no_gradient: <reason>`` when it ended without one).
+    iterations : int
+        L-BFGS-B iterations of all runs.
+
+    Raises
+    ------
+    BudgetExhaustedError
+        When the budget is spent (the best so far is kept by ``counted``).
+    """
+    u = start = cube.to_cube(z0)
+    radius, iterations, nudges = 1.0, 0, list(NUDGES)
+    for _ in range(MAX_LOCAL_RUNS):
+        region = (np.clip(u - radius, 0.0, 1.0), np.clip(u + radius, 0.0, 1.0))
+        run = local_run(counted, u, cube, gradient, charge, options,
+                        None if radius >= 1.0 else region)
+        iterations += run.iterations
+        if run.anchor is None:  # only a (nudged) start can lack a gradient
+            if not nudges:
+                return run.message, iterations
+            share = nudges.pop(0)
+            u = (1.0 - share) * start + share * 0.5
+            continue
+        if run.no_gradient:
+            step = float(np.max(np.abs(run.failed_at - run.anchor)))
+            radius = min(radius, step) / 2.0
+            if radius < MIN_RADIUS:
+                return run.message, iterations
+        else:
+            inner = (run.anchor > region[0] + 1e-12) | (region[0] <= 0.0)
+            inner &= (run.anchor < region[1] - 1e-12) | (region[1] >= 1.0)
+            if radius >= 1.0 or bool(np.all(inner)):
+                return run.message, iterations
+            radius = min(2.0 * radius, 1.0)
+        u = run.anchor
+    return run.message, iterations
 
 
 def run_lbfgs(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
@@ -251,6 +355,7 @@ def run_lbfgs(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
     charge = require_charge(settings.grad_cost)
     counted = as_counting(objective, main_budget(settings))
     lb, ub = np.asarray(lb, float), np.asarray(ub, float)
+    cube = UnitCube(lb, ub, settings.log_positive)
     rng = np.random.default_rng(seed)
     history: list[float] = []
     stop = "starts"
@@ -261,7 +366,7 @@ def run_lbfgs(objective: BatchObjective, lb: np.ndarray, ub: np.ndarray,
             z0 = lb + rng.random(lb.size) * (ub - lb) if (run or x0 is None) else \
                 np.asarray(x0, float)
             run += 1
-            message, nit = local_run(counted, z0, lb, ub, gradient, charge, settings)
+            message, nit = backtracking_run(counted, z0, cube, gradient, charge, settings)
             n_iters += nit
             logger.debug("L-BFGS-B run %d: %s; best %.12g", run, message, counted.best_cost)
             history.append(counted.best_cost)
@@ -289,13 +394,15 @@ def gradient_polish(counted: CountingObjective, z0: np.ndarray, lb: np.ndarray,
                           "this problem has none: use polish=L-BFGS-B (differences)")
     charge = require_charge(grad_cost)
     try:
-        message, _ = local_run(counted, np.asarray(z0, float), np.asarray(lb, float),
-                               np.asarray(ub, float), gradient, charge, LBFGSSettings())
+        cube = UnitCube(np.asarray(lb, float), np.asarray(ub, float))
+        message, _ = backtracking_run(counted, np.asarray(z0, float), cube, gradient,
+                                      charge, LBFGSSettings())
     except BudgetExhaustedError:
         return "max_evals"
     logger.debug("gradient polish: %s; best %.12g", message, counted.best_cost)
     return "no_gradient" if message.startswith("no_gradient") else "converged"
 
 
-__all__ = ["LBFGSSettings", "NoGradientError", "UnitCube", "gradient_polish", "local_run",
-           "require_charge", "run_lbfgs"]
+__all__ = ["MAX_LOCAL_RUNS", "MIN_RADIUS", "NUDGES", "LBFGSSettings", "LocalRun", "NoGradientError",
+           "UnitCube", "backtracking_run", "gradient_polish", "local_run", "require_charge",
+           "run_lbfgs"]

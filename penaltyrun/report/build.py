@@ -121,7 +121,9 @@ def methods() -> str:
         "pooled across optimizers, budgets or variants. Cost statistics use **converged "
         "starts only** (a diverged start carries a graded penalty, a search aid, not a "
         "cost); the success rate stands beside them. Budget = `max_evals` (none: the "
-        "optimizer's own limits) and the mean evaluations spent. Intervals: 95 % BCa "
+        "optimizer's own limits) and the mean evaluations its searches spent (a polish, "
+        "`optimizer.polish`, ends when it converges: its mean spend is given apart). "
+        "Intervals: 95 % BCa "
         "bootstrap (scipy.stats.bootstrap, 9999 resamples, seeded) of the median; above "
         f"{BCA_MAX_N} converged starts the order-statistic interval of the median and "
         "Student's t interval of the mean; none for n < 3 or a constant sample. "
@@ -130,7 +132,7 @@ def methods() -> str:
         f"k ≥ 2 different optimizers within {CERTIFY_RTOL:g}; *first-order certified local "
         f"optimum* = the best start's projected exact gradient ≤ {FIRST_ORDER_RTOL:g}·max(1, "
         "|cost|) (problems with a gradient); else *single optimizer*. "
-        "Equal budget: equal `max_evals` and mean evaluations spent within "
+        "Equal budget: equal `max_evals` and mean evaluations the searches spent within "
         f"{100 * SPENT_RTOL:g} %; otherwise \"{NO_TEST}\". Tests: two-sided Mann–Whitney U "
         "between two maps of one optimizer and budget; Vargha–Delaney A12 = P(a start of "
         "map b beats a start of map a) + ½ P(tie), magnitude |A12 − 0.5| ≥ 0.06 / 0.14 / "
@@ -201,10 +203,14 @@ def _comparisons(comp: pd.DataFrame, g: pd.DataFrame) -> pd.DataFrame:
     sel = comp[(comp["problem"] == first["problem"]) & (comp["case"] == first["case"])
                & (comp["variant"] == first["variant"])].copy()
     sel["n"] = [f"{a}/{b}" for a, b in zip(sel["n_a"], sel["n_b"])]
+    polish = zip(sel["polish_evals_a"], sel["polish_evals_b"]) if "polish_evals_a" in sel \
+        else [(np.nan, np.nan)] * len(sel)
     sel["budgets (max_evals; spent)"] = [
         f"{fmt(ma) if np.isfinite(ma) else 'none'}/{fmt(mb) if np.isfinite(mb) else 'none'}; "
-        f"{fmt(ea, 4)}/{fmt(eb, 4)}" for ma, mb, ea, eb in
-        zip(sel["max_evals_a"], sel["max_evals_b"], sel["evals_a"], sel["evals_b"])]
+        f"{fmt(ea, 4)}/{fmt(eb, 4)}"
+        + (f"; polish {fmt(pa, 4)}/{fmt(pb, 4)}" if np.isfinite(pa) or np.isfinite(pb) else "")
+        for (ma, mb, ea, eb), (pa, pb) in
+        zip(zip(sel["max_evals_a"], sel["max_evals_b"], sel["evals_a"], sel["evals_b"]), polish)]
     sel["A12 (b beats a)"] = [f"{fmt(a, 2)} ({m})" if np.isfinite(a) else "—"
                               for a, m in zip(sel["a12_b_beats_a"], sel["a12_magnitude"])]
     sel["Holm p"] = sel["p_holm"]

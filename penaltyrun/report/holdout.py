@@ -182,7 +182,9 @@ def paired(diag: pd.DataFrame, full: pd.DataFrame) -> dict[str, Any]:
     d, f = diag.loc[common], full.loc[common]
     both = d["converged"].to_numpy() & f["converged"].to_numpy()
     jd, jf = d["cost"].to_numpy()[both], f["cost"].to_numpy()[both]
-    imp = 100.0 * (jd - jf) / jd if jd.size else np.zeros(0)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a zero cost (start on target)
+        imp = 100.0 * (jd - jf) / jd
+    imp[jd == jf] = 0.0  # equal costs, zero included: no improvement
     p, note = np.nan, ""
     diff = jd - jf
     if diff.size and np.any(diff != 0.0):

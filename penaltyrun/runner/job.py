@@ -229,6 +229,7 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
         n_nonfinite=diag.n_nonfinite + full.n_nonfinite, trace_evals=trace_evals,
         trace_best=[float(c) for c in trace_best], trace_cpu_s=trace_cpu,
         n_gradients=diag.n_gradients + full.n_gradients,
+        polish_evals=diag.polish_evals + full.polish_evals,
         grad_cost=full.grad_cost if full.grad_cost is not None else diag.grad_cost)
     warm = {"share": job.warm_start_share, "n_evals": diag.n_evals,
             "best_cost": diag.best_cost, "stop_reason": diag.stop_reason,
@@ -324,6 +325,7 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
             "holdout": _jsonable(holdout),
             "n_evals": int(result.n_evals),
             "n_gradients": int(result.n_gradients),
+            "polish_evals": int(result.polish_evals),
             "grad_cost": result.grad_cost,
             "n_iters": int(result.n_iters),
             "stop_reason": result.stop_reason,

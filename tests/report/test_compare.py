@@ -154,3 +154,25 @@ def test_a12_intervals_follow_the_equal_budget_pairs(frame):
         a12_interval(COSTS["diagonal"], COSTS["geagsp"])[1:3])
     unequal = frame.assign(n_evals=np.where(frame["param"] == "geagsp", 50, 100))
     assert not (a12_intervals(unequal)["map_b"] == "geagsp").any()
+
+
+def test_a_polish_that_ends_early_does_not_make_budgets_unequal():
+    """Same cap, same search spend: the polish's spend (which ends when it converges) is
+    left out of the equal-budget rule and shown beside it; a search spend that differs
+    still refuses the test."""
+    data = [{**r, "max_evals": 1000, "n_evals": 800 + p, "polish_evals": p}
+            for (m, c), p in zip([("diagonal", COSTS["diagonal"]), ("geagsp", COSTS["geagsp"])],
+                                 (200, 37)) for r in rows(m, c)]
+    row = pairwise(pd.DataFrame(data)).iloc[0]
+    assert row["equal_budget"] and row["evals_a"] == 800 and row["evals_b"] == 800
+    assert (row["polish_evals_a"], row["polish_evals_b"]) == (200, 37)
+    assert "budgets differ" not in row["note"] and np.isfinite(row["p_mwu"])
+    for r in data[len(COSTS["diagonal"]):]:
+        r["polish_evals"] = 0  # the same n_evals, all of it search: 837 against 800
+    row = pairwise(pd.DataFrame(data)).iloc[0]
+    assert not row["equal_budget"] and row["note"] == "budgets differ: no test"
+
+
+def test_records_without_a_polish_column_count_everything_as_search(frame):
+    row = pairwise(frame.assign(max_evals=100)).iloc[0]
+    assert row["evals_a"] == 100 and math.isnan(row["polish_evals_a"])

@@ -16,7 +16,9 @@ base/report and report/read.
 
 ``--large N`` instead writes N synthetic job rows (12 cells of one problem case, the
 writer of the report's memory tests, ``tests/report/large_results.py``) and times the
-report of them alone (read lazily above 100 000 rows), with its progress bar off.
+report of them alone (read lazily above 100 000 rows), with its progress bar off; with
+``--steps`` it prints instead the resident memory as each step of the report begins and
+the bytes per row of the frame the report holds.
 
 ``--bca`` times the BCa interval of one cell (:func:`penaltyrun.report.stats.bca_ci`, its
 jackknife in closed form) against :func:`scipy.stats.bootstrap` (its jackknife evaluates
@@ -31,6 +33,7 @@ Usage::
 
     python bench/bench_report.py [--input studies] [--base e37fb9b] [--repeats 1] [--no-base]
     python bench/bench_report.py --large 1000000
+    python bench/bench_report.py --large 300000 --steps
     python bench/bench_report.py --bca
     python bench/bench_report.py --same REPORT_A REPORT_B
 """
@@ -55,6 +58,38 @@ READ = ("import sys\nfrom penaltyrun.io import read_results\n"
         "print(len(read_results(sys.argv[1])), 'rows')\n")
 REPORT = ("import sys\nfrom penaltyrun.cli import report_main\n"
           "report_main([sys.argv[1], '-o', sys.argv[2]])\n")
+#: The report of ``sys.argv[1]`` with the resident memory (now and peak) printed as each
+#: step of its progress bar begins, and the bytes per row of the frame it holds.
+STEPS = """
+import resource, sys, time
+from pathlib import Path
+import penaltyrun.report.build as build
+from penaltyrun.report.progress import Steps
+
+def rss():
+    return int(open("/proc/self/statm").read().split()[1]) * resource.getpagesize() / 2**20
+
+def peak():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+begin, step = time.process_time(), Steps.step
+def logged(self, name):
+    print(f"| {name} | {time.process_time() - begin:.1f} | {rss():.0f} | {peak():.0f} |",
+          flush=True)
+    return step(self, name)
+Steps.step = logged
+read = build.read_results
+def measured(*args, **kwargs):
+    df = read(*args, **kwargs)
+    print(f"frame: {df.memory_usage(deep=True).sum() / max(len(df), 1):.0f} bytes per row; "
+          f"after reading {rss():.0f} MB", flush=True)
+    return df
+build.read_results = measured
+print(f"before reading: {rss():.0f} MB (imports)")
+print("| step begins | CPU s | RSS MB | peak MB |\\n|---|---|---|---|")
+build.build_report(Path(sys.argv[1]), Path(sys.argv[2]), basin_points=0, progress=False)
+print(f"| end | {time.process_time() - begin:.1f} | {rss():.0f} | {peak():.0f} |")
+"""
 
 
 def measure(code: str, args: list[str], pythonpath: str | None = None) -> dict[str, float]:
@@ -80,14 +115,20 @@ def _row(name: str, m: dict[str, float]) -> str:
     return f"| {name} | {m['cpu']:.1f} | {m['wall']:.1f} | {m['rss']:.0f} |"
 
 
-def large(rows: int) -> None:
-    """Print CPU, wall and peak RSS of the report of ``rows`` synthetic job rows."""
+def large(rows: int, steps: bool = False) -> None:
+    """Print CPU, wall and peak RSS of the report of ``rows`` synthetic job rows; with
+    ``steps`` instead its memory as each step begins (one process, see :data:`STEPS`)."""
     sys.path.insert(0, str(ROOT / "tests" / "report"))
     from large_results import write_large_results
 
     print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; {rows} synthetic rows")
     with tempfile.TemporaryDirectory() as tmp:
         src = write_large_results(Path(tmp) / "results", rows)
+        if steps:
+            env = {**os.environ, "PYTHONPATH": str(ROOT)}
+            subprocess.run([sys.executable, "-c", STEPS, str(src), f"{tmp}/report"],
+                           env=env, check=True)
+            return
         m = measure(REPORT.replace("'-o', sys.argv[2]", "'-o', sys.argv[2], '--progress', "
                                    "'false'"), [str(src), f"{tmp}/report"], str(ROOT))
     print("| run | CPU s | wall s | peak RSS MB |\n|---|---|---|---|")
@@ -153,6 +194,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1, help="interleaved pairs")
     parser.add_argument("--no-base", action="store_true", help="time this tree only")
     parser.add_argument("--large", type=int, metavar="N", help="report N synthetic rows")
+    parser.add_argument("--steps", action="store_true",
+                        help="with --large: resident memory as each report step begins")
     parser.add_argument("--bca", action="store_true", help="time the BCa intervals")
     parser.add_argument("--same", nargs=2, metavar=("A", "B"), type=Path,
                         help="compare two report folders")
@@ -163,7 +206,7 @@ def main() -> None:
     if args.same:
         raise SystemExit(0 if same(*args.same) else 1)
     if args.large:
-        large(args.large)
+        large(args.large, args.steps)
         return
     print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; input {args.input}")
     with tempfile.TemporaryDirectory() as tmp:

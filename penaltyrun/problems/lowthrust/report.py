@@ -118,6 +118,13 @@ def _num(metrics: Mapping[str, Any], key: str) -> float:
     return float(value) if isinstance(value, (int, float)) else float("nan")
 
 
+def _finite(statistic: Any, values: np.ndarray) -> float:
+    """``statistic`` of the finite values (NaN when there are none, e.g. a metric the
+    records do not carry)."""
+    finite = values[np.isfinite(values)]
+    return float(statistic(finite)) if finite.size else float("nan")
+
+
 def transfer_table(law: str, jobs: Sequence[Mapping[str, Any]]) -> ReportSection:
     """Tables 4 / 5 layout: time of flight and final mass of the converged starts per case,
     variant, optimizer and map (K = I baseline included), with the end statuses."""
@@ -134,10 +141,9 @@ def transfer_table(law: str, jobs: Sequence[Mapping[str, Any]]) -> ReportSection
         rows.append({"case": case + (f" [{variant}]" if variant else ""),
                      "optimizer": optimizer, "map": param,
                      "converged": f"{len(ok)}/{len(group)}",
-                     "best ToF d": float(np.nanmin(tof)) if ok else float("nan"),
-                     "mean ToF d": float(np.nanmean(tof)) if ok else float("nan"),
-                     "best m_f kg": float(np.nanmax(mass)) if ok else float("nan"),
-                     "mean m_f kg": float(np.nanmean(mass)) if ok else float("nan"),
+                     "best ToF d": _finite(np.min, tof), "mean ToF d": _finite(np.mean, tof),
+                     "best m_f kg": _finite(np.max, mass),
+                     "mean m_f kg": _finite(np.mean, mass),
                      "end statuses": ", ".join(f"{k}×{v}" for k, v in sorted(ends.items()))})
     name = "Table 4 — generic Lyapunov law" if law == "lyapunov_transfer" else "Table 5 — Q-law"
     return ReportSection(

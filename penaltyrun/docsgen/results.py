@@ -433,6 +433,24 @@ class Context:
             gains.append(100.0 * (float(best[before][-1]) - final) / abs(final))
         return float(np.median(gains)) if gains else float("nan")
 
+    def polish_endings(self, name: str) -> str:
+        """How the polishes of the study's finished starts ended, from ``stop_reason``
+        (``+polish``, ``+polish:<why>``; see :mod:`penaltyrun.optim.lbfgs`), as text: e.g.
+        "on its own tolerances in 12, with the budget spent in 98, without a gradient near
+        the search's best in 50 of 160 starts" (empty when no start was polished)."""
+        frame = self.study(name).rows(None)
+        reasons = frame.loc[frame["status"] == OK, "stop_reason"].astype(str)
+        ends = reasons.str.extract(r"\+polish(?::(\w+))?$", expand=False)
+        polished = reasons.str.contains(r"\+polish", regex=True)
+        if not polished.any():
+            return ""
+        ends = ends[polished].fillna("converged").value_counts()
+        words = {"converged": "on its own tolerances", "max_evals": "with the budget spent",
+                 "no_gradient": "without a gradient near the search's best"}
+        order = [*words, *sorted(set(ends.index) - set(words))]
+        parts = [f"{words.get(end, end)} in {int(ends[end])}" for end in order if end in ends]
+        return f"{', '.join(parts)} of {int(polished.sum())} starts"
+
     def basins(self, name: str, n: int = BASIN_POINTS, spec: str = ".4g") -> str:
         """Basin-of-attraction tables of the study, computed when the page is rendered from
         the committed matrices (the best converged diagonal and full start of each problem ×
@@ -521,6 +539,7 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                        held_out_words=ctx.held_out_words, basins=ctx.basins,
                        late_gain=ctx.late_gain, problem_params=ctx.problem_params,
                        optimizer_setting=ctx.optimizer_setting,
+                       polish_endings=ctx.polish_endings,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        full_matrix=(figures or explanation.Figures(root)).full_matrix,
                        multi_column=multi_column,

@@ -66,6 +66,17 @@ def test_problem_params_agree_or_say_that_they_differ(tmp_path):
     assert ctx.optimizer_setting("s", "polish_share") == 0.2
 
 
+def test_polish_endings_are_counted_over_the_finished_starts(tmp_path):
+    frame = _frame().assign(stop_reason=["max_evals+polish", "ftol+polish:no_gradient",
+                                         "max_evals+polish:max_evals", "max_evals+polish"])
+    ctx = _context(tmp_path, frame)  # the last start failed: not counted
+    assert ctx.polish_endings("s") == ("on its own tolerances in 1, with the budget spent in "
+                                       "1, without a gradient near the search's best in 1 "
+                                       "of 3 starts")
+    ctx = _context(tmp_path / "none", frame.assign(stop_reason="max_evals"))
+    assert ctx.polish_endings("s") == ""
+
+
 @pytest.mark.slow
 def test_robust_page_and_answer_row_are_pending_without_their_data(tmp_path):
     """Before the studies are committed the page and the answer row name the command that

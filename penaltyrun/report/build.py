@@ -203,14 +203,13 @@ def _comparisons(comp: pd.DataFrame, g: pd.DataFrame) -> pd.DataFrame:
     sel = comp[(comp["problem"] == first["problem"]) & (comp["case"] == first["case"])
                & (comp["variant"] == first["variant"])].copy()
     sel["n"] = [f"{a}/{b}" for a, b in zip(sel["n_a"], sel["n_b"])]
-    polish = zip(sel["polish_evals_a"], sel["polish_evals_b"]) if "polish_evals_a" in sel \
-        else [(np.nan, np.nan)] * len(sel)
     sel["budgets (max_evals; spent)"] = [
         f"{fmt(ma) if np.isfinite(ma) else 'none'}/{fmt(mb) if np.isfinite(mb) else 'none'}; "
         f"{fmt(ea, 4)}/{fmt(eb, 4)}"
         + (f"; polish {fmt(pa, 4)}/{fmt(pb, 4)}" if np.isfinite(pa) or np.isfinite(pb) else "")
-        for (ma, mb, ea, eb), (pa, pb) in
-        zip(zip(sel["max_evals_a"], sel["max_evals_b"], sel["evals_a"], sel["evals_b"]), polish)]
+        for ma, mb, ea, eb, pa, pb in
+        zip(sel["max_evals_a"], sel["max_evals_b"], sel["evals_a"], sel["evals_b"],
+            sel["polish_evals_a"], sel["polish_evals_b"])]
     sel["A12 (b beats a)"] = [f"{fmt(a, 2)} ({m})" if np.isfinite(a) else "—"
                               for a, m in zip(sel["a12_b_beats_a"], sel["a12_magnitude"])]
     sel["Holm p"] = sel["p_holm"]

@@ -45,10 +45,15 @@ def budget(sel: pd.DataFrame) -> tuple[float, float]:
     if "max_evals" in sel:
         values = pd.to_numeric(sel["max_evals"], errors="coerce").dropna().unique()
         cap = float(values[0]) if values.size == 1 else np.nan
-    ran = sel[~sel["status"].isin(NO_RESULT_STATUSES)]
+    ran = _ran(sel)
     spent = float((pd.to_numeric(ran["n_evals"], errors="coerce")
                    - polish_column(ran)).mean()) if "n_evals" in ran and len(ran) else np.nan
     return cap, spent
+
+
+def _ran(sel: pd.DataFrame) -> pd.DataFrame:
+    """The starts of ``sel`` that produced a result."""
+    return sel[~sel["status"].isin(NO_RESULT_STATUSES)]
 
 
 def polish_column(sel: pd.DataFrame) -> pd.Series:
@@ -60,7 +65,7 @@ def polish_column(sel: pd.DataFrame) -> pd.Series:
 
 def polish_spend(sel: pd.DataFrame) -> float:
     """Mean evaluations the polish spent over a cell's non-failed starts (NaN: none)."""
-    ran = sel[~sel["status"].isin(NO_RESULT_STATUSES)]
+    ran = _ran(sel)
     spend = polish_column(ran)
     return float(spend.mean()) if len(ran) and spend.any() else np.nan
 
@@ -108,7 +113,8 @@ def pairwise(df: pd.DataFrame) -> pd.DataFrame:
         for a, b in itertools.combinations(map_order(g["param"].unique()), 2):
             xa, na = _costs(g, a)
             xb, nb = _costs(g, b)
-            ba, bb = budget(g[g["param"] == a]), budget(g[g["param"] == b])
+            sel_a, sel_b = g[g["param"] == a], g[g["param"] == b]
+            ba, bb = budget(sel_a), budget(sel_b)
             equal = equal_budget(ba, bb)
             p = np.nan
             if equal and min(xa.size, xb.size) >= 2:
@@ -127,8 +133,8 @@ def pairwise(df: pd.DataFrame) -> pd.DataFrame:
                 if "problem_variant" in g else key[GROUP.index("variant")],
                 "n_a": int(xa.size), "n_b": int(xb.size), "jobs_a": na, "jobs_b": nb,
                 "max_evals_a": ba[0], "max_evals_b": bb[0], "evals_a": ba[1],
-                "evals_b": bb[1], "polish_evals_a": polish_spend(g[g["param"] == a]),
-                "polish_evals_b": polish_spend(g[g["param"] == b]), "equal_budget": equal,
+                "evals_b": bb[1], "polish_evals_a": polish_spend(sel_a),
+                "polish_evals_b": polish_spend(sel_b), "equal_budget": equal,
                 "success_a": xa.size / na, "success_b": xb.size / nb,
                 "best_a": float(xa.min()) if xa.size else np.nan,
                 "best_b": float(xb.min()) if xb.size else np.nan,

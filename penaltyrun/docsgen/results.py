@@ -346,13 +346,14 @@ class Context:
     def answers(self, name: str, where: dict | None = None) -> list[str]:
         """The verdict sentences of the study's rows matching ``where`` (``problem``,
         ``case``, ...): training result, evidence, held-out result with its statistic, n
-        and horizon, and the equal-budget test, as the report words them."""
+        and horizon, and the equal-budget test, as the report words them, with ``|``
+        escaped: the sentences fill a cell of the answer table."""
         if not self.study(name).has_table("verdict"):
             raise ValueError(f"the report of {name!r} has no verdict table")
         rows = _select(self.study(name).table("verdict"), where)
         if rows.empty:
             raise ValueError(f"{name}: no verdict row matches {where}")
-        return [str(s) for s in rows["sentence"]]
+        return [str(s).replace("|", "\\|") for s in rows["sentence"]]
 
     def held_out_words(self, name: str, problem: str, case: str, variant: str = "") -> str:
         """The held-out answer of one cell's best-known pair in words: scenarios where full

@@ -259,13 +259,15 @@ def stop_setting(reason: str, settings: dict[str, Any]) -> str:
 
 def stop_advice(rows: pd.DataFrame) -> str:
     """Which settings stopped the starts of ``rows``, e.g. "stopped by the iteration limit
-    (`optimizer.iters`) in 4 of 4 starts: raise it"."""
+    (`optimizer.iters`) in 4 of 4 starts: raise it". Starts are grouped by what stopped
+    the search; how a polish after it ended (``+polish…``) does not split a group."""
     if rows.empty or "stop_reason" not in rows:
         return "stop reasons not recorded"
     parts = []
     rows = rows[rows["optimizer"] != "baseline"]
     totals = rows["optimizer"].value_counts()
-    for (opt, reason), g in rows.groupby(["optimizer", rows["stop_reason"].fillna("?")]):
+    search_stop = rows["stop_reason"].fillna("?").astype(str).str.split("+").str[0]
+    for (opt, reason), g in rows.groupby(["optimizer", search_stop]):
         total = int(totals[opt])
         settings = protocol.params_of(g["optimizer_settings"].iloc[0]) \
             if "optimizer_settings" in g else {}

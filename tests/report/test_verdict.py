@@ -97,6 +97,18 @@ def test_full_worse_names_the_setting_that_stopped_the_search():
     assert stop_setting("max_evals", {}) == "the evaluation budget (`optimizer.max_evals`)"
 
 
+def test_polish_endings_do_not_split_the_search_stop():
+    df = frame()
+    df.loc[df["param"] == "full", "best_cost"] += 5.0
+    full = df.index[df["param"] == "full"]
+    df.loc[full[:3], "stop_reason"] = "iters+polish"
+    df.loc[full[3:5], "stop_reason"] = "iters+polish:max_evals"
+    df.loc[full[5:], "stop_reason"] = "iters+polish:no_gradient"
+    s = verdict(df)["sentence"]
+    assert "stopped by pso: the iteration limit (`optimizer.iters`) in 10 of 10 starts;" in s
+    assert s.count("the iteration limit") == 1
+
+
 def long_held(costs, converged, by_deadline, arrival):
     return {"scenario": SCENARIOS, "cost": list(costs), "converged": list(converged),
             "converged_by_deadline": list(by_deadline), "arrival_time": list(arrival),

@@ -63,6 +63,17 @@ def _budget_text(r: dict) -> str:
     return f"{who}: A12 {fmt(r['a12_b_beats_a'], 2)}, Holm p {_p(r['p_holm'])}"
 
 
+def _test_label(r: dict, tested: list[dict]) -> str:
+    """The optimizer of an equal-budget test, with its full map and its variant where the
+    tests of the sentence differ in them."""
+    label = str(r["optimizer"])
+    if len({t["map_b"] for t in tested}) > 1:
+        label += f", {r['map_b']}"
+    if len({t["variant"] for t in tested}) > 1:
+        label += f" [{r['variant']}]" if r["variant"] else " [default]"
+    return label
+
+
 def _held(held: pd.DataFrame, problem: str, case: str, pvar: str) -> dict | None:
     if held.empty:
         return None
@@ -213,11 +224,13 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
     else:
         parts.append("no held-out result")
     tested = [r for r in budgets if r["equal_budget"] and np.isfinite(r["p_mwu"])]
-    if tested:
-        r = min(tested, key=lambda r: r["p_holm"])
-        parts.append(f"at equal budget ({r['optimizer']}, n = {r['n_a']}/{r['n_b']}) a full "
-                     f"start beats a diagonal start with probability A12 = "
-                     f"{fmt(r['a12_b_beats_a'], 2)} (Holm p {_p(r['p_holm'])})")
+    if tested:  # every test, not only the most significant one
+        each = [f"{fmt(r['a12_b_beats_a'], 2)} ({_test_label(r, tested)}, "
+                f"n = {r['n_a']}/{r['n_b']}, Holm p {_p(r['p_holm'])})"
+                for r in sorted(tested, key=lambda r: (str(r["optimizer"]), str(r["map_b"]),
+                                                       str(r["variant"])))]
+        parts.append("at equal budget a full start beats a diagonal start with probability "
+                     "A12 = " + ", ".join(each))
     elif budgets:
         parts.append("no equal-budget test (" + (
             "budgets differ" if not any(r["equal_budget"] for r in budgets)

@@ -97,6 +97,20 @@ def test_full_worse_names_the_setting_that_stopped_the_search():
     assert stop_setting("max_evals", {}) == "the evaluation budget (`optimizer.max_evals`)"
 
 
+def test_every_equal_budget_test_is_stated_not_only_the_most_significant():
+    df = frame()
+    second = frame().assign(optimizer="de")
+    second.loc[second["param"] == "full", "best_cost"] += 1.0  # the same costs under de
+    second["job_id"] = "de-" + second["job_id"]
+    s = verdict(pd.concat([df, second], ignore_index=True))["sentence"]
+    assert "A12 = 0.5 (de, n = 10/10, Holm p = 1), 1 (pso, n = 10/10, Holm p" in s
+    givens = df.assign(param=df["param"].replace({"full": "givens"}))
+    givens["job_id"] = "g-" + givens["job_id"]
+    s = verdict(pd.concat([df, givens[givens["param"] == "givens"]], ignore_index=True))[
+        "sentence"]
+    assert "A12 = 1 (pso, full, n = 10/10" in s and "1 (pso, givens, n = 10/10" in s
+
+
 def test_polish_endings_do_not_split_the_search_stop():
     df = frame()
     df.loc[df["param"] == "full", "best_cost"] += 5.0

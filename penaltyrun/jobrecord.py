@@ -10,6 +10,7 @@ problem's report hooks, which sit below the runner).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 #: The optimizer's best candidate met the problem's terminal condition.
@@ -25,6 +26,31 @@ JOB_STATUSES = (OK, DIVERGED, FAILED, TIMEOUT)
 #: Statuses of a job that produced no result (no best cost): a resumed run with
 #: ``runner.retry_failed=true`` runs these again, and no statistic counts their costs.
 NO_RESULT_STATUSES = (FAILED, TIMEOUT)
+
+#: How a polish ended, after the search's stop reason in ``stop_reason``: ``+polish`` (on
+#: its own criteria), ``+polish:<outcome>`` otherwise (``no_gradient``, ``max_evals``).
+POLISH_TAG = "+polish"
+#: How a polish that ended on its own criteria is named by :func:`split_stop`.
+POLISH_CONVERGED = "converged"
+_POLISHED = re.compile(r"^(.*)\+polish(?::(\w+))?$", re.DOTALL)
+
+
+def polished_stop(search: str, outcome: str) -> str:
+    """``stop_reason`` of a polished search: the search's own stop reason, then
+    ``+polish`` when the polish ended on its own criteria (``outcome`` is
+    :data:`POLISH_CONVERGED`), else ``+polish:<outcome>``."""
+    return search + (POLISH_TAG if outcome == POLISH_CONVERGED else f"{POLISH_TAG}:{outcome}")
+
+
+def split_stop(reason: str) -> tuple[str, str | None]:
+    """The search's stop reason and how its polish ended (:data:`POLISH_CONVERGED`,
+    ``no_gradient``, ...; None when no polish ran), from a recorded ``stop_reason``
+    (the inverse of :func:`polished_stop`)."""
+    match = _POLISHED.match(str(reason))
+    if match is None:
+        return str(reason), None
+    return match.group(1), match.group(2) or POLISH_CONVERGED
+
 
 #: Version of the record / results schema this code writes (the history:
 #: :data:`penaltyrun.io.schema.SCHEMA_HISTORY`). Records of a newer version are refused:

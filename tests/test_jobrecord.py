@@ -115,3 +115,17 @@ def test_no_module_restates_the_job_statuses():
             found.append(f"{path.relative_to(PACKAGE.parent)}:{line}")
     assert found == [], ("job statuses restated instead of imported from "
                          f"penaltyrun.jobrecord: {found}")
+
+
+@pytest.mark.parametrize("search", ["max_evals", "ftol", "grid+local", "warm:iters|max_evals"])
+@pytest.mark.parametrize("outcome", [jobrecord.POLISH_CONVERGED, "no_gradient", "max_evals"])
+def test_a_polished_stop_reason_splits_back_into_the_search_and_the_polish_ending(search,
+                                                                                  outcome):
+    reason = jobrecord.polished_stop(search, outcome)
+    assert reason.startswith(search + jobrecord.POLISH_TAG)
+    assert jobrecord.split_stop(reason) == (search, outcome)
+
+
+def test_a_stop_reason_without_a_polish_is_the_search_s_own():
+    assert jobrecord.split_stop("grid+local") == ("grid+local", None)
+    assert jobrecord.split_stop("max_evals") == ("max_evals", None)

@@ -59,6 +59,12 @@ def percent(value: Any) -> str:
     return "—" if math.isnan(value) else f"{100.0 * value:.3g} %"
 
 
+def md_cell(text: str) -> str:
+    """``text`` as the content of one Markdown table cell: ``|`` escaped (it would end the
+    cell) and line breaks as spaces (they would end the row)."""
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
 def markdown_table(frame: Any, spec: str = ".4g") -> str:
     """A DataFrame as a Markdown table, numbers formatted with ``spec``, shares
     (:func:`is_share`) as percentages."""
@@ -69,7 +75,7 @@ def markdown_table(frame: Any, spec: str = ".4g") -> str:
         cells = [percent(v) if share else
                  fmt(v, spec) if is_number(v)
                  else str(v) for v, share in zip(row, shares)]
-        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+        lines.append("| " + " | ".join(md_cell(c) for c in cells) + " |")
     return "\n".join(lines)
 
 

@@ -18,6 +18,7 @@ import typing
 from pathlib import Path
 from typing import Any
 
+from penaltyrun.docsgen.layout import md_cell
 from penaltyrun.docsgen.sources import (
     attribute_docs,
     header_comment,
@@ -49,14 +50,14 @@ def cell(value: Any) -> str:
         text = str(value).lower()
     else:
         text = str(value)
-    text = text.replace("|", "\\|").replace("\n", " ")
+    text = md_cell(text)
     return f"`{text}`" if text else ""
 
 
 def _text(text: str) -> str:
     """Prose for a table cell: one line, pipes escaped, no tracker references."""
     text = re.sub(r"\s*\((?:see )?issue[^)]*\)", "", text, flags=re.IGNORECASE)
-    return text.replace("|", "\\|").replace("\n", " ")
+    return md_cell(text)
 
 
 def type_name(hint: Any) -> str:

@@ -31,10 +31,11 @@ from penaltyrun.docsgen.layout import (
     fmt,
     fold,
     markdown_table,
+    md_cell,
     narrow_table,
 )
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
-from penaltyrun.jobrecord import OK
+from penaltyrun.jobrecord import OK, POLISH_CONVERGED, split_stop
 
 TEMPLATES = Path("studies") / "templates"
 RESULTS_DOCS = Path("docs") / "results"
@@ -353,7 +354,7 @@ class Context:
         rows = _select(self.study(name).table("verdict"), where)
         if rows.empty:
             raise ValueError(f"{name}: no verdict row matches {where}")
-        return [str(s).replace("|", "\\|") for s in rows["sentence"]]
+        return [md_cell(str(s)) for s in rows["sentence"]]
 
     def held_out_words(self, name: str, problem: str, case: str, variant: str = "") -> str:
         """The held-out answer of one cell's best-known pair in words: scenarios where full
@@ -441,16 +442,15 @@ class Context:
         the search's best in 50 of 160 starts" (empty when no start was polished)."""
         frame = self.study(name).rows(None)
         reasons = frame.loc[frame["status"] == OK, "stop_reason"].astype(str)
-        ends = reasons.str.extract(r"\+polish(?::(\w+))?$", expand=False)
-        polished = reasons.str.contains(r"\+polish", regex=True)
-        if not polished.any():
+        ends = reasons.map(lambda reason: split_stop(reason)[1]).dropna()
+        if ends.empty:
             return ""
-        ends = ends[polished].fillna("converged").value_counts()
-        words = {"converged": "on its own tolerances", "max_evals": "with the budget spent",
+        ends = ends.value_counts()
+        words = {POLISH_CONVERGED: "on its own tolerances", "max_evals": "with the budget spent",
                  "no_gradient": "without a gradient near the search's best"}
         order = [*words, *sorted(set(ends.index) - set(words))]
         parts = [f"{words.get(end, end)} in {int(ends[end])}" for end in order if end in ends]
-        return f"{', '.join(parts)} of {int(polished.sum())} starts"
+        return f"{', '.join(parts)} of {int(ends.sum())} starts"
 
     def basins(self, name: str, n: int = BASIN_POINTS, spec: str = ".4g") -> str:
         """Basin-of-attraction tables of the study, computed when the page is rendered from

@@ -20,6 +20,7 @@ import numpy as np
 
 from penaltyrun import lazy
 from penaltyrun.errors import ConfigError
+from penaltyrun.jobrecord import polished_stop
 from penaltyrun.optim.base import (
     POLISH_METHODS,
     BatchObjective,
@@ -185,7 +186,7 @@ def _minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarr
                                   settings.grad_cost)
     else:
         outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
-    stop = result.stop_reason + ("+polish" if outcome == "converged" else f"+polish:{outcome}")
+    stop = polished_stop(result.stop_reason, outcome)
     return replace(counted.result(result.history, result.n_iters, stop),
                    polish_evals=counted.n_evals - searched)
 

@@ -69,6 +69,14 @@ def test_the_fold_renders_as_a_table_with_the_site_markdown_extensions():
     assert "<summary>More columns:" in inside and "<table>" in inside
 
 
+def test_a_cell_with_pipes_and_line_breaks_stays_one_cell_of_one_row():
+    frame = pd.DataFrame({"a": ["x | y\nz"], "b": [1]})
+    table = layout.markdown_table(frame)
+    assert table.splitlines()[-1] == "| x \\| y z | 1 |"
+    html = markdown.markdown(table, extensions=["tables"])
+    assert html.count("<td>") == 2 and "x | y z" in html
+
+
 def test_shares_print_as_percentages_and_counts_do_not():
     frame = pd.DataFrame({"optimizer": ["pso"], "success_b": [1.0],
                           "full_better_share": [1 / 3], "full_cheaper": [34],

@@ -435,6 +435,12 @@ class Context:
             gains.append(100.0 * (float(best[before][-1]) - final) / abs(final))
         return float(np.median(gains)) if gains else float("nan")
 
+    def polished(self, names: list[str]) -> list[str]:
+        """The studies among ``names`` that are committed and whose searches were refined by
+        the exact-gradient polish (``optimizer.polish: gradient``), in the given order."""
+        return [name for name in names if self.study(name).available
+                and self.optimizer_setting(name, "polish") == "gradient"]
+
     def polish_endings(self, name: str) -> str:
         """How the polishes of the study's finished starts ended, from ``stop_reason``
         (``+polish``, ``+polish:<why>``; see :mod:`penaltyrun.optim.lbfgs`), as text: e.g.
@@ -540,7 +546,7 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                        held_out_words=ctx.held_out_words, basins=ctx.basins,
                        late_gain=ctx.late_gain, problem_params=ctx.problem_params,
                        optimizer_setting=ctx.optimizer_setting,
-                       polish_endings=ctx.polish_endings,
+                       polished=ctx.polished, polish_endings=ctx.polish_endings,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        full_matrix=(figures or explanation.Figures(root)).full_matrix,
                        multi_column=multi_column,

@@ -77,6 +77,16 @@ def test_polish_endings_are_counted_over_the_finished_starts(tmp_path):
     assert ctx.polish_endings("s") == ""
 
 
+def test_polished_lists_the_committed_studies_polished_by_gradient(tmp_path):
+    ctx = _context(tmp_path, _frame())
+    assert ctx.polished(["s"]) == []  # records not committed (no results file)
+    (tmp_path / "studies" / "s" / "results.parquet").write_bytes(b"")
+    assert ctx.polished(["s"]) == ["s"]
+    ctx = _context(tmp_path / "b", _frame().assign(optimizer_settings=json.dumps({})))
+    (tmp_path / "b" / "studies" / "s" / "results.parquet").write_bytes(b"")
+    assert ctx.polished(["s"]) == []
+
+
 @pytest.mark.slow
 def test_robust_page_and_answer_row_are_pending_without_their_data(tmp_path):
     """Before the studies are committed the page and the answer row name the command that

@@ -140,6 +140,7 @@ class LQRProblem:
             if p.criterion == criteria.TERMINAL or p.terminal_weight is not None else None
         if p.criterion != criteria.TERMINAL:
             self.S = None   # validated above, used by the terminal criterion only
+        self._last_single: tuple[bytes, dict[str, np.ndarray]] | None = None  # see rows
 
     @property
     def cost_unit(self) -> str:
@@ -180,6 +181,11 @@ class LQRProblem:
 
         ``metrics``: also compute the measures of the constraints not set (for reports).
 
+        The rows of the last single candidate from the training starts are kept: a
+        gradient optimizer evaluates a point and then asks for its gradient
+        (:meth:`gradient`), which needs the same rows, so the Riccati equation and the
+        closed loop are solved once per point (the returned arrays are shared: read only).
+
         Returns
         -------
         dict
@@ -188,6 +194,18 @@ class LQRProblem:
             :meth:`~penaltyrun.problems.lqr.constraints.Limits.measure` (NaN where not
             computed).
         """
+        single = Q.shape[0] == 1 and X0 is self.x0 and thresholds is None and not metrics
+        if not single:
+            return self._rows(Q, R, X0, thresholds, metrics)
+        key = b"|".join(part for M in (Q, R) for part in
+                        (np.asarray(M).dtype.str.encode(), np.ascontiguousarray(M).tobytes()))
+        if self._last_single is None or self._last_single[0] != key:
+            self._last_single = (key, self._rows(Q, R, X0, None, False))
+        return self._last_single[1]
+
+    def _rows(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray,
+              thresholds: np.ndarray | None, metrics: bool) -> dict[str, np.ndarray]:
+        """:meth:`rows`, computed."""
         n_c, n_k = Q.shape[0], X0.shape[0]
         K, ok, failure = self.gains(Q, R)
         J = np.zeros((n_c, n_k))

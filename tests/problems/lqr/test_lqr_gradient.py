@@ -221,3 +221,29 @@ def test_multi_scenario_gradient_is_the_aggregates(how):
     plain = problems.make("lyapunov_transfer", None,
                           {"train_scenarios": [{"e0": 0.01}, {"e0": 0.02}]})
     assert "no gradient" in base.gradient_support(plain)
+
+
+def test_an_evaluation_then_its_gradient_solve_the_point_once_and_match_a_fresh_problem(
+        monkeypatch):
+    prob, rng = _plant(11, 4, 2)
+    fresh, _ = _plant(11, 4, 2)
+    Q, R = _spd(rng, 4), _spd(rng, 2)
+    solves = []
+    original = prob._rows
+    monkeypatch.setattr(prob, "_rows", lambda *a: solves.append(1) or original(*a))
+    cost = prob.evaluate_batch({"Q": Q[None], "R": R[None]}).cost[0]
+    out = prob.gradient({"Q": Q, "R": R})
+    assert len(solves) == 1  # the gradient reused the evaluation's rows
+    ref = fresh.gradient({"Q": Q, "R": R})
+    assert out.cost == ref.cost == cost
+    for name in ("Q", "R"):
+        np.testing.assert_array_equal(out.matrices[name], ref.matrices[name])
+    # another point, a batch, other starts or report metrics are computed, never served
+    prob.gradient({"Q": Q + np.eye(4), "R": R})
+    prob.evaluate_batch({"Q": np.stack([Q, Q]), "R": np.stack([R, R])})
+    prob.rows(Q[None], R[None], prob.x0[:1])
+    prob.rows(Q[None], R[None], prob.x0, metrics=True)
+    assert len(solves) == 5
+    # a point one ulp away is a new point
+    prob.rows(np.nextafter(Q, np.inf)[None], R[None], prob.x0)
+    assert len(solves) == 6

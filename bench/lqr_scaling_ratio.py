@@ -20,13 +20,19 @@ and ``max_evals``), both in this process with one BLAS thread.
    reach J* within B evaluations, X s; lbfgs used Y s: ratio < Y/X" (medians over the
    seeds where lbfgs reached J*).
 
+3. **The rows cache** (``--rows-cache``): per seed, before the two starts above, one more
+   lbfgs start on the same problem with its single-candidate rows cache off (every
+   evaluation and every gradient solves its point, as before the cache); prints the CPU to
+   reach J* without and with the cache and their ratio (min and median over the seeds).
+
 Usage: ``OPENBLAS_NUM_THREADS=1 python bench/lqr_scaling_ratio.py [--sizes 4 8 16 32]
-[--race-sizes 4 8 16] [--seeds 3] [--pairs 15] [--cmaes-cap 20000]``.
+[--race-sizes 4 8 16] [--seeds 3] [--pairs 15] [--cmaes-cap 20000] [--rows-cache]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -73,6 +79,15 @@ def gradient_ratio(prob: lqr.LQRProblem, pairs: int) -> tuple[float, float, floa
             float(timing.ratio.min()), float(np.median(timing.ratio)))
 
 
+def without_rows_cache(prob: lqr.LQRProblem) -> lqr.LQRProblem:
+    """``prob`` with its single-candidate rows cache off: every call of ``rows`` computes
+    (the problem before the cache)."""
+    clone = copy.copy(prob)
+    clone.rows = lambda Q, R, X0, thresholds=None, metrics=False: clone._rows(  # type: ignore[method-assign]
+        Q, R, X0, thresholds, metrics)
+    return clone
+
+
 def race(name: str, prob: lqr.LQRProblem, options: dict[str, object], seed: int
          ) -> tuple[float, float, float]:
     """(CPU s to reach J* within RTOL or inf, evaluations to reach or inf, CPU s of the
@@ -89,6 +104,8 @@ def main() -> None:
     ap.add_argument("--race-sizes", type=int, nargs="*", default=None,
                     help="sizes of the CMA-ES / lbfgs race (default: every size; given "
                          "without sizes: no race)")
+    ap.add_argument("--rows-cache", action="store_true",
+                    help="also time lbfgs without the problem's rows cache (per seed)")
     ap.add_argument("--cmaes-cap", type=int, default=None,
                     help="cap of CMA-ES's evaluations per start (default: the study's)")
     args = ap.parse_args()
@@ -110,9 +127,13 @@ def main() -> None:
                 print(f"{n:>3} {dim:>4} {ev_ms:8.3f} {gr_ms:8.3f} {g_min:13.2f} {g_med:7.2f} |"
                       " (no race)", flush=True)
                 continue
-            rows = []
+            rows, cache = [], []
             for seed in range(args.seeds):
+                if args.rows_cache:
+                    off, _, _ = race("lbfgs", without_rows_cache(prob), settings["lbfgs"], seed)
                 lb_cpu, _, _ = race("lbfgs", prob, settings["lbfgs"], seed)
+                if args.rows_cache:
+                    cache.append((off, lb_cpu))
                 cm_cpu, cm_ev, cm_total = race("cmaes", prob, settings["cmaes"], seed)
                 rows.append((lb_cpu, min(cm_cpu, cm_total), cm_ev, np.isfinite(cm_cpu)))
             a = np.asarray(rows, float)
@@ -125,6 +146,12 @@ def main() -> None:
                   f"{np.median(a[:, 0]):8.3g} {np.median(a[:, 1]):9.3g} "
                   f"{np.median(a[:, 2]):11.6g} {reached:>11} {bound}{lo:9.3g} "
                   f"{bound}{mid:9.3g}", flush=True)
+            if cache:
+                c = np.asarray(cache, float)
+                notes.append(f"n = {n}: lbfgs CPU to J* without / with the rows cache, median "
+                             f"{np.median(c[:, 0]):.3g} / {np.median(c[:, 1]):.3g} s; ratio "
+                             f"min {np.min(c[:, 0] / c[:, 1]):.3g}, median "
+                             f"{np.median(c[:, 0] / c[:, 1]):.3g}")
             missed = ~a[:, 3].astype(bool)
             if missed.any() and ok.any():
                 y, x = np.median(a[ok, 0]), np.median(a[ok, 1])

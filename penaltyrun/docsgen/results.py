@@ -360,7 +360,8 @@ class Context:
         """The held-out answer of one cell's best-known pair in words: scenarios where full
         is cheaper, median J_full / J_diag with its 5–95 % range, the Wilcoxon signed-rank
         test of the log ratios (Holm), the arrival shift, the horizon it was judged at and
-        convergence there and by the training deadline."""
+        convergence there and by the training deadline (escaped for a Markdown table
+        cell: the answer table holds it)."""
         from penaltyrun.report.holdout import BEST_KNOWN
         from penaltyrun.report.verdict import horizon_words, ratio_words
 
@@ -371,7 +372,7 @@ class Context:
             raise ValueError(f"{name}: {len(held)} best-known held-out rows for "
                              f"{problem} / {case} [{variant}]")
         h = held.iloc[0].to_dict()
-        return f"{ratio_words(h)}; {horizon_words(h)}"
+        return md_cell(f"{ratio_words(h)}; {horizon_words(h)}")
 
     def held_out(self, name: str, spec: str = ".4g") -> str:
         """The report's held-out table (``holdout.csv``: one row per cell × full map and

@@ -185,6 +185,7 @@ class LQRProblem:
         gradient optimizer evaluates a point and then asks for its gradient
         (:meth:`gradient`), which needs the same rows, so the Riccati equation and the
         closed loop are solved once per point (the returned arrays are shared: read only).
+        A copy of the problem (another horizon) never answers from the original's rows.
 
         Returns
         -------
@@ -197,11 +198,17 @@ class LQRProblem:
         single = Q.shape[0] == 1 and X0 is self.x0 and thresholds is None and not metrics
         if not single:
             return self._rows(Q, R, X0, thresholds, metrics)
-        key = b"|".join(part for M in (Q, R) for part in
-                        (np.asarray(M).dtype.str.encode(), np.ascontiguousarray(M).tobytes()))
-        if self._last_single is None or self._last_single[0] != key:
-            self._last_single = (key, self._rows(Q, R, X0, None, False))
-        return self._last_single[1]
+        # id(self): a shallow copy (another horizon, :func:`~penaltyrun.problems.horizon.
+        # at_horizon`) starts with this entry but must compute its own rows
+        key = str(id(self)).encode() + b"|" + b"|".join(
+            part for M in (Q, R)
+            for part in (np.asarray(M).dtype.str.encode(), np.ascontiguousarray(M).tobytes()))
+        last = self._last_single  # read once: another thread may replace it
+        if last is not None and last[0] == key:
+            return last[1]
+        res = self._rows(Q, R, X0, None, False)
+        self._last_single = (key, res)
+        return res
 
     def _rows(self, Q: np.ndarray, R: np.ndarray, X0: np.ndarray,
               thresholds: np.ndarray | None, metrics: bool) -> dict[str, np.ndarray]:

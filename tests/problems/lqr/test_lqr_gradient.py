@@ -247,3 +247,17 @@ def test_an_evaluation_then_its_gradient_solve_the_point_once_and_match_a_fresh_
     # a point one ulp away is a new point
     prob.rows(np.nextafter(Q, np.inf)[None], R[None], prob.x0)
     assert len(solves) == 6
+
+
+def test_a_copy_at_another_horizon_never_answers_from_the_original_s_rows():
+    from penaltyrun.problems.horizon import at_horizon
+
+    prob, rng = _plant(12, 3, 1)
+    Q, R = _spd(rng, 3), _spd(rng, 1)
+    short = prob.evaluate_batch({"Q": Q[None], "R": R[None]}).cost[0]
+    longer = at_horizon(prob, 4 * prob.t_max, t_max=4 * prob.t_max)
+    fresh = at_horizon(_plant(12, 3, 1)[0], 4 * prob.t_max, t_max=4 * prob.t_max)
+    cost = longer.evaluate_batch({"Q": Q[None], "R": R[None]}).cost[0]
+    assert cost == fresh.evaluate_batch({"Q": Q[None], "R": R[None]}).cost[0]
+    assert cost != short
+    assert prob.evaluate_batch({"Q": Q[None], "R": R[None]}).cost[0] == short

@@ -417,21 +417,28 @@ class Context:
         return " / ".join(values)
 
     def late_gain(self, name: str, where: dict | None = None, share: float = 0.5) -> float:
-        """How far the starts were from converged: the median over the finished starts
+        """How far the searches were from converged: the median over the finished starts
         matching ``where`` of the relative fall of the best-so-far cost over the last
-        ``1 - share`` of each start's evaluations, (best at ``share`` · n_evals − final
-        best) / |final best|, in % (from the anytime trace; 0 where nothing improved; NaN
-        without finished starts)."""
+        ``1 - share`` of each start's search, (best at ``share`` · S − best at S) / |best at
+        S| in %, S the search's evaluations (``n_evals`` less the polish's
+        ``polish_evals``: a polish ends on its own criteria, and what it gains is not a
+        search still improving). From the anytime trace; 0 where nothing improved; NaN
+        without finished starts."""
         import numpy as np
         frame = self.study(name).rows(where)
         frame = frame[frame["status"] == OK]
+        polish = frame["polish_evals"] if "polish_evals" in frame else [0] * len(frame)
         gains = []
-        for evals, best, spent in zip(frame["trace_evals"], frame["trace_best"],
-                                      frame["n_evals"]):
+        for evals, best, spent, polished in zip(frame["trace_evals"], frame["trace_best"],
+                                                frame["n_evals"], polish):
             evals, best = np.asarray(evals, float), np.asarray(best, float)
-            final = float(best[-1]) if best.size else float("nan")
-            before = evals <= share * float(spent)
-            if not before.any() or not np.isfinite(final) or final == 0.0:
+            search = float(spent) - (float(polished) if np.isfinite(polished) else 0.0)
+            at_end = evals <= search
+            before = evals <= share * search
+            if not before.any():
+                continue
+            final = float(best[at_end][-1])
+            if not np.isfinite(final) or final == 0.0:
                 continue
             gains.append(100.0 * (float(best[before][-1]) - final) / abs(final))
         return float(np.median(gains)) if gains else float("nan")

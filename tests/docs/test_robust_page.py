@@ -57,6 +57,19 @@ def test_late_gain_is_the_median_fall_over_the_second_half(tmp_path):
     assert math.isnan(ctx.late_gain("s", {"param": "cayley"}))
 
 
+def test_late_gain_leaves_out_what_the_polish_gained(tmp_path):
+    # the search spent 80 evaluations, the polish the last 20 (its gain at 90 not counted)
+    frame = _frame().assign(polish_evals=[20, 20, 0, 0])
+    ctx = _context(tmp_path, frame)
+    # first start: best 2.0 at 40 (half of 80) and at the search's end, 1.0 only at 90
+    # (the polish): 0 %; second start: 4.0 at 40, 2.0 at 60: 100 %
+    assert ctx.late_gain("s", {"param": "diagonal"}) == pytest.approx(50.0)
+    # a search that stalled and a polish that then gained: no late gain
+    stalled = _frame().assign(trace_evals=[np.array([10, 90])] * 4,
+                              trace_best=[np.array([2.0, 1.0])] * 4, polish_evals=20)
+    assert _context(tmp_path / "b", stalled).late_gain("s", {"param": "diagonal"}) == 0.0
+
+
 def test_problem_params_agree_or_say_that_they_differ(tmp_path):
     ctx = _context(tmp_path, _frame())
     assert ctx.problem_params("s", "rho") == 1e-3

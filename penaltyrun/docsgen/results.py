@@ -443,6 +443,16 @@ class Context:
             gains.append(100.0 * (float(best[before][-1]) - final) / abs(final))
         return float(np.median(gains)) if gains else float("nan")
 
+    def largest_late_gain(self, name: str, best_known: bool = False) -> float:
+        """The largest :meth:`late_gain` of the study's cells (problem × case × map ×
+        optimizer), or of the cells holding a best-known value (``best_known``, from the
+        ``best_known`` table); 0 where no cell has one."""
+        keys = ["problem", "case", "param", "optimizer"]
+        frame = self.study(name).table("best_known") if best_known else self.study(name).df
+        gains = [self.late_gain(name, cell)
+                 for cell in frame[keys].drop_duplicates().to_dict("records")]
+        return max([0.0, *(g for g in gains if g == g)])  # NaN: a cell without finished starts
+
     def polished(self, names: list[str]) -> list[str]:
         """The studies among ``names`` that are committed and whose searches were refined by
         the exact-gradient polish (``optimizer.polish: gradient``), in the given order."""
@@ -552,7 +562,8 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                        table_number=ctx.table_number,
                        verdict=ctx.verdict, answers=ctx.answers,
                        held_out_words=ctx.held_out_words, basins=ctx.basins,
-                       late_gain=ctx.late_gain, problem_params=ctx.problem_params,
+                       late_gain=ctx.late_gain, largest_late_gain=ctx.largest_late_gain,
+                       problem_params=ctx.problem_params,
                        optimizer_setting=ctx.optimizer_setting,
                        polished=ctx.polished, polish_endings=ctx.polish_endings,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,

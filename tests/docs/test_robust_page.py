@@ -70,6 +70,16 @@ def test_late_gain_leaves_out_what_the_polish_gained(tmp_path):
     assert _context(tmp_path / "b", stalled).late_gain("s", {"param": "diagonal"}) == 0.0
 
 
+def test_largest_late_gain_over_every_cell_or_the_best_known_cells(tmp_path):
+    frame = _frame().assign(case="c", optimizer="cmaes")
+    ctx = _context(tmp_path, frame)
+    assert ctx.largest_late_gain("s") == pytest.approx(100.0)  # diagonal 100 %, geagsp 0 %
+    best = pd.DataFrame({"problem": ["p"], "case": ["c"], "param": ["geagsp"],
+                         "optimizer": ["cmaes"]})
+    ctx.study("s").table = lambda stem: best  # the best-known table names geagsp alone
+    assert ctx.largest_late_gain("s", best_known=True) == 0.0
+
+
 def test_problem_params_agree_or_say_that_they_differ(tmp_path):
     ctx = _context(tmp_path, _frame())
     assert ctx.problem_params("s", "rho") == 1e-3

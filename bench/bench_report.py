@@ -18,7 +18,9 @@ base/report and report/read.
 writer of the report's memory tests, ``tests/report/large_results.py``) and times the
 report of them alone (read lazily above 100 000 rows), with its progress bar off; with
 ``--steps`` it prints instead the resident memory as each step of the report begins and
-the bytes per row of the frame the report holds.
+the bytes per row of the frame the report holds. Both run the report twice: with the
+allocators' defaults and with the process settings of ``penaltyrun-report``
+(:func:`penaltyrun.io.read.lean_process_memory`).
 
 ``--bca`` times the BCa interval of one cell (:func:`penaltyrun.report.stats.bca_ci`, its
 jackknife in closed form) against :func:`scipy.stats.bootstrap` (its jackknife evaluates
@@ -58,6 +60,11 @@ READ = ("import sys\nfrom penaltyrun.io import read_results\n"
         "print(len(read_results(sys.argv[1])), 'rows')\n")
 REPORT = ("import sys\nfrom penaltyrun.cli import report_main\n"
           "report_main([sys.argv[1], '-o', sys.argv[2]])\n")
+#: :data:`REPORT` with the allocators' defaults (the command line sets them up to give
+#: freed memory back: :func:`penaltyrun.io.read.lean_process_memory`).
+REPORT_DEFAULT_MEMORY = REPORT.replace(
+    "import sys\n", "import sys\nimport penaltyrun.io.read as r\n"
+    "r.lean_process_memory = lambda: None\n", 1)
 #: The report of ``sys.argv[1]`` with the resident memory (now and peak) printed as each
 #: step of its progress bar begins, and the bytes per row of the frame it holds.
 STEPS = """
@@ -72,6 +79,9 @@ def rss():
 def peak():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
+if sys.argv[3] == "lean":  # the command line's process settings (penaltyrun-report)
+    from penaltyrun.io.read import lean_process_memory
+    lean_process_memory()
 begin, step = time.process_time(), Steps.step
 def logged(self, name):
     print(f"| {name} | {time.process_time() - begin:.1f} | {rss():.0f} | {peak():.0f} |",
@@ -126,13 +136,19 @@ def large(rows: int, steps: bool = False) -> None:
         src = write_large_results(Path(tmp) / "results", rows)
         if steps:
             env = {**os.environ, "PYTHONPATH": str(ROOT)}
-            subprocess.run([sys.executable, "-c", STEPS, str(src), f"{tmp}/report"],
-                           env=env, check=True)
+            for memory in ("default", "lean"):
+                print(f"\nprocess memory settings: {memory}")
+                subprocess.run([sys.executable, "-c", STEPS, str(src), f"{tmp}/report",
+                                memory], env=env, check=True)
             return
-        m = measure(REPORT.replace("'-o', sys.argv[2]", "'-o', sys.argv[2], '--progress', "
-                                   "'false'"), [str(src), f"{tmp}/report"], str(ROOT))
+        runs = {}
+        for memory, code in (("default", REPORT_DEFAULT_MEMORY), ("lean", REPORT)):
+            runs[memory] = measure(code.replace("'-o', sys.argv[2]", "'-o', sys.argv[2], "
+                                                "'--progress', 'false'"),
+                                   [str(src), f"{tmp}/report"], str(ROOT))
     print("| run | CPU s | wall s | peak RSS MB |\n|---|---|---|---|")
-    print(_row(f"report of {rows} rows", m))
+    for memory, m in runs.items():
+        print(_row(f"report of {rows} rows, process memory settings {memory}", m))
 
 
 def bca() -> None:

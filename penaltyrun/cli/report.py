@@ -56,6 +56,9 @@ def report_main(argv: list[str] | None = None) -> None:
         raise
     from penaltyrun import problems, report
     from penaltyrun.cli import progress
+    from penaltyrun.io.read import lean_process_memory
+
+    lean_process_memory()
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     install_signal_handlers()

@@ -36,7 +36,7 @@ from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, FIRST_ORDER_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
 from penaltyrun.report.progress import Steps
-from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS, lazy, with_columns
+from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS, groups, lazy, with_columns
 from penaltyrun.report.stats import BCA_MAX_N, MIN_N_TEST, add_variant, cell_summary
 from penaltyrun.report.tables import (
     StemBook,
@@ -400,7 +400,7 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
     body = checks(df)
     if body:
         lines += ["## Checks", ""] + body + [""]
-    for k, (key, g) in enumerate(df.groupby(["problem", "case", "variant"], sort=True)):
+    for k, (key, g) in enumerate(groups(df, ["problem", "case", "variant"])):
         steps.step(f"case {k + 1}/{n_cases}: " + " / ".join(str(x) for x in key if x))
         lines += _case_lines(g, ctx, out, paper)
     steps.step(STEPS[7])

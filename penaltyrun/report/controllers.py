@@ -37,7 +37,7 @@ from penaltyrun.problems.base import ClosedLoop
 from penaltyrun.problems.hooks import hooks
 from penaltyrun.report import protocol
 from penaltyrun.report.controller_plots import channel_figure, cost_mode_scatter, pole_map
-from penaltyrun.report.rows import full_row, with_columns
+from penaltyrun.report.rows import full_row, groups, with_columns
 from penaltyrun.report.stats import converged
 from penaltyrun.report.tables import fmt, markdown, md_text, with_unit
 
@@ -358,7 +358,7 @@ def csv_rows(df: pd.DataFrame) -> pd.DataFrame:
     """The ``controllers`` table: one row per problem × case × variant × map with the best
     start's job id and its closed-loop diagnostics (numbers, not text)."""
     rows = []
-    for (problem, case, variant), g in df.groupby(["problem", "case", "variant"], sort=True):
+    for (problem, case, variant), g in groups(df, ["problem", "case", "variant"]):
         for _, r in controller_rows(g).iterrows():
             loop = r["loop"]
             d = dg.diagnose(loop) if loop is not None else None

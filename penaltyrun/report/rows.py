@@ -10,8 +10,9 @@ return what they are given, so each section computes the same on either.
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Iterable
+from collections.abc import Hashable, Iterable, Iterator
 
+import numpy as np
 import pandas as pd
 
 from penaltyrun.io.read import LAZY_COLUMNS, ROW, SOURCE, fill_columns
@@ -68,6 +69,25 @@ def full_row(df: pd.DataFrame, label: Hashable) -> pd.Series:
     return with_columns(df.loc[[label]]).iloc[0]
 
 
+def groups(df: pd.DataFrame, keys: list[str]) -> Iterator[tuple[tuple, pd.DataFrame]]:
+    """``(key, rows)`` of each group of ``df`` by ``keys``, in the order and with the rows
+    of ``df.groupby(keys, sort=True)`` (rows with a missing key left out), one group at a
+    time.
+
+    Iterating a pandas groupby first copies the whole frame sorted by group and holds the
+    copy until the loop ends; a report's case sections take most of its time and, of a
+    large results set, that copy would be as large as the frame itself. Here only the
+    group numbers (8 bytes a row) are held besides the group being worked on.
+    """
+    grouped = df.groupby(keys, sort=True, observed=True)
+    codes = grouped.ngroup().fillna(-1).to_numpy(np.int64)
+    order = np.argsort(codes, kind="stable")
+    bounds = np.searchsorted(codes[order], np.arange(grouped.ngroups + 1))
+    for k in range(grouped.ngroups):
+        rows = df.take(order[bounds[k]:bounds[k + 1]])
+        yield tuple(rows[c].iloc[0] for c in keys), rows
+
+
 __all__ = ["FRAME_COLUMNS", "REPORT_COLUMNS", "ROW_COLUMNS", "SINGLE_ROW_COLUMNS",
-           "TRACE_COLUMNS", "UNUSED_COLUMNS", "full_row", "has", "lazy", "narrow",
+           "TRACE_COLUMNS", "UNUSED_COLUMNS", "full_row", "groups", "has", "lazy", "narrow",
            "with_columns"]

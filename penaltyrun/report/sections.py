@@ -17,7 +17,7 @@ from penaltyrun.problems import report_hooks  # noqa: E402
 from penaltyrun.problems.base import ReportSection  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, family  # noqa: E402
-from penaltyrun.report.rows import full_row, narrow, with_columns  # noqa: E402
+from penaltyrun.report.rows import full_row, groups, narrow, with_columns  # noqa: E402
 from penaltyrun.report.stats import converged, holm, paper_value  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
     alt_text,
@@ -92,7 +92,7 @@ def paper_matrix_rows(df: pd.DataFrame) -> pd.DataFrame:
     tables = []
     df = narrow(df, ["problem", "case", "variant", "problem_params", "optimizer", "param",
                      "status", "best_converged", "best_cost", "matrices"])
-    for (problem, case, variant), g in df.groupby(["problem", "case", "variant"], sort=True):
+    for (problem, case, variant), g in groups(df, ["problem", "case", "variant"]):
         rows = _paper_matrix_table(g)
         if not rows.empty:
             rows.insert(0, "variant", variant)

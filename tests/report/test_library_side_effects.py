@@ -20,17 +20,23 @@ def test_the_library_report_keeps_arrows_memory_pool_the_command_line_makes_it_l
     """Reporting through the library leaves Arrow's memory pool as the caller had it; the
     command line (a process of its own) gives freed memory back to the system
     (:func:`penaltyrun.io.read.lean_process_memory`)."""
+    from large_results import write_large_results
+
+    src = write_large_results(tmp_path / "results", 24)
     code = ("import sys, pyarrow as pa, penaltyrun.report as r\n"
+            "from pathlib import Path\n"
             "before = pa.default_memory_pool().backend_name\n"
-            "try:\n    r.build_report(sys.argv[1], sys.argv[2])\n"
-            "except FileNotFoundError:\n    pass\n"
-            "print(before, pa.default_memory_pool().backend_name)\n"
+            "r.build_report(Path(sys.argv[1]), Path(sys.argv[2]) / 'lib', basin_points=0)\n"
+            "print('pool', before, pa.default_memory_pool().backend_name)\n"
             "from penaltyrun.cli import report_main\n"
-            "try:\n    report_main([sys.argv[1], '-o', sys.argv[2]])\n"
-            "except SystemExit:\n    pass\n"
-            "print(pa.default_memory_pool().backend_name)\n")
-    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "none"),
-                          str(tmp_path / "out")], capture_output=True, text=True,
-                         check=True).stdout.split()
-    assert out[0] == out[1] != "system"
-    assert out[2] == "system"
+            "report_main([sys.argv[1], '-o', sys.argv[2] + '/cli', '--basin-points', '0'])\n"
+            "print('pool', pa.default_memory_pool().backend_name)\n")
+    done = subprocess.run([sys.executable, "-c", code, str(src), str(tmp_path)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    library, command_line = (line.split()[1:] for line in done.stdout.splitlines()
+                             if line.startswith("pool "))
+    assert library[0] == library[1] != "system"
+    assert command_line == ["system"]
+    assert (tmp_path / "lib" / "report.md").is_file()
+    assert (tmp_path / "cli" / "report.md").is_file()

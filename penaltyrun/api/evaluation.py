@@ -65,7 +65,8 @@ def evaluate_matrices(prob: Any, matrices: Mapping[str, Any],
 
 
 def decode_z(layout: Any, z: Any) -> tuple[dict[str, Any], dict[str, float]]:
-    """Matrices and scalars of a decision vector ``z`` (list of numbers, ``z_names`` order).
+    """Matrices and scalars of a decision vector ``z`` (list or 1-D array of numbers,
+    ``z_names`` order).
 
     Raises
     ------
@@ -73,6 +74,8 @@ def decode_z(layout: Any, z: Any) -> tuple[dict[str, Any], dict[str, float]]:
         ``z`` not a list of numbers, of the wrong length or outside the box.
     """
     names = layout.names()
+    if isinstance(z, np.ndarray) and z.ndim == 1:
+        z = z.tolist()  # e.g. a result's best_z: its numbers, checked like a list's
     if not isinstance(z, Sequence) or isinstance(z, str) or \
             not all(is_number(v) for v in z):
         raise ConfigError("z", f"must be a list of {len(names)} numbers in the order "
@@ -179,7 +182,7 @@ def evaluate(problem: Any, matrices: Mapping[str, Any] | None = None, *,
         Problem parameter overrides.
     scalars : mapping, optional
         Extra scalars of the problem (e.g. ``eta_cut`` of ``qlaw``).
-    z : sequence of float, optional
+    z : sequence of float or ndarray (n_z,), optional
         The candidate as the optimizer's decision vector instead of ``matrices``, in the
         order of ``z_names`` of the map ``param``.
     param : str

@@ -27,6 +27,15 @@ def test_z_gives_the_same_cost_as_its_matrices():
     assert by_z["z_names"] == ["Q.lam1", "Q.lam2", "Q.lam3", "R.lam1", "R.lam2"]
 
 
+def test_z_as_a_numpy_array_equals_the_list():
+    """A result's ``best_z`` is an array: it is taken as its numbers; a 2-D one is refused."""
+    by_array = penaltyrun.evaluate("lqr", z=np.asarray(Z), param="diagonal", gradient=True)
+    by_list = penaltyrun.evaluate("lqr", z=Z, param="diagonal", gradient=True)
+    assert by_array["cost"] == by_list["cost"] and by_array["grad"] == by_list["grad"]
+    with pytest.raises(ConfigError, match="must be a list of 5 numbers"):
+        penaltyrun.evaluate("lqr", z=np.asarray([Z]), param="diagonal")
+
+
 @pytest.mark.parametrize("param", ["diagonal", "full", "givens"])
 def test_gradient_matches_central_differences_of_evaluate(param):
     rng = np.random.default_rng(3)

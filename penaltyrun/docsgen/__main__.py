@@ -16,6 +16,9 @@ Commands (every one takes ``--root``, the repository root, default the current f
 * ``study rejudge NAME``: re-evaluate the study's stored best matrices on the held-out set at
   the held-out horizon, write ``studies/NAME/holdout_long.parquet`` and the tables
   (:mod:`penaltyrun.docsgen.rejudge`; ``--jobs paired`` re-judges only the paired starts);
+* ``study probe NAME``: probe each problem × case's best diagonal and full point for cliffs
+  of the criterion (one variable at a time, steps of 1e-6 to 1e-3 of its range) and write
+  ``studies/NAME/probe.csv`` (:mod:`penaltyrun.docsgen.probe`);
 * ``study tables NAME``: rebuild ``studies/NAME/tables`` from the committed data (after a
   report change; nothing is re-run).
 """
@@ -27,7 +30,7 @@ import logging
 import sys
 from pathlib import Path
 
-from penaltyrun.docsgen import rejudge, results, studies
+from penaltyrun.docsgen import probe, rejudge, results, studies
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -47,7 +50,8 @@ def main(argv: list[str] | None = None) -> int:
                              help="only the generated files whose path starts with PREFIX "
                              "(e.g. docs/explanation); check then skips the study tables")
     study = sub.add_parser("study", help="run or merge a study")
-    study.add_argument("action", choices=("list", "run", "merge", "rejudge", "tables"))
+    study.add_argument("action", choices=("list", "run", "merge", "rejudge", "probe",
+                                                  "tables"))
     study.add_argument("name", nargs="?")
     study.add_argument("--run-dir", type=Path, help="fixed run directory "
                        "(default outputs/studies/NAME)")
@@ -94,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name}: {studies.load_study(root, name).title}")
         return 0
     if not args.name:
-        parser.error("study run/merge/rejudge/tables needs a NAME")
+        parser.error("study run/merge/rejudge/probe/tables needs a NAME")
     try:
         if args.action == "run":
             studies.run_study(root, args.name, run_dir=args.run_dir,
@@ -106,6 +110,8 @@ def main(argv: list[str] | None = None) -> int:
         elif args.action == "rejudge":
             rejudge.rejudge_study(root, args.name, jobs=args.jobs, workers=args.workers,
                                   tables=not args.no_tables)
+        elif args.action == "probe":
+            probe.probe_study(root, args.name, workers=args.workers)
         else:
             studies.merge_study(root, args.name, run_dir=args.run_dir, dest=args.dest,
                                 tables=not args.no_tables)

@@ -166,7 +166,8 @@ def horizon_settings(df: Any) -> list[dict[str, Any]]:
     return rows
 
 
-def _workers(workers: int | str) -> int:
+def workers_of(workers: int | str) -> int:
+    """Worker processes for ``workers`` ("auto": the cores available to this process)."""
     if workers == "auto":
         from penaltyrun.runner.options import available_cores
         return max(1, available_cores())
@@ -205,7 +206,7 @@ def rejudge_study(root: Path, name: str, *, jobs: str = "all", workers: int | st
     columns = ["job_id", "config_hash", "problem", "case", "problem_params", "matrices",
                "scalars"]
     records = todo[columns].to_dict("records")
-    n_workers = min(_workers(workers), len(records))
+    n_workers = min(workers_of(workers), len(records))
     logger.info("rejudge %s: %d of %d jobs (%s), %d worker(s)", name, len(records), len(df),
                 jobs, n_workers)
     rows, t0, last = [], time.perf_counter(), 0.0

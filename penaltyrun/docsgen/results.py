@@ -25,7 +25,7 @@ from typing import Any
 
 import jinja2
 
-from penaltyrun.docsgen import experiments, explanation
+from penaltyrun.docsgen import experiments, explanation, probe
 from penaltyrun.docsgen.layout import (
     MAX_COLUMNS,
     fmt,
@@ -566,6 +566,8 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                        problem_params=ctx.problem_params,
                        optimizer_setting=ctx.optimizer_setting,
                        polished=ctx.polished, polish_endings=ctx.polish_endings,
+                       cliffs=lambda name: probe.cliff_table(root, name),
+                       cliff_counts=lambda name: probe.cliff_counts(root, name),
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        full_matrix=(figures or explanation.Figures(root)).full_matrix,
                        multi_column=multi_column,

@@ -1,0 +1,193 @@
+"""Probe a committed study's best points for cliffs of the criterion.
+
+``python -m penaltyrun.docsgen study probe NAME`` reads ``studies/NAME/results.parquet``,
+takes each problem × case's best converged diagonal and full start (over every optimizer,
+as the best-known table does), rebuilds its problem from the stored ``problem``, ``case``,
+``problem_params`` and its decision layout from ``param`` and ``param_options``, and runs
+:func:`penaltyrun.optim.probe.probe` around its stored ``best_z``. It writes
+
+* ``studies/NAME/probe.csv``: one row per probed point: where it comes from, its cost
+  (recomputed, and the record's), and per step of the ladder the largest relative cost
+  change from moving one variable by that fraction of its range, the variable that gave it
+  and how many steps changed whether the run converged; the most negative change of all
+  steps and its step (a step that lowers the cost: the point is not a local minimum along
+  that variable); the CPU seconds it took;
+* ``studies/NAME/probe.json``: provenance (git commit, package versions, ladder).
+
+The results pages read the CSV; nothing is evaluated when they are rendered.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from penaltyrun.docsgen.rejudge import git_commit, workers_of
+from penaltyrun.docsgen.studies import (
+    RESULTS,
+    StudyError,
+    _display_path,
+    load_study,
+    package_versions,
+)
+from penaltyrun.optim.probe import CLIFF, STEPS, probe
+
+logger = logging.getLogger(__name__)
+
+#: Data file and provenance file of a study's probe.
+PROBE_FILE, PROBE_PROVENANCE = "probe.csv", "probe.json"
+#: Columns of :data:`PROBE_FILE` before the per-step ones.
+KEYS = ["problem", "case", "map", "optimizer", "param", "start", "job_id", "record_cost",
+        "cost", "converged", "smallest_cliff_step", "lowest_change_pct",
+        "lowest_change_step", "cpu_s"]
+
+
+def step_columns(step: float) -> list[str]:
+    """The three columns of one step of the ladder: largest |Δ| (in %), its variable, and
+    the number of steps whose run changed its convergence."""
+    return [f"change_pct@{step:g}", f"variable@{step:g}", f"status_changes@{step:g}"]
+
+
+def probe_record(record: dict[str, Any], steps: tuple[float, ...] = STEPS) -> dict[str, Any]:
+    """Probe one stored best point (a results row as a dict); the row of
+    :data:`PROBE_FILE`."""
+    from penaltyrun.io import decode_json
+    from penaltyrun.report import protocol
+    from penaltyrun.runner.setup import build_layout
+
+    t0 = time.process_time()
+    prob = protocol.rebuild(record["problem"], record["case"], record.get("problem_params"))
+    if prob is None:
+        raise StudyError(f"cannot rebuild problem {record['problem']!r}, case "
+                         f"{record['case']!r} from the stored parameters")
+    layout = build_layout(prob, str(record["param"]),
+                          decode_json(record.get("param_options")) or {})
+    lb, ub = layout.bounds()
+
+    def cost_batch(batch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        mats, scalars = layout.split(batch)
+        out = prob.evaluate_batch(mats, scalars or None)
+        return out.cost, out.converged
+
+    result = probe(cost_batch, np.asarray(record["best_z"], float), lb, ub, steps)
+    names = layout.names()
+    lowest, lowest_step = result.lowest()
+    row = {"problem": record["problem"], "case": record["case"], "map": record["family"],
+           "optimizer": record["optimizer"], "param": record["param"],
+           "start": int(record["start"]), "job_id": record["job_id"],
+           "record_cost": float(record["best_cost"]), "cost": result.cost,
+           "converged": result.converged,
+           "smallest_cliff_step": result.smallest_cliff_step(CLIFF),
+           "lowest_change_pct": 100.0 * lowest, "lowest_change_step": lowest_step,
+           "cpu_s": round(time.process_time() - t0, 1)}
+    changes = result.status_change.reshape(len(steps), -1).sum(axis=1)
+    for k, (step, largest, worst) in enumerate(zip(steps, result.largest(),
+                                                   result.worst_variable())):
+        pct, var, flips = step_columns(step)
+        row.update({pct: 100.0 * float(largest), var: names[worst] if worst >= 0 else "",
+                    flips: int(changes[k])})
+    return row
+
+
+def best_points(df: Any) -> list[dict[str, Any]]:
+    """Each problem × case's best converged diagonal and full start (the rows of
+    :func:`penaltyrun.report.bestknown.best_rows`), as dicts with their ``family``."""
+    from penaltyrun.report.bestknown import best_rows
+
+    points = []
+    for _, group in df.groupby(["problem", "case"], sort=True):
+        for family, row in sorted(best_rows(group).items()):
+            points.append({**row.to_dict(), "family": family})
+    return points
+
+
+def probe_study(root: Path, name: str, *, workers: int | str = "auto",
+                steps: tuple[float, ...] = STEPS) -> Path:
+    """Probe study ``name`` (module docstring); return the written CSV.
+
+    Raises
+    ------
+    StudyError
+        If the study has no merged results or a point's problem cannot be rebuilt.
+    """
+    import pandas as pd
+
+    from penaltyrun.io.schema import read_results
+
+    study = load_study(root, name)
+    results = study.folder / RESULTS
+    if not results.is_file():
+        raise StudyError(f"study {name!r} has no {RESULTS} (run `{study.make_target}`)")
+    points = best_points(read_results(results))
+    logger.info("probe %s: %d best points, ladder %s of each variable's range", name,
+                len(points), ", ".join(f"{s:g}" for s in steps))
+    rows = []
+    with ProcessPoolExecutor(max_workers=max(1, min(workers_of(workers), len(points)))) as pool:
+        for row in pool.map(probe_record, points, [steps] * len(points)):
+            rows.append(row)
+            logger.info("probe %s: %d/%d (%s / %s, %s): largest change %.3g %% at %g",
+                        name, len(rows), len(points), row["problem"], row["case"],
+                        row["map"], row[step_columns(steps[-1])[0]], steps[-1])
+    columns = KEYS + [c for s in steps for c in step_columns(s)]
+    path = study.folder / PROBE_FILE
+    pd.DataFrame(rows, columns=columns).to_csv(path, index=False, float_format="%.6g")
+    info = {"git_commit": git_commit(root), "packages": package_versions(),
+            "steps": list(steps), "cliff_threshold": CLIFF, "points": len(rows)}
+    (study.folder / PROBE_PROVENANCE).write_text(json.dumps(info, indent=2, sort_keys=True)
+                                                 + "\n")
+    logger.info("probe %s: wrote %s", name, _display_path(path, root))
+    return path
+
+
+
+
+def read_probe(root: Path, name: str) -> Any:
+    """The committed probe of study ``name`` as a DataFrame, or None without one."""
+    import pandas as pd
+    path = Path(root) / "studies" / name / PROBE_FILE
+    return pd.read_csv(path) if path.is_file() else None
+
+
+def cliff_table(root: Path, name: str, spec: str = ".3g") -> str:
+    """The probe of study ``name`` as Markdown: per best point, the largest relative cost
+    change (%) at each step of the ladder, the smallest step that reaches a cliff
+    (:data:`~penaltyrun.optim.probe.CLIFF`) and the most negative change found; a note
+    naming the command where the study has no probe."""
+    from penaltyrun.docsgen.layout import fmt, markdown_table
+
+    frame = read_probe(root, name)
+    if frame is None:
+        return (f"*`{name}` has no probe of its best points (`python -m penaltyrun.docsgen "
+                f"study probe {name}`).*")
+    steps = [float(c.split("@", 1)[1]) for c in frame.columns if c.startswith("change_pct@")]
+    out = frame[["problem", "case", "map"]].copy()
+    out["by"] = frame["optimizer"] + "/" + frame["param"]
+    out["cost"] = frame["cost"]
+    for step in steps:
+        out[f"largest change (%) at {step:g}"] = frame[step_columns(step)[0]]
+    out[f"smallest step with a change ≥ {100 * CLIFF:g} %"] = [
+        fmt(v, "g") if v == v else f"none up to {steps[-1]:g}"
+        for v in frame["smallest_cliff_step"]]
+    out["lowest change found (%)"] = [
+        f"{fmt(v, spec)} at {fmt(s, 'g')}" if v < 0 else "none"
+        for v, s in zip(frame["lowest_change_pct"], frame["lowest_change_step"])]
+    return markdown_table(out, spec)
+
+
+def cliff_counts(root: Path, name: str, within: float = 1e-4) -> dict[str, int]:
+    """Of the probed best points of study ``name``: how many (``points``), how many reach a
+    cliff with a step of at most ``within`` of a variable's range (``cliffs``), and how many
+    a step of the ladder made cheaper (``improved``: not a local minimum at that scale).
+    All 0 without a probe."""
+    frame = read_probe(root, name)
+    if frame is None:
+        return {"points": 0, "cliffs": 0, "improved": 0}
+    step = frame["smallest_cliff_step"]
+    return {"points": int(len(frame)), "cliffs": int((step.notna() & (step <= within)).sum()),
+            "improved": int((frame["lowest_change_pct"] < 0).sum())}

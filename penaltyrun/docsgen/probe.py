@@ -159,6 +159,8 @@ def cliff_table(root: Path, name: str, spec: str = ".3g") -> str:
     change (%) at each step of the ladder, the smallest step that reaches a cliff
     (:data:`~penaltyrun.optim.probe.CLIFF`) and the most negative change found; a note
     naming the command where the study has no probe."""
+    import pandas as pd
+
     from penaltyrun.docsgen.layout import fmt, markdown_table
 
     frame = read_probe(root, name)
@@ -166,7 +168,8 @@ def cliff_table(root: Path, name: str, spec: str = ".3g") -> str:
         return (f"*`{name}` has no probe of its best points (`python -m penaltyrun.docsgen "
                 f"study probe {name}`).*")
     steps = [float(c.split("@", 1)[1]) for c in frame.columns if c.startswith("change_pct@")]
-    out = frame[["problem", "case", "map"]].copy()
+    out = pd.DataFrame({"problem / case": frame["problem"] + " / " + frame["case"],
+                        "map": frame["map"]})
     out["by"] = frame["optimizer"] + "/" + frame["param"]
     out["cost"] = frame["cost"]
     for step in steps:

@@ -70,7 +70,7 @@ def test_cliff_table_and_counts_read_the_committed_probe(tmp_path):
                       "cliffs": int((frame["smallest_cliff_step"] <= 1e-4).sum()),
                       "improved": int((frame["lowest_change_pct"] < 0).sum())}
     for (_, row), line in zip(frame.iterrows(), table[2:]):
-        assert line.startswith(f"| {row['problem']} | {row['case']} | {row['map']} |")
+        assert line.startswith(f"| {row['problem']} / {row['case']} | {row['map']} |")
         assert ("none" in line.split("|")[-2]) == (row["lowest_change_pct"] >= 0)
 
 

@@ -41,6 +41,10 @@ def report_main(argv: list[str] | None = None) -> None:
     parser.add_argument("--basin-points", metavar="N", type=int, default=None,
                         help="grid points per axis of the basin-of-attraction maps of the "
                              "best diagonal and full gains (default 16; 0: no maps)")
+    parser.add_argument("--no-probe", action="store_true",
+                        help="leave out the probe of each case's best diagonal and full "
+                             "point for cliffs of the criterion (each variable moved alone "
+                             "by 1e-6 to 1e-3 of its range)")
     parser.add_argument("--progress", choices=("auto", "true", "false"), default="auto",
                         help="progress bar of the report's steps on stderr (auto: on a "
                              "terminal only; as runner.progress for runs)")
@@ -85,7 +89,8 @@ def report_main(argv: list[str] | None = None) -> None:
             raise ConfigError("--basin-points", f"must be 0 (no maps) or 2 to 200, got "
                               f"{args.basin_points}")
         report.build_report(src, out, paper=not args.no_paper,
-                            progress=progress.wanted(args.progress), **maps)
+                            progress=progress.wanted(args.progress),
+                            probe=not args.no_probe, **maps)
         print(f"report written to {out}")
         if args.export:
             _export(src, Path(args.export))

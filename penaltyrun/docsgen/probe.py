@@ -26,8 +26,6 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from penaltyrun.docsgen.rejudge import git_commit, workers_of
 from penaltyrun.docsgen.studies import (
     RESULTS,
@@ -36,7 +34,7 @@ from penaltyrun.docsgen.studies import (
     load_study,
     package_versions,
 )
-from penaltyrun.optim.probe import CLIFF, STEPS, probe
+from penaltyrun.optim.probe import CLIFF, STEPS
 
 logger = logging.getLogger(__name__)
 
@@ -57,26 +55,14 @@ def step_columns(step: float) -> list[str]:
 def probe_record(record: dict[str, Any], steps: tuple[float, ...] = STEPS) -> dict[str, Any]:
     """Probe one stored best point (a results row as a dict); the row of
     :data:`PROBE_FILE`."""
-    from penaltyrun.io import decode_json
-    from penaltyrun.report import protocol
-    from penaltyrun.runner.setup import build_layout
+    from penaltyrun.report.cliffs import probe_row
 
     t0 = time.process_time()
-    prob = protocol.rebuild(record["problem"], record["case"], record.get("problem_params"))
-    if prob is None:
-        raise StudyError(f"cannot rebuild problem {record['problem']!r}, case "
-                         f"{record['case']!r} from the stored parameters")
-    layout = build_layout(prob, str(record["param"]),
-                          decode_json(record.get("param_options")) or {})
-    lb, ub = layout.bounds()
-
-    def cost_batch(batch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        mats, scalars = layout.split(batch)
-        out = prob.evaluate_batch(mats, scalars or None)
-        return out.cost, out.converged
-
-    result = probe(cost_batch, np.asarray(record["best_z"], float), lb, ub, steps)
-    names = layout.names()
+    probed = probe_row(record, steps)
+    if probed is None:
+        raise StudyError(f"cannot probe {record['job_id']}: problem {record['problem']!r}, "
+                         f"case {record['case']!r} not rebuilt from the stored parameters")
+    result, names = probed
     lowest, lowest_step = result.lowest()
     row = {"problem": record["problem"], "case": record["case"], "map": record["family"],
            "optimizer": record["optimizer"], "param": record["param"],

@@ -264,10 +264,10 @@ def write_tables(results: Path, report_dir: Path, tables_dir: Path,
                  label: str | None = None) -> None:
     """Build the report of ``results`` in ``report_dir`` and copy its tables (CSV,
     Markdown) into ``tables_dir``; figures stay in the run directory, and the basin maps
-    (figures that cost runs of the problem) are left out. ``label`` is how the report names
-    ``results`` (default: the path as given)."""
+    and the cliff probe (sections that cost runs of the problem) are left out. ``label``
+    is how the report names ``results`` (default: the path as given)."""
     from penaltyrun.report.build import build_report
-    build_report(results, report_dir, source_label=label, basin_points=0)
+    build_report(results, report_dir, source_label=label, basin_points=0, probe=False)
     if tables_dir.exists():
         shutil.rmtree(tables_dir)
     tables_dir.mkdir(parents=True)

@@ -28,6 +28,9 @@ import numpy as np
 STEPS = (1e-6, 1e-5, 1e-4, 1e-3)
 #: A relative cost change from one step this large or larger is called a cliff.
 CLIFF = 0.01
+#: A relative fall smaller than this is taken as the cost's numerical noise (integration
+#: tolerances of 1e-10 and rounding), not as a step that lowers the cost.
+NOISE = 1e-8
 
 
 @dataclass(frozen=True)
@@ -71,12 +74,12 @@ class CliffProbe:
 
     def lowest(self) -> tuple[float, float]:
         """The most negative Δ of the probe and its step, (Δ, h); (0, NaN) when no step
-        lowered the cost. A step that lowers the cost shows that the point is not a local
-        minimum along that variable at that scale."""
+        lowered the cost by more than :data:`NOISE`. A step that lowers the cost shows that
+        the point is not a local minimum along that variable at that scale."""
         a = np.where(np.isfinite(self.change), self.change, np.inf)
         k, i, s = np.unravel_index(np.argmin(a), a.shape)
         low = float(a[k, i, s])
-        return (low, float(self.steps[k])) if low < 0 else (0.0, float("nan"))
+        return (low, float(self.steps[k])) if low < -NOISE else (0.0, float("nan"))
 
     def smallest_cliff_step(self, threshold: float = CLIFF) -> float:
         """The smallest step of the ladder at which some variable's |Δ| reaches

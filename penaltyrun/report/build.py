@@ -20,6 +20,7 @@ from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (
     basins,
+    cliffs,
     controllers,
     figures,
     fronts,
@@ -238,6 +239,7 @@ def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]
              ("basins of attraction", lambda: basins.section(g, out, stem,
                                                              ctx["basin_points"])
               if ctx["basin_points"] > 0 else []),
+             ("cliffs", lambda: cliffs.section(g, out, stem) if ctx["probe"] else []),
              ("paper values", lambda: sections.paper_section(g, ctx["paper"])
               if paper else []),
              ("held-out", lambda: holdout.problem_section(g, ctx["held"], ctx["imps"], out)
@@ -284,7 +286,7 @@ STREAM_MIN_ROWS = 100_000
 def build_report(src: Path, out: Path, paper: bool = True,
                  source_label: str | None = None,
                  basin_points: int = basins.REPORT_POINTS, stream: bool | None = None,
-                 progress: bool | None = None) -> Path:
+                 progress: bool | None = None, probe: bool = True) -> Path:
     """Write tables (CSV + Markdown), figures (PNG), ``report.md`` and ``report.html``.
 
     Every file is first written into a temporary folder inside ``out`` and renamed into
@@ -308,6 +310,10 @@ def build_report(src: Path, out: Path, paper: bool = True,
     basin_points : int
         Grid points per axis of the basin-of-attraction maps (0: no maps); each map runs
         ``basin_points²`` starts of the best diagonal and the best full gain of a case.
+    probe : bool
+        Probe each case's best diagonal and full point for cliffs of the criterion
+        (:mod:`penaltyrun.report.cliffs`; one batch of about 8 evaluations per decision
+        variable each).
     stream : bool, optional
         Read the results lazily (:mod:`penaltyrun.report.rows`); default: when the files
         declare more than :data:`STREAM_MIN_ROWS` rows. The report is the same either way.
@@ -331,7 +337,7 @@ def build_report(src: Path, out: Path, paper: bool = True,
                                       lazy=stream))
         outdir.write_into(out, "report.output",
                           lambda tmp: _write_report(source_label or str(src), df, tmp, paper,
-                                                   basin_points, progress),
+                                                   basin_points, progress, probe),
                           lambda folder: outdir.report_files(
                               folder, [*TABLES, "summary", "comparison"]))
     logger.info("report: %s", out / "report.md")
@@ -340,11 +346,11 @@ def build_report(src: Path, out: Path, paper: bool = True,
 
 def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool,
                   basin_points: int = basins.REPORT_POINTS,
-                  progress: bool | None = None) -> None:
+                  progress: bool | None = None, probe: bool = True) -> None:
     """Write every file of the report into ``out`` (see :func:`build_report`)."""
     n_cases = df.groupby(["problem", "case", "variant"], sort=True).ngroups
     with Steps(len(STEPS) + n_cases, progress, lazy(df) and release_memory) as steps:
-        _write_files(src, df, out, paper, basin_points, steps, n_cases)
+        _write_files(src, df, out, paper, basin_points, steps, n_cases, probe)
 
 
 #: The report's steps besides one per case section (what its progress bar counts).
@@ -354,7 +360,7 @@ STEPS = ("cell statistics", "comparisons", "best-known optima", "held-out", "ver
 
 
 def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_points: int,
-                 steps: Steps, n_cases: int) -> None:
+                 steps: Steps, n_cases: int, probe: bool = True) -> None:
     """:func:`_write_report` with its progress bar ``steps``."""
     steps.step(STEPS[0])
     summary = cell_summary(df)
@@ -377,7 +383,7 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
     verdict = verdict_rows(df, bk, comp, held)
     steps.step(STEPS[5])
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
-           "stems": StemBook(), "basin_points": int(basin_points),
+           "stems": StemBook(), "basin_points": int(basin_points), "probe": bool(probe),
            "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
     _write_csv(ctx["paper"], out, "paper")
     if paper:

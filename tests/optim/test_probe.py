@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from penaltyrun.optim.probe import CLIFF, STEPS, probe
+from penaltyrun.optim.probe import CLIFF, NOISE, STEPS, probe
 
 LB, UB = np.array([0.0, -2.0, 1.0]), np.array([10.0, 2.0, 5.0])
 WIDTH = UB - LB
@@ -122,3 +122,15 @@ def test_zero_cost_is_refused():
 
 def test_threshold_is_one_percent():
     assert CLIFF == 0.01
+
+
+def test_a_fall_within_the_noise_is_not_a_lower_cost():
+    z = np.array([4.0, 0.0, 2.0])
+
+    def cost_batch(batch, fall=0.0):
+        moved = (batch != z).any(axis=1)
+        return 3.0 * (1.0 - fall * moved), np.ones(len(batch), bool)
+
+    assert probe(lambda b: cost_batch(b, NOISE / 2), z, LB, UB).lowest()[0] == 0.0
+    low, step = probe(lambda b: cost_batch(b, 10 * NOISE), z, LB, UB).lowest()
+    assert low == pytest.approx(-10 * NOISE) and step == STEPS[0]

@@ -1,0 +1,63 @@
+"""The report's cliff probe: a smooth criterion (Zermelo) shows no cliff and its changes
+shrink with the step; the free-final-time attitude criterion shows the jump the study
+probe found; a problem that cannot be rebuilt gets no section; `--no-probe` leaves it out."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from penaltyrun.cli import report_main
+from penaltyrun.io.schema import read_results
+from penaltyrun.optim.probe import STEPS
+from penaltyrun.report import cliffs
+from penaltyrun.report.bestknown import best_rows
+
+ROOT = Path(__file__).resolve().parents[2]
+GOLDEN = Path(__file__).parent / "golden" / "zermelo" / "input"
+
+
+def test_smooth_zermelo_cost_has_no_cliff_and_changes_shrink_with_the_step(tmp_path):
+    df = read_results(GOLDEN / "results.parquet")
+    lines = cliffs.section(df, tmp_path, "z")
+    assert lines[0] == "### Cliffs next to the best points"
+    assert (tmp_path / "cliffs_z.png").read_bytes()[:4] == b"\x89PNG"
+    for fam, row in best_rows(df).items():
+        result, names = cliffs.probe_row(row)
+        assert len(names) == len(row["best_z"]) and result.converged
+        largest = result.largest()
+        assert np.all(np.diff(np.log10(largest)) > 1.5), fam  # ≈ h² at a minimum
+        assert np.isnan(result.smallest_cliff_step())
+    table = cliffs.table({fam: (row, cliffs.probe_row(row)[0])
+                          for fam, row in best_rows(df).items()})
+    assert list(table.columns) == cliffs.COLUMNS and len(table) == 2
+    assert (table[cliffs.COLUMNS[-2]] == f"none up to {STEPS[-1]:g}").all()
+
+
+def test_attitude_free_final_time_point_is_next_to_a_jump():
+    df = read_results(ROOT / "studies" / "robust_attitude" / "results.parquet")
+    cell = df[(df["problem"] == "attitude_lyapunov") & (df["case"] == "detumble")]
+    row = best_rows(cell)["full"]
+    result, _ = cliffs.probe_row(row)
+    committed = pd.read_csv(ROOT / "studies" / "robust_attitude" / "probe.csv")
+    same = committed[(committed["problem"] == "attitude_lyapunov")
+                     & (committed["case"] == "detumble") & (committed["map"] == "full")]
+    assert result.smallest_cliff_step() == float(same["smallest_cliff_step"].iloc[0]) <= 1e-4
+    assert result.cost == float(row["best_cost"])
+
+
+def test_no_section_without_a_rebuildable_problem_or_a_decision_vector(tmp_path):
+    df = read_results(GOLDEN / "results.parquet")
+    row = best_rows(df)["full"].copy()
+    assert cliffs.probe_row({**row.to_dict(), "best_z": None}) is None
+    assert cliffs.probe_row({**row.to_dict(), "problem": "no_such_problem"}) is None
+    assert cliffs.section(df.assign(problem="no_such_problem"), tmp_path, "x") == []
+
+
+def test_report_no_probe_leaves_the_section_out(tmp_path):
+    report_main([str(GOLDEN / "results.parquet"), "-o", str(tmp_path / "a"),
+                 "--basin-points", "0", "--no-probe"])
+    assert "Cliffs next to the best points" not in (tmp_path / "a" / "report.md").read_text()
+    assert not list((tmp_path / "a").glob("cliffs_*.png"))

@@ -37,6 +37,7 @@ from penaltyrun.optim.cmaes import CMAESSettings, run_cmaes
 from penaltyrun.optim.de import DESettings, run_de
 from penaltyrun.optim.grid import GridSettings, run_grid
 from penaltyrun.optim.lbfgs import GradientFn, LBFGSSettings, gradient_polish, run_lbfgs
+from penaltyrun.optim.pattern import compass_search
 from penaltyrun.optim.polish import local_search
 from penaltyrun.optim.pso import PSOSettings, run_pso
 from penaltyrun.optim.pso_matlab import PSOMatlabSettings, run_pso_matlab
@@ -184,6 +185,8 @@ def _minimize(name: str, objective: BatchObjective, lb: np.ndarray, ub: np.ndarr
     if settings.polish == "gradient":
         outcome = gradient_polish(counted, counted.best_z, lb, ub, gradient,
                                   settings.grad_cost)
+    elif settings.polish == "pattern":
+        outcome = compass_search(counted, counted.best_z, lb, ub)
     else:
         outcome = local_search(counted, counted.best_z, lb, ub, settings.polish)
     stop = polished_stop(result.stop_reason, outcome)

@@ -42,7 +42,9 @@ logger = logging.getLogger(__name__)
 BatchObjective = Callable[[np.ndarray], np.ndarray]
 
 #: Local-search methods of ``scipy.optimize.minimize`` that accept box bounds.
-POLISH_METHODS = ("none", "L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP", "gradient")
+#: Bounded ``scipy.optimize.minimize`` methods of the local searches (:mod:`.polish`).
+LOCAL_METHODS = ("L-BFGS-B", "Nelder-Mead", "Powell", "TNC", "SLSQP")
+POLISH_METHODS = ("none", *LOCAL_METHODS, "gradient", "pattern")
 
 
 @contextlib.contextmanager
@@ -97,9 +99,11 @@ class CommonSettings:
     polish : str
         Bounded local search from the optimizer's best, inside the same budget: ``none``,
         a ``scipy.optimize.minimize`` method (``L-BFGS-B``, ``Nelder-Mead``, ``Powell``,
-        ``TNC``, ``SLSQP``; gradients by forward differences) or ``gradient`` (L-BFGS-B
+        ``TNC``, ``SLSQP``; gradients by forward differences), ``gradient`` (L-BFGS-B
         with the problem's exact gradient, each gradient charged as evaluations like
-        ``optimizer=lbfgs``).
+        ``optimizer=lbfgs``) or ``pattern`` (compass search, no gradient: it ends where no
+        single-variable step of 1e-6 of its range lowers the cost, also next to a jump of
+        the criterion; :mod:`penaltyrun.optim.pattern`).
     polish_share : float
         Share of ``max_evals`` kept for the polish (the search stops earlier to leave it).
         Without ``max_evals`` the polish runs until the local method's own tolerance.

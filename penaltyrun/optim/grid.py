@@ -20,7 +20,7 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.optim.base import (
-    POLISH_METHODS,
+    LOCAL_METHODS,
     BatchObjective,
     BudgetExhaustedError,
     CommonSettings,
@@ -66,9 +66,9 @@ class GridSettings(CommonSettings):
         super().validate()
         for key in ("points_per_dim", "n_local", "local_max_evals", "batch"):
             require_int(key, getattr(self, key), 2 if key == "points_per_dim" else 1)
-        if self.local_method not in POLISH_METHODS[1:]:
+        if self.local_method not in LOCAL_METHODS:
             raise ConfigError("optimizer.local_method", f"unknown local search "
-                              f"{self.local_method!r}", allowed=POLISH_METHODS[1:])
+                              f"{self.local_method!r}", allowed=LOCAL_METHODS)
 
     def check_dimension(self, dim: int) -> None:
         """Refuse a box the grid cannot cover.

@@ -66,9 +66,8 @@ def table(probes: dict[str, tuple[pd.Series, CliffProbe]]) -> pd.DataFrame:
                      "cost": fmt(result.cost, 5),
                      **{c: fmt(100.0 * v, 3) + " %" for c, v in
                         zip(COLUMNS[3:3 + len(STEPS)], result.largest())},
-                     COLUMNS[-2]: fmt(cliff, 3) if cliff == cliff else f"none up to {STEPS[-1]:g}",
-                     COLUMNS[-1]: f"{fmt(100.0 * low, 3)} % at {fmt(at, 3)}" if low < 0
-                     else "none"})
+                     COLUMNS[-2]: f"{cliff:g}" if cliff == cliff else f"none up to {STEPS[-1]:g}",
+                     COLUMNS[-1]: f"{fmt(100.0 * low, 3)} % at {at:g}" if low < 0 else "none"})
     return pd.DataFrame(rows, columns=COLUMNS)
 
 

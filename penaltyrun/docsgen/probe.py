@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -121,16 +122,16 @@ def probe_study(root: Path, name: str, *, workers: int | str = "auto",
                         name, len(rows), len(points), row["problem"], row["case"],
                         row["map"], row[step_columns(steps[-1])[0]], steps[-1])
     columns = KEYS + [c for s in steps for c in step_columns(s)]
-    path = study.folder / PROBE_FILE
-    pd.DataFrame(rows, columns=columns).to_csv(path, index=False, float_format="%.6g")
+    path, tmp = study.folder / PROBE_FILE, study.folder / (PROBE_FILE + ".tmp")
+    pd.DataFrame(rows, columns=columns).to_csv(tmp, index=False, float_format="%.6g")
+    os.replace(tmp, path)  # a reader never sees half a file
     info = {"git_commit": git_commit(root), "packages": package_versions(),
             "steps": list(steps), "cliff_threshold": CLIFF, "points": len(rows)}
-    (study.folder / PROBE_PROVENANCE).write_text(json.dumps(info, indent=2, sort_keys=True)
-                                                 + "\n")
+    tmp = study.folder / (PROBE_PROVENANCE + ".tmp")
+    tmp.write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")
+    os.replace(tmp, study.folder / PROBE_PROVENANCE)
     logger.info("probe %s: wrote %s", name, _display_path(path, root))
     return path
-
-
 
 
 def read_probe(root: Path, name: str) -> Any:

@@ -75,14 +75,13 @@ def compass_search(counted: CountingObjective, x0: np.ndarray, lb: np.ndarray,
                 values = counted(poll)
                 polls += 1
                 j = int(np.argmin(values))
-                if values[j] < fx - NOISE * abs(fx):
+                improved = values[j] < fx - NOISE * abs(fx)
+                if improved:
                     x, fx, moves = poll[j].copy(), float(values[j]), moves + 1
-                    if len(values) < len(poll):  # the budget cut this poll: it is spent
-                        raise BudgetExhaustedError
-                    continue
-                if len(values) < len(poll):
+                if len(values) < len(poll):  # the budget cut this poll: it is spent
                     raise BudgetExhaustedError
-                break
+                if not improved:
+                    break
         outcome = POLISH_CONVERGED
     except BudgetExhaustedError:
         outcome = "max_evals"

@@ -181,3 +181,44 @@ def cliff_counts(root: Path, name: str, within: float = 1e-4) -> dict[str, int]:
     step = frame["smallest_cliff_step"]
     return {"points": int(len(frame)), "cliffs": int((step.notna() & (step <= within)).sum()),
             "improved": int((frame["lowest_change_pct"] < 0).sum())}
+
+
+#: Distance (rad) from a jump of the map under which a best point counts as on it.
+MAP_JUMP_WITHIN = 1e-4
+#: Uniformly random points of a box drawn for the baseline share, and their seed.
+BASELINE_POINTS, BASELINE_SEED = 20_000, 0
+
+
+def map_jumps(root: Path, name: str, within: float = MAP_JUMP_WITHIN) -> list[dict[str, Any]]:
+    """Where study ``name``'s searches with a discontinuous map (GEAGSP) ended: per problem
+    × case × map × optimizer, the finished starts (``starts``), how many best points lie
+    within ``within`` of a jump of the map (``near``, from
+    :func:`penaltyrun.report.cliffs.skip_margin`), their median margin, and the share of
+    :data:`BASELINE_POINTS` uniformly random points of the same box that are as close
+    (``baseline``, seeded). Computed from the committed results when the page is rendered;
+    cells whose map is continuous are left out."""
+    import numpy as np
+
+    from penaltyrun.io.schema import read_results
+    from penaltyrun.jobrecord import OK
+    from penaltyrun.report.cliffs import rebuilt_layout, skip_margin
+
+    results = load_study(root, name).folder / RESULTS
+    if not results.is_file():
+        return []
+    df = read_results(results)
+    df = df[df["status"] == OK]
+    out = []
+    for keys, group in df.groupby(["problem", "case", "param", "optimizer"], sort=True):
+        margins = np.array([m for m in (skip_margin(row) for _, row in group.iterrows())
+                            if m is not None])
+        if not margins.size or np.isinf(margins).all():
+            continue
+        layout = rebuilt_layout(group.iloc[0])[1]
+        lb, ub = layout.bounds()
+        box = np.random.default_rng(BASELINE_SEED).uniform(lb, ub, (BASELINE_POINTS, lb.size))
+        out.append(dict(zip(["problem", "case", "param", "optimizer"], keys),
+                        starts=int(margins.size), near=int((margins < within).sum()),
+                        median=float(np.median(margins)),
+                        baseline=float((layout.skip_margin(box) < within).mean())))
+    return out

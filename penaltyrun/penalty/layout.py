@@ -65,6 +65,29 @@ class DecisionLayout:
         scalars = {name: Z[:, pos + i].copy() for i, (name, _) in enumerate(self.scalars)}
         return mats, scalars
 
+    def skip_margin(self, Z: np.ndarray) -> np.ndarray:
+        """Smallest distance from a discontinuity of a map over the matrix blocks.
+
+        See :meth:`~penaltyrun.penalty.maps.Parameterization.skip_margin` (inf where every
+        map is continuous).
+
+        Parameters
+        ----------
+        Z : ndarray, shape (B, dim)
+
+        Returns
+        -------
+        ndarray, shape (B,)
+        """
+        Z = np.atleast_2d(np.asarray(Z, float))
+        if Z.shape[1] != self.dim:
+            raise ValueError(f"expected {self.dim} decision variables, got {Z.shape[1]}")
+        margins, pos = np.full(Z.shape[0], np.inf), 0
+        for _, p in self.matrices:
+            margins = np.minimum(margins, p.skip_margin(Z[:, pos:pos + p.dim]))
+            pos += p.dim
+        return margins
+
     def vjp(self, z: np.ndarray, mat_grads: dict[str, np.ndarray],
             scalar_grads: dict[str, float] | None = None) -> np.ndarray:
         """Gradient with respect to the whole decision vector z (dim,).

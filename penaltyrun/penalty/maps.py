@@ -109,6 +109,28 @@ class Parameterization:
             K = 0.5 * (K + np.transpose(K, (0, 2, 1)))
         return K[0] if single else K
 
+    def skip_margin(self, Z: np.ndarray) -> np.ndarray:
+        """Distance of decision vectors from a discontinuity of the map.
+
+        GEAGSP only (:func:`penaltyrun.penalty.orthogonal.geagsp_skip_margin`: the smallest
+        distance of a Gram–Schmidt residual norm from the skip threshold); the other maps are
+        continuous on the whole box and return inf.
+
+        Parameters
+        ----------
+        Z : ndarray, shape (B, dim) or (dim,)
+
+        Returns
+        -------
+        ndarray, shape (B,) or float
+        """
+        Zb = np.atleast_2d(np.asarray(Z, float))
+        if self.kind == "geagsp":
+            margins = orth.geagsp_skip_margin(np.ascontiguousarray(Zb[:, self.n:]), self.n)
+        else:
+            margins = np.full(Zb.shape[0], np.inf)
+        return float(margins[0]) if np.ndim(Z) == 1 else margins
+
     def jacobian(self, z: np.ndarray) -> np.ndarray:
         """Exact Jacobian of the decode at one decision vector.
 

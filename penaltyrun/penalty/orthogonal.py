@@ -55,13 +55,17 @@ def _hypersphere(phi, out):
 
 
 @njit(cache=True)
-def _complement_basis(Qcols, n_placed, n, out):
+def _complement_basis_margin(Qcols, n_placed, n, out):
     """Orthonormal basis (columns of ``out``) of the complement of Qcols[:, :n_placed].
 
-    Returns the number of basis vectors found (n − n_placed unless degenerate).
+    Returns the number of basis vectors found (n − n_placed unless degenerate) and the skip
+    margin: the smallest |r − GS_SKIP| over the residual norms r of the standard basis
+    vectors examined, accepted or skipped (how far the nearest of them is from changing
+    the set of vectors the construction keeps).
     """
     need = n - n_placed
     found = 0
+    margin = np.inf
     r = np.empty(n)
     for j in range(n):
         if found == need:
@@ -82,18 +86,34 @@ def _complement_basis(Qcols, n_placed, n, out):
                 for m in range(n):
                     r[m] -= dot * out[m, c]
         nrm = np.sqrt(np.sum(r * r))
+        margin = min(margin, abs(nrm - GS_SKIP))
         if nrm > GS_SKIP:
             for m in range(n):
                 out[m, found] = r[m] / nrm
             found += 1
+    return found, margin
+
+
+@njit(cache=True)
+def _complement_basis(Qcols, n_placed, n, out):
+    """Orthonormal basis (columns of ``out``) of the complement of Qcols[:, :n_placed].
+
+    Returns the number of basis vectors found (n − n_placed unless degenerate).
+    """
+    found, _ = _complement_basis_margin(Qcols, n_placed, n, out)
     return found
 
 
 @njit(cache=True)
-def geagsp_batch(angles, n):
-    """GEAGSP map for a batch: angles (B, M) → Q (B, n, n)."""
+def _geagsp_batch_margin(angles, n):
+    """GEAGSP map and skip margin for a batch: angles (B, M) → Q (B, n, n), margin (B,).
+
+    The margin of a decision vector is the smallest skip margin of its Gram–Schmidt steps
+    (see :func:`_complement_basis_margin`): the map is discontinuous where it reaches 0.
+    """
     B = angles.shape[0]
     Q = np.zeros((B, n, n))
+    margins = np.full(B, np.inf)
     basis = np.empty((n, n))
     v = np.empty(n)
     for b in range(B):
@@ -107,16 +127,52 @@ def geagsp_batch(angles, n):
                 for m in range(n):
                     Qb[m, 0] = v[m]
             else:
-                _complement_basis(Qb, col, n, basis)
+                _, margin = _complement_basis_margin(Qb, col, n, basis)
+                margins[b] = min(margins[b], margin)
                 for m in range(n):
                     acc = 0.0
                     for c in range(k + 1):
                         acc += basis[m, c] * v[c]
                     Qb[m, col] = acc
-        _complement_basis(Qb, n - 1, n, basis)
+        _, margin = _complement_basis_margin(Qb, n - 1, n, basis)
+        margins[b] = min(margins[b], margin)
         for m in range(n):
             Qb[m, n - 1] = basis[m, 0]
+    return Q, margins
+
+
+@njit(cache=True)
+def geagsp_batch(angles, n):
+    """GEAGSP map for a batch: angles (B, M) → Q (B, n, n)."""
+    Q, _ = _geagsp_batch_margin(angles, n)
     return Q
+
+
+def geagsp_skip_margin(angles: np.ndarray, n: int) -> np.ndarray:
+    """Distance of GEAGSP decision vectors from the map's discontinuities.
+
+    Each Gram–Schmidt step keeps a standard basis vector whose residual norm r exceeds
+    :data:`GS_SKIP` and skips it otherwise, so Q jumps where some r crosses that threshold.
+    The margin is the smallest |r − GS_SKIP| over every residual the construction examines.
+    Next to the pole of the first angle φ of a row, r = |sin φ|, so a margin m puts a jump
+    about m radians away; for random angles the margin is of order 0.1–1.
+
+    Parameters
+    ----------
+    angles : ndarray, shape (B, M) or (M,)
+        GEAGSP angles, M = n(n − 1)/2 (rad).
+    n : int
+        Matrix dimension.
+
+    Returns
+    -------
+    ndarray, shape (B,) or scalar float
+        The margins (dimensionless, like the residual norms).
+    """
+    A = np.asarray(angles, dtype=float)
+    single = A.ndim == 1
+    _, margins = _geagsp_batch_margin(np.ascontiguousarray(np.atleast_2d(A)), int(n))
+    return float(margins[0]) if single else margins
 
 
 @njit(cache=True)

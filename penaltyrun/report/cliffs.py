@@ -28,7 +28,21 @@ from penaltyrun.report.tables import fmt, markdown, save_figure
 logger = logging.getLogger(__name__)
 
 COLUMNS = ["map", "by", "cost", *(f"largest change at {s:g}" for s in STEPS),
-           f"smallest step with a change ≥ {100 * CLIFF:g} %", "lowest change found"]
+           f"smallest step with a change ≥ {100 * CLIFF:g} %", "lowest change found",
+           "jump of the map within"]
+
+
+def rebuilt_layout(row: pd.Series | dict[str, Any]) -> tuple[Any, Any] | None:
+    """The problem and decision layout of a stored start (its ``problem``, ``case``,
+    ``problem_params``, ``param`` and ``param_options``), or None when the problem cannot
+    be rebuilt."""
+    from penaltyrun.runner.setup import build_layout
+
+    prob = protocol.rebuild(row["problem"], row["case"], row.get("problem_params"))
+    if prob is None:
+        return None
+    return prob, build_layout(prob, str(row["param"]),
+                              decode_json(row.get("param_options")) or {})
 
 
 def probe_row(row: pd.Series | dict[str, Any],
@@ -36,15 +50,13 @@ def probe_row(row: pd.Series | dict[str, Any],
     """Probe one stored start's best point (``best_z`` in the layout of its ``param`` and
     ``param_options``); the probe and the variables' names, or None when the problem
     cannot be rebuilt or the start stored no decision vector."""
-    from penaltyrun.runner.setup import build_layout
-
     z = row.get("best_z")
     if z is None or not len(z):
         return None
-    prob = protocol.rebuild(row["problem"], row["case"], row.get("problem_params"))
-    if prob is None:
+    rebuilt = rebuilt_layout(row)
+    if rebuilt is None:
         return None
-    layout = build_layout(prob, str(row["param"]), decode_json(row.get("param_options")) or {})
+    prob, layout = rebuilt
     lb, ub = layout.bounds()
 
     def cost_batch(batch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,9 +67,31 @@ def probe_row(row: pd.Series | dict[str, Any],
     return probe(cost_batch, np.asarray(z, float), lb, ub, steps), layout.names()
 
 
+def skip_margin(row: pd.Series | dict[str, Any]) -> float | None:
+    """How far a stored start's best point is from a jump of its map: the smallest
+    Gram–Schmidt skip margin of its GEAGSP blocks
+    (:meth:`~penaltyrun.penalty.layout.DecisionLayout.skip_margin`), inf for maps that are
+    continuous on the whole box, None when the problem cannot be rebuilt or the start
+    stored no decision vector."""
+    z = row.get("best_z")
+    rebuilt = None if z is None or not len(z) else rebuilt_layout(row)
+    if rebuilt is None:
+        return None
+    return float(rebuilt[1].skip_margin(np.asarray(z, float)[None])[0])
+
+
+def margin_text(margin: float | None) -> str:
+    """A skip margin as table text: the margin (rad, about the angle step to the nearest
+    jump of a GEAGSP map), "continuous map" where there is none, "" where unknown."""
+    if margin is None:
+        return ""
+    return "continuous map" if np.isinf(margin) else f"{margin:.2g} rad"
+
+
 def table(probes: dict[str, tuple[pd.Series, CliffProbe]]) -> pd.DataFrame:
     """One row per probed map: where it comes from, its cost, the largest relative change
-    (%) per step, the smallest step reaching :data:`CLIFF` and the most negative change."""
+    (%) per step, the smallest step reaching :data:`CLIFF`, the most negative change and
+    the distance to the nearest jump of the map (:func:`skip_margin`)."""
     rows = []
     for fam, (row, result) in probes.items():
         low, at = result.lowest()
@@ -66,8 +100,9 @@ def table(probes: dict[str, tuple[pd.Series, CliffProbe]]) -> pd.DataFrame:
                      "cost": fmt(result.cost, 5),
                      **{c: fmt(100.0 * v, 3) + " %" for c, v in
                         zip(COLUMNS[3:3 + len(STEPS)], result.largest())},
-                     COLUMNS[-2]: f"{cliff:g}" if cliff == cliff else f"none up to {STEPS[-1]:g}",
-                     COLUMNS[-1]: f"{fmt(100.0 * low, 3)} % at {at:g}" if low < 0 else "none"})
+                     COLUMNS[-3]: f"{cliff:g}" if cliff == cliff else f"none up to {STEPS[-1]:g}",
+                     COLUMNS[-2]: f"{fmt(100.0 * low, 3)} % at {at:g}" if low < 0 else "none",
+                     COLUMNS[-1]: margin_text(skip_margin(row))})
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
@@ -116,8 +151,12 @@ def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
             "change that stays large as the step shrinks is a jump of the criterion within "
             "that distance, where no gradient describes the cost and a search creeps along "
             "the edge. A step that lowers the cost shows the point is not a local minimum "
-            "along that variable.", "",
+            "along that variable. The last column is how far the point is from a jump of "
+            "the map itself: GEAGSP is discontinuous where its Gram–Schmidt step skips a "
+            "basis vector, and a margin of m means such a jump about m radians of an angle "
+            "away.", "",
             markdown(table(probes)), "", f"![cliffs next to the best points]({path.name})", ""]
 
 
-__all__ = ["COLUMNS", "figure", "probe_row", "section", "table"]
+__all__ = ["COLUMNS", "figure", "margin_text", "probe_row", "rebuilt_layout", "section",
+           "skip_margin", "table"]

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from penaltyrun.cli import report_main
 from penaltyrun.io.schema import read_results
 from penaltyrun.optim.probe import STEPS
+from penaltyrun.penalty.orthogonal import GS_SKIP
 from penaltyrun.report import cliffs
 from penaltyrun.report.bestknown import best_rows
 
@@ -33,7 +35,16 @@ def test_smooth_zermelo_cost_has_no_cliff_and_changes_shrink_with_the_step(tmp_p
     table = cliffs.table({fam: (row, cliffs.probe_row(row)[0])
                           for fam, row in best_rows(df).items()})
     assert list(table.columns) == cliffs.COLUMNS and len(table) == 2
-    assert (table[cliffs.COLUMNS[-2]] == f"none up to {STEPS[-1]:g}").all()
+    assert (table[cliffs.COLUMNS[-3]] == f"none up to {STEPS[-1]:g}").all()
+    # The map's own jumps: GEAGSP of a 2 x 2 K jumps where |sin φ| crosses the skip threshold.
+    for fam, row in best_rows(df).items():
+        margin = cliffs.skip_margin(row)
+        if fam == "diagonal":
+            assert margin == np.inf
+        else:
+            phi = np.asarray(row["best_z"])[2]
+            assert margin == pytest.approx(abs(abs(np.sin(phi)) - GS_SKIP), rel=1e-9)
+        assert cliffs.margin_text(margin) in set(table[cliffs.COLUMNS[-1]])
 
 
 def test_attitude_free_final_time_point_is_next_to_a_jump():

@@ -68,3 +68,12 @@ def test_a_study_without_results_has_no_rows(tmp_path):
     folder.mkdir(parents=True)
     shutil.copy(ROOT / "studies" / NAME / "study.yaml", folder / "study.yaml")
     assert probe.map_jumps(tmp_path, NAME) == []
+
+
+def test_answer_row_counts_are_the_studies_own():
+    readme = (ROOT / "README.md").read_text()
+    for name in ("robust_attitude", "robust_mpc"):
+        rows = probe.map_jumps(ROOT, name)
+        near, starts = sum(r["near"] for r in rows), sum(r["starts"] for r in rows)
+        assert f"`{name}`" in readme
+        assert f"{near} of {starts} searches of the full map (GEAGSP) ended within" in readme

@@ -39,8 +39,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.linalg import expm, expm_frechet, solve_continuous_lyapunov, solve_discrete_lyapunov
+from scipy.linalg import expm, expm_frechet, solve_discrete_lyapunov
 
+from penaltyrun.dynamics.lyapunov import SchurLyapunov
 from penaltyrun.problems.base import CostGradient
 
 if TYPE_CHECKING:
@@ -56,7 +57,8 @@ def _sym(X: np.ndarray) -> np.ndarray:
 
 
 def loop_sensitivity(A_cl: np.ndarray, W: np.ndarray, Sigma: np.ndarray, horizon: float,
-                     discrete: bool) -> tuple[float, np.ndarray, np.ndarray]:
+                     discrete: bool, lyapunov: SchurLyapunov | None = None
+                     ) -> tuple[float, np.ndarray, np.ndarray]:
     """Cost tr(Σ M) of a stable loop and its gradients with respect to A_cl and W.
 
     Parameters
@@ -70,6 +72,9 @@ def loop_sensitivity(A_cl: np.ndarray, W: np.ndarray, Sigma: np.ndarray, horizon
     horizon : float
         T (time unit) or, when ``discrete``, the number of steps N.
     discrete : bool
+    lyapunov : SchurLyapunov, optional
+        Continuous time: the Lyapunov solver of A_cl (one Schur decomposition shared with
+        the Riccati adjoint); made here when not given.
 
     Returns
     -------
@@ -85,7 +90,8 @@ def loop_sensitivity(A_cl: np.ndarray, W: np.ndarray, Sigma: np.ndarray, horizon
         S = solve_discrete_lyapunov(A_cl.T, W)
         E = np.linalg.matrix_power(A_cl, steps)
     else:
-        S = solve_continuous_lyapunov(A_cl.T, -W)
+        lyapunov = lyapunov or SchurLyapunov(A_cl)
+        S = lyapunov.solve(-W, transpose=True)
         E = expm(A_cl * horizon)
     S = _sym(S)
     Y = _sym(Sigma - E @ Sigma @ E.T)
@@ -97,7 +103,7 @@ def loop_sensitivity(A_cl: np.ndarray, W: np.ndarray, Sigma: np.ndarray, horizon
         block[:n, n:] = S @ E @ Sigma
         G_A -= 2.0 * np.linalg.matrix_power(block, steps)[:n, n:] if steps else 0.0
     else:
-        Lam = _sym(solve_continuous_lyapunov(A_cl, -Y))
+        Lam = _sym(lyapunov.solve(-Y))
         G_A = 2.0 * S @ Lam
         G_A -= 2.0 * horizon * expm_frechet(A_cl.T * horizon, S @ E @ Sigma,
                                             compute_expm=False)
@@ -106,8 +112,8 @@ def loop_sensitivity(A_cl: np.ndarray, W: np.ndarray, Sigma: np.ndarray, horizon
 
 
 def riccati_adjoint(A: np.ndarray, B: np.ndarray, R: np.ndarray, K: np.ndarray,
-                    Q_ric: np.ndarray, G_K: np.ndarray, discrete: bool
-                    ) -> tuple[np.ndarray, np.ndarray]:
+                    Q_ric: np.ndarray, G_K: np.ndarray, discrete: bool,
+                    lyapunov: SchurLyapunov | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Pull ∂J/∂K back through the Riccati equation to ∂J/∂Q and ∂J/∂R.
 
     Parameters
@@ -121,6 +127,8 @@ def riccati_adjoint(A: np.ndarray, B: np.ndarray, R: np.ndarray, K: np.ndarray,
     G_K : ndarray, shape (m, n)
         ∂J/∂K.
     discrete : bool
+    lyapunov : SchurLyapunov, optional
+        Continuous time: the Lyapunov solver of A − B K (made here when not given).
 
     Returns
     -------
@@ -138,7 +146,7 @@ def riccati_adjoint(A: np.ndarray, B: np.ndarray, R: np.ndarray, K: np.ndarray,
     else:
         M_inv = np.linalg.inv(R)
         N = _sym(G_K.T @ M_inv @ B.T)
-        Lam = _sym(solve_continuous_lyapunov(A_cl, -N))
+        Lam = _sym((lyapunov or SchurLyapunov(A_cl)).solve(-N))
     return Lam, _sym(K @ Lam @ K.T - M_inv @ G_K @ K.T)
 
 
@@ -158,10 +166,11 @@ def gain_gradient(problem: LQRProblem, Q: np.ndarray, R: np.ndarray, K: np.ndarr
         horizon: float = n_steps(problem.t_max, float(problem.dt))
     else:
         horizon = problem.t_max
-    cost, G_A, G_W = loop_sensitivity(A_cl, W, Sigma, horizon, discrete)
+    lyapunov = None if discrete else SchurLyapunov(A_cl)
+    cost, G_A, G_W = loop_sensitivity(A_cl, W, Sigma, horizon, discrete, lyapunov)
     G_K = problem.Wu @ K @ (G_W + G_W.T) - B.T @ G_A
     Q_ric = problem.state_penalty(Q[None])[0]
-    G_Qric, G_R = riccati_adjoint(A, B, R, K, Q_ric, G_K, discrete)
+    G_Qric, G_R = riccati_adjoint(A, B, R, K, Q_ric, G_K, discrete, lyapunov)
     C = problem.q_output
     return cost, _sym(C @ G_Qric @ C.T), G_R
 

@@ -129,3 +129,16 @@ def test_layout_margin_is_the_smallest_over_blocks():
     assert layout.skip_margin(Z)[0] == pytest.approx(orth.GS_SKIP, rel=1e-9)
     with pytest.raises(ValueError, match="decision variables"):
         layout.skip_margin(Z[:, :-1])
+
+
+@pytest.mark.parametrize("n", (2, 3, 6))
+def test_every_diagonal_matrix_sits_on_a_geagsp_jump(n):
+    # Q = I (up to signs) needs the first angle of each row at a pole: residual 0.
+    rng = np.random.default_rng(n)
+    geagsp, givens = make("geagsp", n, (0.1, 10.0)), make("givens", n, (0.1, 10.0))
+    for _ in range(3):
+        K = np.diag(rng.uniform(0.2, 9.0, n))
+        z = geagsp.encode(K)
+        np.testing.assert_allclose(geagsp.decode(z), K, atol=1e-12)
+        assert geagsp.skip_margin(z) == pytest.approx(orth.GS_SKIP, rel=1e-6)
+        np.testing.assert_array_equal(givens.encode(K)[n:], 0.0)  # the centre of its box

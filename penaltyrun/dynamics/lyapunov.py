@@ -46,7 +46,9 @@ class SchurLyapunov:
         Raises
         ------
         np.linalg.LinAlgError
-            If LAPACK reports the equation singular or the arguments invalid.
+            If LAPACK reports an invalid argument. A nearly singular equation (A and −A
+            with close eigenvalues, LAPACK's info = 1) is solved with the perturbed values
+            LAPACK uses, as scipy's ``solve_continuous_lyapunov`` accepts it too.
         """
         U = self.U
         F = U.T @ np.asarray(C, dtype=float) @ U
@@ -56,7 +58,6 @@ class SchurLyapunov:
             Y, scale, info = self._trsyl(self.T, self.T, F, trana="N", tranb="T")
         if info < 0:
             raise np.linalg.LinAlgError(f"trsyl: argument {-info} is invalid")
-        # info = 1: A and −A have close eigenvalues; LAPACK perturbed them (as scipy accepts)
         return U @ (Y / scale) @ U.T
 
 

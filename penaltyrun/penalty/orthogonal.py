@@ -155,7 +155,8 @@ def geagsp_skip_margin(angles: np.ndarray, n: int) -> np.ndarray:
     :data:`GS_SKIP` and skips it otherwise, so Q jumps where some r crosses that threshold.
     The margin is the smallest |r − GS_SKIP| over every residual the construction examines.
     Next to the pole of the first angle φ of a row, r = |sin φ|, so a margin m puts a jump
-    about m radians away; for random angles the margin is of order 0.1–1.
+    about m radians away. For random angles it shrinks quickly as N grows, because the
+    Gram–Schmidt residuals shrink from column to column.
 
     Parameters
     ----------

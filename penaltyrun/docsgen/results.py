@@ -36,6 +36,7 @@ from penaltyrun.docsgen.layout import (
 )
 from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
 from penaltyrun.jobrecord import OK, POLISH_CONVERGED, split_stop
+from penaltyrun.penalty.orthogonal import GS_SKIP
 
 TEMPLATES = Path("studies") / "templates"
 RESULTS_DOCS = Path("docs") / "results"
@@ -571,6 +572,7 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                        map_jumps=lambda name: probe.map_jumps(root, name),
                        map_jump_within=probe.MAP_JUMP_WITHIN,
                        map_jump_baseline_points=probe.BASELINE_POINTS,
+                       gs_skip=GS_SKIP,
                        studies=lambda: list_studies(root), paper_claim=paper_claim,
                        full_matrix=(figures or explanation.Figures(root)).full_matrix,
                        multi_column=multi_column,

@@ -33,6 +33,18 @@ from pathlib import Path
 from penaltyrun.docsgen import probe, rejudge, results, studies
 
 
+def _workers(value: str) -> int | str:
+    """``--workers`` as given: ``auto`` or a positive integer."""
+    if value == "auto":
+        return value
+    try:
+        number = int(value)
+    except ValueError:
+        number = 0
+    if number < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer or auto, got {value!r}")
+    return number
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     parser = argparse.ArgumentParser(prog="python -m penaltyrun.docsgen")
@@ -56,7 +68,8 @@ def main(argv: list[str] | None = None) -> int:
     study.add_argument("--run-dir", type=Path, help="fixed run directory "
                        "(default outputs/studies/NAME)")
     study.add_argument("--resume", default="false", choices=("true", "false"))
-    study.add_argument("--workers", default="auto")
+    study.add_argument("--workers", default="auto", type=_workers,
+                       help="worker processes: a positive integer or auto (all cores)")
     study.add_argument("--reduced", action="store_true",
                        help="each command's reduced overrides (few starts, tiny budgets)")
     study.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",

@@ -27,7 +27,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from penaltyrun.docsgen.rejudge import git_commit, workers_of
+from penaltyrun.docsgen.rejudge import git_commit
 from penaltyrun.docsgen.studies import (
     RESULTS,
     StudyError,
@@ -36,6 +36,7 @@ from penaltyrun.docsgen.studies import (
     package_versions,
 )
 from penaltyrun.optim.probe import CLIFF, STEPS
+from penaltyrun.runner.options import resolve_workers
 
 logger = logging.getLogger(__name__)
 
@@ -115,7 +116,8 @@ def probe_study(root: Path, name: str, *, workers: int | str = "auto",
     logger.info("probe %s: %d best points, ladder %s of each variable's range", name,
                 len(points), ", ".join(f"{s:g}" for s in steps))
     rows = []
-    with ProcessPoolExecutor(max_workers=max(1, min(workers_of(workers), len(points)))) as pool:
+    workers = max(1, min(resolve_workers(workers), len(points)))
+    with ProcessPoolExecutor(max_workers=workers) as pool:
         for row in pool.map(probe_record, points, [steps] * len(points)):
             rows.append(row)
             logger.info("probe %s: %d/%d (%s / %s, %s): largest change %.3g %% at %g",

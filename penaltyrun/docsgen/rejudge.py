@@ -44,6 +44,7 @@ from penaltyrun.docsgen.studies import (
 )
 from penaltyrun.io.longholdout import LONG_FILE, LONG_PROVENANCE
 from penaltyrun.problems.hooks import hooks
+from penaltyrun.runner.options import resolve_workers
 
 logger = logging.getLogger(__name__)
 
@@ -166,14 +167,6 @@ def horizon_settings(df: Any) -> list[dict[str, Any]]:
     return rows
 
 
-def workers_of(workers: int | str) -> int:
-    """Worker processes for ``workers`` ("auto": the cores available to this process)."""
-    if workers == "auto":
-        from penaltyrun.runner.options import available_cores
-        return max(1, available_cores())
-    return max(1, int(workers))
-
-
 def rejudge_study(root: Path, name: str, *, jobs: str = "all", workers: int | str = "auto",
                   tables: bool = True) -> Path:
     """Re-judge study ``name`` (see the module docstring); return the written data file.
@@ -206,7 +199,7 @@ def rejudge_study(root: Path, name: str, *, jobs: str = "all", workers: int | st
     columns = ["job_id", "config_hash", "problem", "case", "problem_params", "matrices",
                "scalars"]
     records = todo[columns].to_dict("records")
-    n_workers = min(workers_of(workers), len(records))
+    n_workers = min(resolve_workers(workers), len(records))
     logger.info("rejudge %s: %d of %d jobs (%s), %d worker(s)", name, len(records), len(df),
                 jobs, n_workers)
     rows, t0, last = [], time.perf_counter(), 0.0

@@ -45,6 +45,10 @@ def report_main(argv: list[str] | None = None) -> None:
                         help="leave out the probe of each case's best diagonal and full "
                              "point for cliffs of the criterion (each variable moved alone "
                              "by 1e-6 to 1e-3 of its range)")
+    parser.add_argument("--workers", metavar="N", default="auto",
+                        help="processes writing the case sections side by side: a positive "
+                             "integer or auto (default: one per core); the report is the "
+                             "same for any number")
     parser.add_argument("--progress", choices=("auto", "true", "false"), default="auto",
                         help="progress bar of the report's steps on stderr (auto: on a "
                              "terminal only; as runner.progress for runs)")
@@ -88,15 +92,33 @@ def report_main(argv: list[str] | None = None) -> None:
         if maps and not (maps["basin_points"] == 0 or 2 <= maps["basin_points"] <= 200):
             raise ConfigError("--basin-points", f"must be 0 (no maps) or 2 to 200, got "
                               f"{args.basin_points}")
+        workers = args.workers if args.workers == "auto" else _count(args.workers)
         report.build_report(src, out, paper=not args.no_paper,
                             progress=progress.wanted(args.progress),
-                            probe=not args.no_probe, **maps)
+                            probe=not args.no_probe, workers=workers, **maps)
         print(f"report written to {out}")
         if args.export:
             _export(src, Path(args.export))
 
     guard(build)
     flush_stdout()
+
+
+def _count(text: str) -> int:
+    """``--workers`` as a number.
+
+    Raises
+    ------
+    ConfigError
+        ``text`` is not a positive integer.
+    """
+    try:
+        number = int(text)
+    except ValueError:
+        number = 0
+    if number < 1:
+        raise ConfigError("--workers", f"must be a positive integer or auto, got {text!r}")
+    return number
 
 
 def _export(src: Path, out: Path) -> None:

@@ -106,6 +106,21 @@ def named() -> dict[str, str]:
     return dict(_NAMED)
 
 
+def snapshot() -> tuple[dict[str, str], frozenset[str]]:
+    """What the user named and allowed in this process (:func:`name_module`,
+    :func:`allow_module`), for :func:`restore` in a worker process of this one."""
+    return dict(_NAMED), frozenset(_ALLOWED)
+
+
+def restore(state: tuple[dict[str, str], frozenset[str]]) -> None:
+    """Name and allow exactly what :func:`snapshot` recorded (in a worker process)."""
+    named_modules, allowed_modules = state
+    _NAMED.clear()
+    _NAMED.update(named_modules)
+    _ALLOWED.clear()
+    _ALLOWED.update(allowed_modules)
+
+
 def forget_named() -> None:
     """Forget every module named with :func:`name_module` or :func:`allow_module`."""
     _NAMED.clear()
@@ -120,4 +135,5 @@ def refuse(key: str, what: str) -> NotImportedError:
 
 
 __all__ = ["NotImportedError", "allow_module", "allowed", "forget_named", "is_reading",
-           "name_held", "name_module", "named", "reading_results", "refuse", "unname"]
+           "name_held", "name_module", "named", "reading_results", "refuse", "restore",
+           "snapshot", "unname"]

@@ -12,7 +12,6 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from penaltyrun.io.read import declared_rows, read_results, release_memory
@@ -20,9 +19,8 @@ from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (
     basins,
-    cliffs,
+    cases,
     controllers,
-    figures,
     fronts,
     fronts_section,
     holdout,
@@ -37,11 +35,9 @@ from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, FIRST_ORDER_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
 from penaltyrun.report.progress import Steps
-from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS, groups, lazy, with_columns
+from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS, lazy, with_columns
 from penaltyrun.report.stats import BCA_MAX_N, MIN_N_TEST, add_variant, cell_summary
 from penaltyrun.report.tables import (
-    StemBook,
-    fmt,
     markdown,
     markdown_split,
     md_line,
@@ -50,6 +46,7 @@ from penaltyrun.report.tables import (
 )
 from penaltyrun.report.verdict import COLUMNS as VERDICT_COLUMNS
 from penaltyrun.report.verdict import verdict_rows
+from penaltyrun.runner.options import resolve_workers
 
 logger = logging.getLogger(__name__)
 
@@ -59,10 +56,6 @@ SUMMARY_MD = ["problem", "case", "variant", "optimizer", "param", "max_evals", "
 COMPARISON_MD = ["problem", "case", "variant", "optimizer", "map_a", "map_b", "n_a", "n_b",
                  "equal_budget", "median_a", "median_b", "a12_b_beats_a", "p_mwu", "p_holm",
                  "note"]
-CELL_COLUMNS = ["optimizer", "param", "budget", "converged", "best", "median", "median 95 % CI",
-                "mean", "worst", "paper mean"]
-COMPARISON_COLUMNS = ["optimizer", "map_a", "map_b", "n", "budgets (max_evals; spent)",
-                      "median_a", "median_b", "A12 (b beats a)", "Holm p", "note"]
 BEST_KNOWN_COLUMNS = ["problem", "case", "problem_variant", "family", "best_known",
                       "optimizer", "param", "evidence", "n_converged"]
 SHORTFALL_COLUMNS = ["problem", "case", "variant", "optimizer", "param", "n_converged",
@@ -157,123 +150,12 @@ def checks(df: pd.DataFrame) -> list[str]:
         for (problem, case, variant, opt, param), g in df[nf > 0].groupby(
                 ["problem", "case", "variant", "optimizer", "param"], sort=True):
             total = pd.to_numeric(g["n_evals"], errors="coerce").sum()
-            lines.append(f"- {_title(problem, case, variant)} / {md_text(opt)} / "
+            lines.append(f"- {cases.title(problem, case, variant)} / {md_text(opt)} / "
                          f"{md_text(param)}: {int(nf[g.index].sum())} of {int(total)} "
                          "evaluations were non-finite (replaced by a penalty) in "
                          f"{len(g)} start(s).")
     for _, g in df.groupby(["problem", "case", "problem_variant"], sort=True):
         lines += sections.active_bounds(g)
-    return lines
-
-
-def _cells(summary: pd.DataFrame, g: pd.DataFrame, paper: bool) -> pd.DataFrame:
-    first = g.iloc[0]
-    sel = summary[(summary["problem"] == first["problem"]) & (summary["case"] == first["case"])
-                  & (summary["variant"] == first["variant"])].copy()
-    limits = {key: _own_limit(c) for key, c in g.groupby(["optimizer", "param"])}
-    sel["budget"] = [f"{fmt(m) if np.isfinite(m) else limits.get((o, p), 'none')}; "
-                     f"spent {fmt(e, 4)}" for m, e, o, p in
-                     zip(sel["max_evals"], sel["mean_evals"], sel["optimizer"], sel["param"])]
-    sel["converged"] = [f"{c}/{n}" for c, n in zip(sel["n_converged"], sel["n_jobs"])]
-    sel["median 95 % CI"] = [note or f"{fmt(lo, 6)} – {fmt(hi, 6)}" for lo, hi, note in
-                             zip(sel["median_ci95_lo"], sel["median_ci95_hi"], sel["ci_note"])]
-    sel["paper mean"] = sel["paper_mean"] if paper else np.nan
-    return sel
-
-
-#: Population-size and iteration-limit settings (first present is shown).
-SIZE_KEYS = ("n_particles", "swarm_size", "popsize")
-ITER_KEYS = ("iters", "max_iterations")
-
-
-def _own_limit(cell: pd.DataFrame) -> str:
-    """An optimizer's own limit when it has no ``max_evals``: e.g. ``30 × 100 iters``."""
-    settings = protocol.params_of(cell["optimizer_settings"].iloc[0]) \
-        if "optimizer_settings" in cell else {}
-    size = next((settings[k] for k in SIZE_KEYS if settings.get(k)), None)
-    iters = next((f"{settings[k]} {k}" for k in ITER_KEYS if settings.get(k)), None)
-    if size and iters:
-        return f"{size} × {iters}"
-    return iters or "none"
-
-
-def _comparisons(comp: pd.DataFrame, g: pd.DataFrame) -> pd.DataFrame:
-    first = g.iloc[0]
-    if comp.empty:
-        return comp
-    sel = comp[(comp["problem"] == first["problem"]) & (comp["case"] == first["case"])
-               & (comp["variant"] == first["variant"])].copy()
-    sel["n"] = [f"{a}/{b}" for a, b in zip(sel["n_a"], sel["n_b"])]
-    sel["budgets (max_evals; spent)"] = [
-        f"{fmt(ma) if np.isfinite(ma) else 'none'}/{fmt(mb) if np.isfinite(mb) else 'none'}; "
-        f"{fmt(ea, 4)}/{fmt(eb, 4)}"
-        + (f"; polish {fmt(pa, 4)}/{fmt(pb, 4)}" if np.isfinite(pa) or np.isfinite(pb) else "")
-        for ma, mb, ea, eb, pa, pb in
-        zip(sel["max_evals_a"], sel["max_evals_b"], sel["evals_a"], sel["evals_b"],
-            sel["polish_evals_a"], sel["polish_evals_b"])]
-    sel["A12 (b beats a)"] = [f"{fmt(a, 2)} ({m})" if np.isfinite(a) else "—"
-                              for a, m in zip(sel["a12_b_beats_a"], sel["a12_magnitude"])]
-    sel["Holm p"] = sel["p_holm"]
-    return sel
-
-
-def _case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool) -> list[str]:
-    first = g.iloc[0]
-    variant = first["variant"]
-    stem = ctx["stems"].stem(first["problem"], first["case"], variant)
-    title = _title(first["problem"], first["case"], variant)
-    plain = f"{first['problem']} / {first['case']}" + (f" [{variant}]" if variant else "")
-    info = protocol.info_of(g)
-    lines = [f"## {title}", "", f"Cost: {info.cost_label}. Budget: `max_evals`, or the "
-             "optimizer's own limit (population × iterations); then the mean evaluations "
-             "spent per start.", "",
-             markdown(_cells(ctx["summary"], g, paper), CELL_COLUMNS), ""]
-    comp = _comparisons(ctx["comp"], g)
-    if not comp.empty:
-        lines += ["### Map vs map, same optimizer and variant", "",
-                  "Tested only where the budgets are equal; Holm p over the family declared in "
-                  "Statistics.", "", markdown(comp, COMPARISON_COLUMNS), ""]
-    steps = [("figures", lambda: _figures(g, ctx["bk"], out, stem, plain, info, paper)),
-             ("problem plots", lambda: sections.plots_section(g, out, stem)),
-             ("tuned controllers", lambda: controllers.section(g, out, stem)),
-             ("basins of attraction", lambda: basins.section(g, out, stem,
-                                                             ctx["basin_points"])
-              if ctx["basin_points"] > 0 else []),
-             ("cliffs", lambda: cliffs.section(g, out, stem) if ctx["probe"] else []),
-             ("paper values", lambda: sections.paper_section(g, ctx["paper"])
-              if paper else []),
-             ("held-out", lambda: holdout.problem_section(g, ctx["held"], ctx["imps"], out)
-              if not variant or variant == first["problem_variant"] else [])]
-    for name, step in steps:
-        try:
-            lines += step()
-        except Exception as exc:  # a figure that cannot be drawn must not lose the tables
-            logger.warning("%s of %s failed: %s", name, plain, exc)
-            lines += [md_line(f"({name} failed: {exc!r})"), ""]
-    return lines
-
-
-def _title(problem: str, case: str, variant: str) -> str:
-    """``problem / case [variant]`` as inert Markdown (names from the data escaped)."""
-    return f"{md_text(problem)} / {md_text(case)}" + (f" [{md_text(variant)}]"
-                                                      if variant else "")
-
-
-def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str,
-             info: object, paper: bool) -> list[str]:
-    label = info.cost_label
-    lines = []
-    for name, path in (
-            ("anytime", figures.anytime(g, bk, label, title, out / f"anytime_{stem}.png")),
-            ("ECDF", figures.ecdf_figure(g, bk, title, out / f"ecdf_{stem}.png")),
-            ("costs", figures.cost_distribution(
-                g, label, f"{title}: best cost per converged start", out / f"costs_{stem}.png",
-                info.paper if paper else None))):
-        if path is not None:
-            lines += [f"![{name}]({path.name})", ""]
-    if not any(line.startswith("![anytime]") for line in lines):
-        lines += ["(no anytime traces in these results — older schema: anytime and ECDF "
-                  "figures skipped)", ""]
     return lines
 
 
@@ -286,7 +168,8 @@ STREAM_MIN_ROWS = 100_000
 def build_report(src: Path, out: Path, paper: bool = True,
                  source_label: str | None = None,
                  basin_points: int = basins.REPORT_POINTS, stream: bool | None = None,
-                 progress: bool | None = None, probe: bool = True) -> Path:
+                 progress: bool | None = None, probe: bool = True,
+                 workers: int | str = 1) -> Path:
     """Write tables (CSV + Markdown), figures (PNG), ``report.md`` and ``report.html``.
 
     Every file is first written into a temporary folder inside ``out`` and renamed into
@@ -320,15 +203,22 @@ def build_report(src: Path, out: Path, paper: bool = True,
     progress : bool, optional
         Show a progress bar of the report's steps on stderr; default: when stderr is a
         terminal.
+    workers : int or "auto"
+        Processes writing the case sections (``auto``: one per core this process may
+        use); sections of different problem cases are written side by side
+        (:mod:`penaltyrun.report.parallel`). The report is the same file for file for any
+        number.
 
     Raises
     ------
     FileNotFoundError, ResultsUnreadableError
         No results file, or none readable, under ``src``.
     ConfigError
-        ``out`` is a symbolic link or a file.
+        ``out`` is a symbolic link or a file, or ``workers`` is not a positive integer or
+        ``auto``.
     """
     out = Path(out)
+    n_workers = resolve_workers(workers, "workers")
     protocol.reset()
     if stream is None:
         stream = declared_rows(src) > STREAM_MIN_ROWS
@@ -337,7 +227,7 @@ def build_report(src: Path, out: Path, paper: bool = True,
                                       lazy=stream))
         outdir.write_into(out, "report.output",
                           lambda tmp: _write_report(source_label or str(src), df, tmp, paper,
-                                                   basin_points, progress, probe),
+                                                   basin_points, progress, probe, n_workers),
                           lambda folder: outdir.report_files(
                               folder, [*TABLES, "summary", "comparison"]))
     logger.info("report: %s", out / "report.md")
@@ -346,11 +236,11 @@ def build_report(src: Path, out: Path, paper: bool = True,
 
 def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool,
                   basin_points: int = basins.REPORT_POINTS,
-                  progress: bool | None = None, probe: bool = True) -> None:
+                  progress: bool | None = None, probe: bool = True, workers: int = 1) -> None:
     """Write every file of the report into ``out`` (see :func:`build_report`)."""
-    n_cases = df.groupby(["problem", "case", "variant"], sort=True).ngroups
+    n_cases = df.groupby(cases.CASE_KEYS, sort=True).ngroups
     with Steps(len(STEPS) + n_cases, progress, lazy(df) and release_memory) as steps:
-        _write_files(src, df, out, paper, basin_points, steps, n_cases, probe)
+        _write_files(src, df, out, paper, basin_points, steps, n_cases, probe, workers)
 
 
 #: The report's steps besides one per case section (what its progress bar counts).
@@ -360,7 +250,7 @@ STEPS = ("cell statistics", "comparisons", "best-known optima", "held-out", "ver
 
 
 def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_points: int,
-                 steps: Steps, n_cases: int, probe: bool = True) -> None:
+                 steps: Steps, n_cases: int, probe: bool = True, workers: int = 1) -> None:
     """:func:`_write_report` with its progress bar ``steps``."""
     steps.step(STEPS[0])
     summary = cell_summary(df)
@@ -383,7 +273,7 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
     verdict = verdict_rows(df, bk, comp, held)
     steps.step(STEPS[5])
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
-           "stems": StemBook(), "basin_points": int(basin_points), "probe": bool(probe),
+           "basin_points": int(basin_points), "probe": bool(probe),
            "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
     _write_csv(ctx["paper"], out, "paper")
     if paper:
@@ -406,9 +296,11 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
     body = checks(df)
     if body:
         lines += ["## Checks", ""] + body + [""]
-    for k, (key, g) in enumerate(groups(df, ["problem", "case", "variant"])):
-        steps.step(f"case {k + 1}/{n_cases}: " + " / ".join(str(x) for x in key if x))
-        lines += _case_lines(g, ctx, out, paper)
+    written = iter(range(1, n_cases + 1))
+    for section in cases.write_sections(
+            df, ctx, out, paper, workers,
+            lambda name: steps.step(f"case {next(written)}/{n_cases}: {name}")):
+        lines += section
     steps.step(STEPS[7])
     lines += sections.contributed(df, out)
     front_tables = fronts.fronts_of(df)

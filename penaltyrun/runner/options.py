@@ -81,15 +81,17 @@ def available_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def resolve_workers(value: Any) -> int:
-    """``runner.workers`` as a number of processes: ``auto`` → :func:`available_cores`.
+def resolve_workers(value: Any, key: str = "runner.workers") -> int:
+    """A number of worker processes (``runner.workers``, or the setting ``key``):
+    ``auto`` → :func:`available_cores`.
 
     Raises
     ------
     ConfigError
-        Unless ``value`` is ``auto`` or an integer ≥ 1.
+        Unless ``value`` is ``auto`` or an integer ≥ 1 (the error names ``key``).
     """
-    check_value("workers", "workers", value, RUNNER_OPTIONS["workers"][1])
+    if not (value == "auto" or (is_int(value) and value >= 1)):
+        raise ConfigError(key, f"must be {RUNNER_OPTIONS['workers'][1]}, got {value!r}")
     return available_cores() if value == "auto" else int(value)
 
 

@@ -113,12 +113,12 @@ def test_named_sections_are_the_report_builders(doc, after):
 
 
 def test_named_columns_are_the_report_tables():
-    from penaltyrun.report import build, verdict
+    from penaltyrun.report import build, cases, verdict
 
     assert {"budget", "converged", "best", "median", "median 95 % CI", "mean", "worst"} <= \
-        set(build.CELL_COLUMNS)
+        set(cases.CELL_COLUMNS)
     assert {"median_a", "median_b", "A12 (b beats a)", "Holm p"} <= \
-        set(build.COMPARISON_COLUMNS)
+        set(cases.COMPARISON_COLUMNS)
     assert {"best_known", "optimizer", "param", "evidence"} <= set(build.BEST_KNOWN_COLUMNS)
     assert {"diagonal best-known", "full best-known", "gain", "equal budget", "held-out"} <= \
         set(verdict.COLUMNS)

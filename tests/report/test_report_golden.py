@@ -21,8 +21,8 @@ from penaltyrun.report import build_report
 GOLDEN = Path(__file__).parent / "golden"
 
 
-def _report(name: str, out: Path) -> Path:
-    return build_report(GOLDEN / name / "input", out, source_label="fixture")
+def _report(name: str, out: Path, workers: int = 1) -> Path:
+    return build_report(GOLDEN / name / "input", out, source_label="fixture", workers=workers)
 
 
 def _compare(name: str, out: Path) -> None:
@@ -50,6 +50,12 @@ def test_report_of_one_study_is_unchanged(tmp_path):
 @pytest.mark.slow
 def test_report_of_two_studies_is_unchanged(tmp_path):
     _compare("two_studies", _report("two_studies", tmp_path / "report"))
+
+
+@pytest.mark.slow
+def test_report_of_two_studies_is_unchanged_with_its_sections_in_two_workers(tmp_path):
+    """The case sections (figures, probes, basin maps) written in worker processes."""
+    _compare("two_studies", _report("two_studies", tmp_path / "report", workers=2))
 
 
 def regenerate() -> None:

@@ -47,7 +47,9 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     ``problem_variant`` lists the problem parameters that differ from the case's defaults
     (e.g. ``objective=min_fuel``): jobs with equal ``problem_variant`` solve the same
     problem, so best-known optima are taken over them. ``variant`` adds a warm start
-    (``warm_start=0.3``) and, within one optimizer, other optimizer settings (budgets).
+    (``warm_start=0.3``; the diagonal cell run beside warm-started full cells gets it too,
+    :func:`_join_warm_diagonals`) and, within one optimizer, other optimizer settings
+    (budgets).
 
     Nothing named in the data is imported (:mod:`penaltyrun.problems.trust`): a problem
     whose module is not imported gets its label from the stored parameters alone.
@@ -79,7 +81,7 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     warm = out["warm_start"] if "warm_start" in out else pd.Series(None, index=out.index)
     out["variant"] = [",".join(part for part in (v, _warm_label(w)) if part)
                       for v, w in zip(out["problem_variant"], warm)]
-    return _add_budget_variant(out)
+    return _add_budget_variant(_join_warm_diagonals(out))
 
 
 def _raw_label(params: Any, all_params: list[Any]) -> str:
@@ -99,6 +101,38 @@ def _warm_label(warm_json: Any) -> str:
     if not isinstance(warm, dict) or not warm:  # None, NaN of older files, JSON null
         return ""
     return f"warm_start={warm.get('share', '?')}"
+
+
+def _join_warm_diagonals(df: pd.DataFrame) -> pd.DataFrame:
+    """A diagonal cell run beside warm-started full cells joins their variant.
+
+    ``runner.warm_start`` warm-starts the full maps only: a full job spends a share of its
+    budget on the diagonal map and the rest on the full map from the diagonal best, while
+    a diagonal job of the same run spends the whole budget on the diagonal map. The two
+    are the comparison the warm start asks for (full against diagonal at one total
+    budget), so where the jobs of one problem, case, problem variant, optimizer and
+    optimizer settings hold diagonal starts, full starts all warm-started with one share
+    and no full start without a warm start, the diagonal starts get that share's label
+    too. Anything else (full starts with and without a warm start, or two shares) keeps
+    the diagonal starts in the variant without a warm start.
+    """
+    if "warm_start" not in df or df.empty:
+        return df
+    settings = (df["optimizer_settings"].map(_canonical) if "optimizer_settings" in df
+                else pd.Series("", index=df.index))
+    diagonal = (df["param"] == "diagonal") & (df["variant"] == df["problem_variant"])
+    variant = df["variant"].copy()
+    keys = [df["problem"], df["case"], df["problem_variant"], df["optimizer"], settings]
+    for _, g in df.groupby(keys, sort=False):
+        labels = set(g.loc[g["param"] != "diagonal", "variant"])
+        own = diagonal[g.index]
+        if own.any() and len(labels) == 1 and labels != {g["problem_variant"].iloc[0]}:
+            variant[g.index[own]] = labels.pop()
+    if variant.equals(df["variant"]):
+        return df
+    out = df.copy(deep=False)
+    out["variant"] = variant
+    return out
 
 
 def _canonical(settings_json: Any) -> str:

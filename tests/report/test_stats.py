@@ -345,6 +345,53 @@ def test_add_variant_labels_a_warm_start_as_a_variant_of_its_own():
     assert out["problem_variant"].tolist() == ["", "", ""]
 
 
+def _warm_frame(params, warm, optimizers=None):
+    n = len(params)
+    return pd.DataFrame({
+        "problem": ["zermelo"] * n, "case": ["default"] * n, "problem_params": ["{}"] * n,
+        "optimizer": optimizers or ["pso"] * n, "param": params,
+        "optimizer_settings": ['{"max_evals": 600}'] * n, "warm_start": warm})
+
+
+def test_a_diagonal_cell_run_beside_warm_started_full_cells_joins_their_variant():
+    """runner.warm_start warm-starts the full maps only: the run's diagonal cell, at the
+    same total budget, is what they are compared with."""
+    warm = '{"share": 0.3, "n_evals": 180}'
+    out = add_variant(_warm_frame(["diagonal", "diagonal", "givens", "geagsp"],
+                                  [None, None, warm, warm]))
+    assert out["variant"].tolist() == ["warm_start=0.3"] * 4
+    assert out["problem_variant"].tolist() == [""] * 4
+
+
+def test_a_diagonal_cell_stays_without_a_warm_start_where_the_full_cells_disagree():
+    """Full cells with and without a warm start, or with two shares: the diagonal cell
+    keeps the variant without one (the first case is the test above this one too)."""
+    two_shares = add_variant(_warm_frame(
+        ["diagonal", "givens", "geagsp"],
+        [None, '{"share": 0.3}', '{"share": 0.5}']))["variant"].tolist()
+    assert two_shares == ["", "warm_start=0.3", "warm_start=0.5"]
+    other_optimizer = add_variant(_warm_frame(
+        ["diagonal", "givens", "givens"], [None, None, '{"share": 0.3}'],
+        ["pso", "pso", "cmaes"]))["variant"].tolist()
+    assert other_optimizer == ["", "", "warm_start=0.3"]
+
+
+def test_warm_started_full_cells_are_tested_against_the_diagonal_cell_of_their_run():
+    from penaltyrun.report.compare import pairwise
+
+    rng = np.random.default_rng(0)
+    n = 12
+    frame = _warm_frame(["diagonal"] * n + ["givens"] * n, [None] * n + ['{"share": 0.3}'] * n)
+    frame = frame.assign(status="ok", best_converged=True, n_evals=600, max_evals=600,
+                         best_cost=np.r_[1.0 + rng.random(n), 0.5 + rng.random(n)])
+    rows = pairwise(add_variant(frame))
+    assert len(rows) == 1
+    row = rows.iloc[0]
+    assert (row["variant"], row["map_a"], row["map_b"]) == ("warm_start=0.3", "diagonal",
+                                                             "givens")
+    assert bool(row["equal_budget"]) and np.isfinite(row["p_mwu"])
+
+
 def test_bca_of_a_large_sample_runs_in_batches_of_bounded_memory(monkeypatch):
     import tracemalloc
 

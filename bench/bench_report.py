@@ -12,7 +12,10 @@ Three kinds of process run on the same input:
 
 ``report`` and ``base`` runs are interleaved (``--repeats`` pairs) so that both see the same
 load of a shared machine; the script prints every run, then the min and median ratios
-base/report and report/read.
+base/report and report/read. ``--workers N [N ...]`` runs this tree's report once per
+worker count in each repeat (``penaltyrun-report --workers N``), interleaved; the CPU time
+then includes the workers' (their fork server is stopped and reaped before the report
+process ends), the peak RSS is that of the largest single process.
 
 ``--large N`` instead writes N synthetic job rows (12 cells of one problem case, the
 writer of the report's memory tests, ``tests/report/large_results.py``) and times the
@@ -34,6 +37,7 @@ code that draws it changes).
 Usage::
 
     python bench/bench_report.py [--input studies] [--base e37fb9b] [--repeats 1] [--no-base]
+    python bench/bench_report.py --no-base --workers 1 2
     python bench/bench_report.py --large 1000000
     python bench/bench_report.py --large 300000 --steps
     python bench/bench_report.py --bca
@@ -58,8 +62,14 @@ ROOT = Path(__file__).resolve().parent.parent
 
 READ = ("import sys\nfrom penaltyrun.io import read_results\n"
         "print(len(read_results(sys.argv[1])), 'rows')\n")
-REPORT = ("import sys\nfrom penaltyrun.cli import report_main\n"
-          "report_main([sys.argv[1], '-o', sys.argv[2]])\n")
+REPORT = ("import sys\nfrom multiprocessing import forkserver\n"
+          "from penaltyrun.cli import report_main\n"
+          "try:\n    report_main([sys.argv[1], '-o', sys.argv[2], *sys.argv[3:]])\n"
+          "finally:\n    forkserver._forkserver._stop()\n")
+#: Why :data:`REPORT` stops the fork server (private API, no-op when none was started): the
+#: report's workers are children of the fork server, which reaps them; stopped and reaped in
+#: turn, its CPU time (its workers' included) reaches the report process's children and so
+#: the ``os.wait4`` of the benchmark. Peak RSS stays that of the largest single process.
 #: :data:`REPORT` with the allocators' defaults (the command line sets them up to give
 #: freed memory back: :func:`penaltyrun.io.read.lean_process_memory`).
 REPORT_DEFAULT_MEMORY = REPORT.replace(
@@ -215,6 +225,8 @@ def main() -> None:
     parser.add_argument("--bca", action="store_true", help="time the BCa intervals")
     parser.add_argument("--same", nargs=2, metavar=("A", "B"), type=Path,
                         help="compare two report folders")
+    parser.add_argument("--workers", nargs="+", metavar="N",
+                        help="this tree's report once per worker count (--workers N)")
     args = parser.parse_args()
     if args.bca:
         bca()
@@ -235,6 +247,12 @@ def main() -> None:
             runs: dict[str, list[dict[str, float]]] = {"read": [], "report": [], "base": []}
             runs["read"].append(measure(READ, [args.input], str(ROOT)))
             for i in range(args.repeats):
+                for n in args.workers or []:
+                    runs.setdefault(f"report --workers {n}", []).append(measure(
+                        REPORT, [args.input, f"{tmp}/w{n}_{i}", "--workers", n], str(ROOT)))
+                    shutil.rmtree(f"{tmp}/w{n}_{i}", ignore_errors=True)
+                if args.workers:
+                    continue
                 runs["report"].append(measure(REPORT, [args.input, f"{tmp}/r{i}"], str(ROOT)))
                 shutil.rmtree(f"{tmp}/r{i}", ignore_errors=True)
                 if base_tree is not None:
@@ -250,6 +268,14 @@ def main() -> None:
         for m in ms:
             print(_row(f"{name} ({args.base})" if name == "base" else name, m))
     read = runs["read"][0]
+    if args.workers:
+        first = runs[f"report --workers {args.workers[0]}"]
+        for n in args.workers[1:]:
+            for key, unit in (("cpu", "CPU"), ("wall", "wall"), ("rss", "peak RSS")):
+                ratios = [a[key] / b[key] for a, b in zip(first, runs[f"report --workers {n}"])]
+                print(f"{unit}: --workers {args.workers[0]} / --workers {n} min "
+                      f"{min(ratios):.2f}x median {statistics.median(ratios):.2f}x")
+        return
     for key, unit in (("cpu", "CPU"), ("wall", "wall"), ("rss", "peak RSS")):
         per_read = [m[key] / read[key] for m in runs["report"]]
         line = f"{unit}: report/read min {min(per_read):.1f}x median " \

@@ -158,8 +158,8 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
 SHARED = ("summary", "comp", "bk", "held", "imps", "paper", "basin_points", "probe")
 
 
-def write_sections(df: pd.DataFrame, ctx: dict[str, Any], out: Path, paper: bool, workers: int,
-             done: Callable[[str], None]) -> Iterator[list[str]]:
+def write_sections(df: pd.DataFrame, ctx: dict[str, Any], out: Path, paper: bool,
+                   workers: int, done: Callable[[str], None]) -> Iterator[list[str]]:
     """The lines of each case section of ``df``, in the order of
     ``df.groupby(CASE_KEYS, sort=True)``.
 
@@ -191,7 +191,8 @@ def write_sections(df: pd.DataFrame, ctx: dict[str, Any], out: Path, paper: bool
     shared = {key: ctx[key] for key in SHARED}
     results = parallel.ordered_map(
         _work, bundles, min(workers, n_cases), _start_worker,
-        (trust.snapshot(), shared, logging.getLogger().getEffectiveLevel()),
+        (trust.snapshot(), shared, list(protocol.WARNINGS),
+         logging.getLogger().getEffectiveLevel()),
         local=lambda bundle: _write(bundle, ctx),
         done=lambda names: [done(name) for name in names])
     for written in results:
@@ -237,15 +238,18 @@ def _write(bundle: Bundle, ctx: dict[str, Any]) -> list[list[str]]:
 _WORKER_CTX: dict[str, Any] = {}
 
 
-def _start_worker(trust_state: tuple, shared: dict[str, Any], log_level: int) -> None:
-    """Set a worker process up: what reading results may import, the shared tables,
-    logging at the report's level, figures drawn without a display."""
+def _start_worker(trust_state: tuple, shared: dict[str, Any], warnings: list[str],
+                  log_level: int) -> None:
+    """Set a worker process up: what reading results may import, the shared tables, the
+    warnings the report has given (not logged again), logging at the report's level,
+    figures drawn without a display."""
     import matplotlib
 
     matplotlib.use("Agg")
     logging.basicConfig(level=log_level, format="%(levelname)s %(name)s: %(message)s")
     trust.restore(trust_state)
     protocol.reset()
+    protocol.WARNINGS.extend(warnings)
     _WORKER_CTX.clear()
     _WORKER_CTX.update(shared)
 

@@ -79,6 +79,7 @@ def ordered_map(work: Callable[[Any], Any], bundles: Iterable[tuple[Any, Any]], 
     exhausted = False
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(),
                                initializer=initializer, initargs=initargs)
+    finished_all = False
     try:
         while True:
             while not exhausted and len(pending) < AHEAD_PER_WORKER * workers:
@@ -103,8 +104,22 @@ def ordered_map(work: Callable[[Any], Any], bundles: Iterable[tuple[Any, Any]], 
             while next_out in finished:
                 yield finished.pop(next_out)
                 next_out += 1
-    finally:  # also when the caller stops early (an error, Ctrl-C): queued bundles dropped
+        finished_all = True
+    finally:
+        if not finished_all:  # an error, Ctrl-C, SIGTERM: the bundles in flight are dropped
+            _terminate(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop the pool's workers now, in the middle of their bundles (a stopped report
+    writes nothing; waiting for them could take minutes)."""
+    terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
+    if terminate is not None:
+        terminate()
+        return
+    for process in list(getattr(pool, "_processes", {}).values()):
+        process.terminate()
 
 
 def _submit(pool: ProcessPoolExecutor, work: Callable[[Any], Any], bundle: Any

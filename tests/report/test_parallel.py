@@ -97,6 +97,19 @@ def test_a_dead_worker_costs_only_time(caplog):
     assert "a report worker died" in caplog.text
 
 
+def test_a_stopped_report_stops_its_workers_at_once():
+    """The consumer stops (an error, Ctrl-C, SIGTERM): workers in the middle of a long
+    bundle are terminated, not waited for."""
+    import time
+
+    results = parallel.ordered_map(time.sleep, [("quick", 0), ("long", 60), ("longer", 60)],
+                                   2, os.getpid, (), local=time.sleep)
+    assert next(results) is None
+    started = time.monotonic()
+    results.close()
+    assert time.monotonic() - started < 20
+
+
 def test_workers_never_start_by_a_plain_fork():
     assert parallel.pool_context().get_start_method() in ("forkserver", "spawn")
 

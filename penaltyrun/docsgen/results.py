@@ -684,7 +684,10 @@ def check(root: Path, reference: bool = True, tables: bool = True,
             rel = page.relative_to(root)
             if rel not in expected:
                 problems.append(f"{rel}: not generated from a template (studies/templates)")
-        problems += _check_figures(Path(root), set(rendered))
+        from penaltyrun.docsgen.comparefig import FIGURES
+
+        if _wanted(FIGURES, only):  # a check of other files renders no figure
+            problems += _check_figures(Path(root), set(rendered))
     return problems
 
 

@@ -149,3 +149,15 @@ def test_fidelity_page_numbers_come_from_the_experiment_files(tmp_path):
     csv.write_text(csv.read_text().replace(f",{evals},", f",{evals + 1},"))
     problems = results.check(tmp_path, reference=False, tables=False)
     assert len(problems) == 1 and str(evals + 1) in problems[0]
+
+
+def test_a_stray_figure_fails_a_whole_check_not_one_of_other_files(repo):
+    """A partial check (``--only``) renders no figure, so it cannot tell a figure that no
+    page draws from one that it did not render."""
+    commit_data(repo)
+    results.render_all(repo, reference=False)
+    stray = repo / "docs" / "results" / "figures" / "gone_a12.png"
+    stray.parent.mkdir(parents=True, exist_ok=True)
+    stray.write_bytes(b"\x89PNG")
+    assert any("gone_a12.png" in p for p in results.check(repo, reference=False))
+    assert results.check(repo, reference=False, only="docs/results/demo") == []

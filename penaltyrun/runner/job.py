@@ -188,11 +188,15 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
                   ) -> tuple[optim.OptimResult, dict[str, Any]]:
     """Diagonal stage, then the full search seeded with the best diagonal matrix.
 
-    The diagonal stage spends ``warm_start_share · max_evals``; its best matrices are
+    The diagonal stage has ``warm_start_share · max_evals``; its best matrices are
     encoded in the full map's coordinates (``DecisionLayout.join``) and handed to the
     optimizer as ``x0`` (a particle, a population member, the CMA-ES mean). The full stage
-    spends the rest, so the job's total is ``max_evals``, and because the seed point is
-    evaluated again, the job's best is never worse than its diagonal stage.
+    has the rest of the planned budget, ``max_evals`` less the diagonal stage's share,
+    whatever that stage left unspent (a polish that converged early, a stall rule): so each
+    stage's search and polish get their shares of ``max_evals`` and the job's searches
+    spend what a cold job's search of the same settings spends, the comparison the
+    report's equal-budget test makes. Because the seed point is evaluated again, the job's
+    best is never worse than its diagonal stage.
 
     Returns
     -------
@@ -214,7 +218,7 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
     diag_scalars = {k: float(v[0]) for k, v in scalars.items()}
     x0 = layout.join(diag_mats, diag_scalars)
     lb, ub = layout.bounds()
-    full_settings = replace(settings, max_evals=max(1, budget - diag.n_evals))
+    full_settings = replace(settings, max_evals=max(1, budget - diag_budget))
     full = optim.minimize(job.optimizer, _objective(evaluation, job, prob, layout, job.param,
                                                     full_settings),
                           lb, ub, full_settings, job.seed, x0, _gradient(prob, layout))

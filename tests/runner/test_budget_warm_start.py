@@ -54,3 +54,29 @@ def test_warm_start_is_ignored_for_the_diagonal_map():
     jobs = runner.plan_jobs("zermelo", "default", "diagonal", "pso", n_starts=1, root_seed=3,
                             optimizer_options=OPTIONS["pso"], warm_start_share=0.3)
     assert jobs[0].warm_start_share == 0.0
+
+
+def test_a_warm_started_job_searches_as_long_as_a_cold_diagonal_job(tmp_path):
+    """Each stage keeps its share of max_evals: a diagonal stage whose polish converges
+    early leaves its unspent evaluations unspent, so the job's searches spend what the cold
+    diagonal job's search spends and the report tests them at an equal budget."""
+    from penaltyrun.report.compare import budget, equal_budget
+    from penaltyrun.report.stats import add_variant
+
+    options = {"max_evals": 3000, "polish": "gradient", "polish_share": 0.2}
+    jobs = runner.plan_jobs("zermelo", "default", "diagonal", "cmaes", n_starts=2, root_seed=5,
+                            optimizer_options=options, meta={"git_commit": "test"})
+    jobs += runner.plan_jobs("zermelo", "default", "givens", "cmaes", n_starts=2, root_seed=5,
+                             optimizer_options=options, meta={"git_commit": "test"},
+                             warm_start_share=0.3)
+    runner.execute(jobs, tmp_path)
+    df = add_variant(io.read_results(io.collect(tmp_path)))
+    search = df["n_evals"] - df["polish_evals"].fillna(0)
+    warm = df["param"] == "givens"
+    assert (df.loc[warm, "n_evals"] <= 3000).all()
+    stage = df.loc[warm, "warm_start"].map(lambda w: json.loads(w)["n_evals"])
+    assert (stage < 900).any()  # a diagonal stage whose polish converged early
+    cold_search, warm_search = search[~warm].mean(), search[warm].mean()
+    assert abs(warm_search - cold_search) <= 0.01 * cold_search, (cold_search, warm_search)
+    assert df["variant"].nunique() == 1
+    assert equal_budget(budget(df[~warm]), budget(df[warm]))

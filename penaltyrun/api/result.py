@@ -136,7 +136,8 @@ class TuneResult:
         return pd.DataFrame(rows, columns=[*CELL, "n_starts", "converged", "best_cost",
                                            "median_cost", "median_evals"])
 
-    def report(self, out_dir: str | Path | None = None, paper: bool = True) -> Path:
+    def report(self, out_dir: str | Path | None = None, paper: bool = True,
+               workers: int | str = 1) -> Path:
         """Write the report of these results (what ``penaltyrun-report`` writes: tables,
         figures, ``report.md``, ``report.html``) and return its folder.
 
@@ -146,12 +147,21 @@ class TuneResult:
             Output folder (default ``<run_dir>/report``).
         paper : bool
             Put the paper's numbers beside these where it reports them.
+        workers : int or "auto"
+            Processes writing the sections of different problem cases (``auto``: one per
+            core), as ``penaltyrun-report --workers``; results of a problem object held in
+            this process are always reported in this process.
+
+        Raises
+        ------
+        ConfigError
+            ``workers`` is not a positive integer or ``auto``.
         """
         from penaltyrun import report
 
         out = Path(out_dir) if out_dir is not None else self.run_dir / "report"
         with _holding([self.problem]):
-            report.build_report(self.source, out, paper=paper)
+            report.build_report(self.source, out, paper=paper, workers=workers)
         return out
 
 

@@ -88,8 +88,10 @@ def test_resume_runs_only_the_missing_jobs(quad, tmp_path):
 def test_report_and_load_round_trip(quad, tmp_path):
     res = penaltyrun.tune(quad, n_starts=2, optimizer_options=BUDGET, workers=1,
                           run_dir=tmp_path / "run")
-    out = res.report(tmp_path / "report")
+    out = res.report(tmp_path / "report", workers=2)  # a problem object: in this process
     assert out == tmp_path / "report" and (out / "report.md").is_file()
+    with pytest.raises(ConfigError, match="workers"):
+        res.report(tmp_path / "other", workers=0)
     assert (out / "report.html").is_file()
     for source in (tmp_path / "run", tmp_path / "run" / "results.parquet"):
         loaded = penaltyrun.load(source)

@@ -42,6 +42,25 @@ def polished_stop(search: str, outcome: str) -> str:
     return search + (POLISH_TAG if outcome == POLISH_CONVERGED else f"{POLISH_TAG}:{outcome}")
 
 
+#: A warm-started job's ``stop_reason``: ``warm:<diagonal stage's>|<full stage's>``
+#: (:func:`warm_stop`).
+WARM_TAG = "warm:"
+
+
+def warm_stop(diagonal: str, full: str) -> str:
+    """``stop_reason`` of a warm-started job from its two stages' stop reasons."""
+    return f"{WARM_TAG}{diagonal}|{full}"
+
+
+def final_search_stop(reason: str) -> str:
+    """What stopped the search that ended a job: the search's own stop reason
+    (:func:`split_stop`), the full stage's for a warm-started job (:func:`warm_stop`)."""
+    search = split_stop(reason)[0]
+    if search.startswith(WARM_TAG) and "|" in search:
+        return split_stop(search.partition("|")[2])[0]
+    return search
+
+
 def split_stop(reason: str) -> tuple[str, str | None]:
     """The search's stop reason and how its polish ended (:data:`POLISH_CONVERGED`,
     ``no_gradient``, ...; None when no polish ran), from a recorded ``stop_reason``

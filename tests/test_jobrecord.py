@@ -129,3 +129,12 @@ def test_a_polished_stop_reason_splits_back_into_the_search_and_the_polish_endin
 def test_a_stop_reason_without_a_polish_is_the_search_s_own():
     assert jobrecord.split_stop("grid+local") == ("grid+local", None)
     assert jobrecord.split_stop("max_evals") == ("max_evals", None)
+
+
+@pytest.mark.parametrize("full", ["max_evals", jobrecord.polished_stop("ftol", "no_gradient")])
+def test_the_final_search_of_a_warm_started_job_is_its_full_stage(full):
+    diagonal = jobrecord.polished_stop("max_evals", jobrecord.POLISH_CONVERGED)
+    reason = jobrecord.warm_stop(diagonal, full)
+    assert reason.startswith(jobrecord.WARM_TAG)
+    assert jobrecord.final_search_stop(reason) == jobrecord.split_stop(full)[0]
+    assert jobrecord.final_search_stop(full) == jobrecord.split_stop(full)[0]

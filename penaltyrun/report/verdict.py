@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from penaltyrun.jobrecord import split_stop
+from penaltyrun.jobrecord import final_search_stop
 from penaltyrun.report import protocol
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_rows
 from penaltyrun.report.compare import NO_TEST
@@ -261,7 +261,7 @@ STOP_WORDS = {"iters": "the iteration limit", "ftol": "the stall rule",
 def stop_setting(reason: str, settings: dict[str, Any]) -> str:
     """The setting that stopped a search, e.g. ``optimizer.iters`` (``iters`` stop of
     PSO) or ``optimizer.max_iterations`` (pso_matlab); the stall rule names its keys."""
-    base = split_stop(reason)[0]
+    base = final_search_stop(reason)
     keys = STOP_SETTINGS.get(base)
     if keys is None:
         return f"stop reason {reason!r}"
@@ -280,7 +280,7 @@ def stop_advice(rows: pd.DataFrame) -> str:
     parts = []
     rows = rows[rows["optimizer"] != "baseline"]
     totals = rows["optimizer"].value_counts()
-    search_stop = rows["stop_reason"].fillna("?").astype(str).map(lambda r: split_stop(r)[0])
+    search_stop = rows["stop_reason"].fillna("?").astype(str).map(final_search_stop)
     for (opt, reason), g in rows.groupby(["optimizer", search_stop]):
         total = int(totals[opt])
         settings = protocol.params_of(g["optimizer_settings"].iloc[0]) \

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun import optim
-from penaltyrun.jobrecord import DIVERGED, FAILED, OK
+from penaltyrun.jobrecord import DIVERGED, FAILED, OK, warm_stop
 from penaltyrun.optim.gradient import first_order, z_gradient
 from penaltyrun.problems import diagnostics
 from penaltyrun.problems.base import CUTOFF_STATUS, gradient_support
@@ -229,7 +229,7 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
     result = optim.OptimResult(
         best_cost=full.best_cost, best_z=full.best_z, history=diag.history + full.history,
         n_evals=diag.n_evals + full.n_evals, n_iters=diag.n_iters + full.n_iters,
-        stop_reason=f"warm:{diag.stop_reason}|{full.stop_reason}",
+        stop_reason=warm_stop(diag.stop_reason, full.stop_reason),
         n_nonfinite=diag.n_nonfinite + full.n_nonfinite, trace_evals=trace_evals,
         trace_best=[float(c) for c in trace_best], trace_cpu_s=trace_cpu,
         n_gradients=diag.n_gradients + full.n_gradients,

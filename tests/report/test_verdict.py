@@ -123,6 +123,19 @@ def test_polish_endings_do_not_split_the_search_stop():
     assert s.count("the iteration limit") == 1
 
 
+def test_a_warm_started_start_is_stopped_by_its_full_stage():
+    from penaltyrun.jobrecord import polished_stop, warm_stop
+
+    df = frame()
+    df.loc[df["param"] == "full", "best_cost"] += 5.0
+    full = df.index[df["param"] == "full"]
+    df.loc[full, "stop_reason"] = warm_stop(polished_stop("ftol", "converged"),
+                                            polished_stop("iters", "no_gradient"))
+    s = verdict(df)["sentence"]
+    assert "stopped by pso: the iteration limit (`optimizer.iters`) in 10 of 10 starts;" in s
+    assert "warm:" not in s
+
+
 def long_held(costs, converged, by_deadline, arrival):
     return {"scenario": SCENARIOS, "cost": list(costs), "converged": list(converged),
             "converged_by_deadline": list(by_deadline), "arrival_time": list(arrival),

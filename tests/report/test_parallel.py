@@ -160,6 +160,8 @@ def test_a_worker_imports_nothing_named_in_the_data(tmp_path, monkeypatch):
 
 
 def test_trust_snapshot_restores_what_the_user_named():
+    """Other tests of this process may have named modules: they are kept as they were."""
+    before = trust.snapshot()
     try:
         trust.name_module("mine", "mylab.problems")
         trust.allow_module("mylab.plants")
@@ -167,9 +169,10 @@ def test_trust_snapshot_restores_what_the_user_named():
         trust.forget_named()
         assert trust.named() == {} and not trust.allowed("mylab.plants")
         trust.restore(state)
-        assert trust.named() == {"mine": "mylab.problems"} and trust.allowed("mylab.plants")
+        assert trust.named()["mine"] == "mylab.problems" and trust.allowed("mylab.plants")
+        assert trust.snapshot() == state
     finally:
-        trust.forget_named()
+        trust.restore(before)
 
 
 def test_a_bad_workers_option_is_one_line_and_exit_2(tmp_path):

@@ -76,6 +76,7 @@ def report_main(argv: list[str] | None = None) -> None:
         if not src.exists():
             raise ConfigError("input", f"{src} does not exist")
         from penaltyrun.cli.checks import check_output_dir
+        from penaltyrun.runner.options import workers_argument
 
         check_output_dir(args.output, "-o")
         for item in args.problem_module:
@@ -92,7 +93,7 @@ def report_main(argv: list[str] | None = None) -> None:
         if maps and not (maps["basin_points"] == 0 or 2 <= maps["basin_points"] <= 200):
             raise ConfigError("--basin-points", f"must be 0 (no maps) or 2 to 200, got "
                               f"{args.basin_points}")
-        workers = args.workers if args.workers == "auto" else _count(args.workers)
+        workers = workers_argument(args.workers)
         report.build_report(src, out, paper=not args.no_paper,
                             progress=progress.wanted(args.progress),
                             probe=not args.no_probe, workers=workers, **maps)
@@ -102,23 +103,6 @@ def report_main(argv: list[str] | None = None) -> None:
 
     guard(build)
     flush_stdout()
-
-
-def _count(text: str) -> int:
-    """``--workers`` as a number.
-
-    Raises
-    ------
-    ConfigError
-        ``text`` is not a positive integer.
-    """
-    try:
-        number = int(text)
-    except ValueError:
-        number = 0
-    if number < 1:
-        raise ConfigError("--workers", f"must be a positive integer or auto, got {text!r}")
-    return number
 
 
 def _export(src: Path, out: Path) -> None:

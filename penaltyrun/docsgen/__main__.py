@@ -31,19 +31,9 @@ import sys
 from pathlib import Path
 
 from penaltyrun.docsgen import probe, rejudge, results, studies
+from penaltyrun.errors import ConfigError
+from penaltyrun.runner.options import workers_argument
 
-
-def _workers(value: str) -> int | str:
-    """``--workers`` as given: ``auto`` or a positive integer."""
-    if value == "auto":
-        return value
-    try:
-        number = int(value)
-    except ValueError:
-        number = 0
-    if number < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer or auto, got {value!r}")
-    return number
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code."""
@@ -68,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     study.add_argument("--run-dir", type=Path, help="fixed run directory "
                        "(default outputs/studies/NAME)")
     study.add_argument("--resume", default="false", choices=("true", "false"))
-    study.add_argument("--workers", default="auto", type=_workers,
+    study.add_argument("--workers", default="auto",
                        help="worker processes: a positive integer or auto (all cores)")
     study.add_argument("--reduced", action="store_true",
                        help="each command's reduced overrides (few starts, tiny budgets)")
@@ -113,22 +103,23 @@ def main(argv: list[str] | None = None) -> int:
     if not args.name:
         parser.error("study run/merge/rejudge/probe/tables needs a NAME")
     try:
+        workers = workers_argument(args.workers)
         if args.action == "run":
             studies.run_study(root, args.name, run_dir=args.run_dir,
-                              resume=args.resume == "true", workers=args.workers,
+                              resume=args.resume == "true", workers=workers,
                               reduced=args.reduced, extra=args.set, dest=args.dest,
                               tables=not args.no_tables)
         elif args.action == "tables":
             studies.rebuild_tables(root, args.name)
         elif args.action == "rejudge":
-            rejudge.rejudge_study(root, args.name, jobs=args.jobs, workers=args.workers,
+            rejudge.rejudge_study(root, args.name, jobs=args.jobs, workers=workers,
                                   tables=not args.no_tables)
         elif args.action == "probe":
-            probe.probe_study(root, args.name, workers=args.workers)
+            probe.probe_study(root, args.name, workers=workers)
         else:
             studies.merge_study(root, args.name, run_dir=args.run_dir, dest=args.dest,
                                 tables=not args.no_tables)
-    except studies.StudyError as exc:
+    except (studies.StudyError, ConfigError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         return 2
     return 0

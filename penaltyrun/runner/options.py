@@ -95,6 +95,25 @@ def resolve_workers(value: Any, key: str = "runner.workers") -> int:
     return available_cores() if value == "auto" else int(value)
 
 
+def workers_argument(text: str, option: str = "--workers") -> int | str:
+    """A command-line worker count as given: ``auto`` or a positive integer.
+
+    Raises
+    ------
+    ConfigError
+        Unless ``text`` is ``auto`` or a positive integer (the error names ``option``).
+    """
+    if text == "auto":
+        return text
+    try:
+        number = int(text)
+    except ValueError:
+        number = 0
+    if number < 1:
+        raise ConfigError(option, f"must be a positive integer or auto, got {text!r}")
+    return number
+
+
 def parse_address(address: str) -> tuple[str, int]:
     """(host, port) of a scheduler address ``[tcp://|tls://]host:port``.
 

@@ -78,3 +78,11 @@ def test_without_a_probe_the_page_names_the_command(tmp_path):
     assert "study probe robust_mpc" in probe.cliff_table(tmp_path, "robust_mpc")
     assert probe.cliff_counts(tmp_path, "robust_mpc") == {"points": 0, "cliffs": 0,
                                                            "improved": 0}
+
+
+@pytest.mark.parametrize("workers", ["0", "two"])
+def test_a_bad_worker_count_is_one_line_and_exit_2(tmp_path, capsys, workers):
+    assert main(["--root", str(tmp_path), "study", "probe", "robust_mpc",
+                 "--workers", workers]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and "--workers: must be a positive integer or auto" in lines[0]

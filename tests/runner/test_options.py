@@ -5,7 +5,12 @@ import socket
 import pytest
 
 from penaltyrun.errors import ConfigError
-from penaltyrun.runner.options import check_runner_options, check_scheduler, parse_address
+from penaltyrun.runner.options import (
+    check_runner_options,
+    check_scheduler,
+    parse_address,
+    workers_argument,
+)
 
 GOOD = {"n_starts": 2, "seed": 0, "workers": 1, "backend": "local", "scheduler": None,
         "resume": False, "retry_failed": False, "report": True, "holdout": True,
@@ -47,6 +52,17 @@ def test_swarm_level_needs_the_dask_backend():
     with pytest.raises(ConfigError, match="runner.evaluate_on: dask needs runner.backend=dask"):
         check_runner_options({**GOOD, "evaluate_on": "dask"})
     check_runner_options({**GOOD, "evaluate_on": "dask", "backend": "dask", "chunks": 3})
+
+
+@pytest.mark.parametrize(("text", "expected"), [("auto", "auto"), ("1", 1), ("12", 12)])
+def test_workers_argument_accepts_auto_and_positive_integers(text, expected):
+    assert workers_argument(text) == expected
+
+
+@pytest.mark.parametrize("text", ["0", "-2", "two", "1.5", ""])
+def test_workers_argument_refuses_the_rest_naming_the_option(text):
+    with pytest.raises(ConfigError, match=r"^--jobs: must be a positive integer or auto"):
+        workers_argument(text, option="--jobs")
 
 
 def test_addresses():

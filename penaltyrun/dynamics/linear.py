@@ -16,13 +16,22 @@ equation A_clᵀ S + S A_cl + W = 0. Two routes compute it:
 * Bartels–Stewart (``scipy.linalg.solve_continuous_lyapunov``) and ``scipy.linalg.expm``
   (a loop that is not Hurwitz: the exponential of the lifted linear system of x xᵀ and J).
 
+One Hurwitz loop alone (a gradient search asks for one candidate, then its gradient) takes
+:func:`loop_solution`: S by Bartels–Stewart on a real Schur decomposition of A_cl that the
+exact gradient's adjoint Lyapunov equations reuse (:class:`LoopSolution`), and e^{A_cl T}.
+
 No time stepping: both routes are exact up to round-off (tests compare them with each other
 and with ``solve_ivp``).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from scipy.linalg import expm
+
+from penaltyrun.dynamics.lyapunov import SchurLyapunov
 
 #: Largest condition number of the eigenvector matrix accepted on the eigendecomposition path.
 COND_MAX = 1e4
@@ -50,7 +59,7 @@ def _eig_route(lam: np.ndarray, V: np.ndarray, W: np.ndarray, X0: np.ndarray, t_
 
 def _scipy_route(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
                  ) -> tuple[np.ndarray, np.ndarray]:
-    from scipy.linalg import expm, solve_continuous_lyapunov
+    from scipy.linalg import solve_continuous_lyapunov
 
     E = expm(A_cl * t_max)
     if np.max(np.linalg.eigvals(A_cl).real) < 0.0:
@@ -83,6 +92,55 @@ def _eig_batch(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float,
         c, xf = _eig_route(lam[idx], V[idx], W[idx], X0[idx], t_max)
         cost[idx], x_final[idx] = c, xf
     return good
+
+
+@dataclass(frozen=True)
+class LoopSolution:
+    """The cost matrices of one Hurwitz loop ẋ = A_cl x with weight W over [0, T].
+
+    Attributes
+    ----------
+    lyapunov : SchurLyapunov
+        Lyapunov solver of A_cl (its real Schur decomposition).
+    S : ndarray, shape (n, n)
+        Solution of A_clᵀ S + S A_cl + W = 0 (symmetrized).
+    E : ndarray, shape (n, n)
+        e^{A_cl T}.
+    """
+
+    lyapunov: SchurLyapunov
+    S: np.ndarray
+    E: np.ndarray
+
+    def cost(self, X0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x0ᵀ (S − Eᵀ S E) x0 and x(T) = E x0 of the starts ``X0`` (k, n): shapes (k,),
+        (k, n)."""
+        X0 = np.asarray(X0, dtype=float)
+        XT = X0 @ self.E.T
+        return (np.einsum("ki,ij,kj->k", X0, self.S, X0)
+                - np.einsum("ki,ij,kj->k", XT, self.S, XT)), XT
+
+
+def loop_solution(A_cl: np.ndarray, W: np.ndarray, t_max: float) -> LoopSolution:
+    """:class:`LoopSolution` of one Hurwitz loop.
+
+    Parameters
+    ----------
+    A_cl : ndarray, shape (n, n)
+        Hurwitz closed-loop matrix (1/time unit); the caller checks stability.
+    W : ndarray, shape (n, n)
+        Symmetric weight.
+    t_max : float
+        Horizon T (time unit of A_cl).
+
+    Returns
+    -------
+    LoopSolution
+    """
+    A_cl = np.asarray(A_cl, dtype=float)
+    lyapunov = SchurLyapunov(A_cl)
+    S = lyapunov.solve(-np.asarray(W, dtype=float), transpose=True)
+    return LoopSolution(lyapunov, 0.5 * (S + S.T), expm(A_cl * float(t_max)))
 
 
 def quadratic_cost(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
@@ -133,4 +191,4 @@ def quadratic_cost(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
     return cost, x_final
 
 
-__all__ = ["COMPILED_MAX_STATES", "COND_MAX", "quadratic_cost"]
+__all__ = ["COMPILED_MAX_STATES", "COND_MAX", "LoopSolution", "loop_solution", "quadratic_cost"]

@@ -86,7 +86,8 @@ OPTIMIZERS: dict[str, Optimizer] = {
     "grid": Optimizer(GridSettings, run_grid, warm_start=False),
     "baseline": Optimizer(BaselineSettings, run_baseline, warm_start=False),
     "pso_matlab": Optimizer(PSOMatlabSettings, run_pso_matlab),
-    "lbfgs": Optimizer(LBFGSSettings, run_lbfgs, needs_gradient=True),
+    "lbfgs": Optimizer(LBFGSSettings, run_lbfgs, needs_gradient=True,
+                       shared_imports=("scipy.optimize",)),
 }
 #: Optimizers that need the problem's exact gradient.
 GRADIENT_OPTIMIZERS = tuple(name for name, opt in OPTIMIZERS.items() if opt.needs_gradient)

@@ -173,6 +173,20 @@ def time_candidates(problem: Any, layout: Any, n: int, seed: int, batch: int = 1
         return Timing(error=f"timing failed: {type(exc).__name__}: {exc}")
 
 
+def warm_gradient(problem: Any, layout: Any, seed: int) -> None:
+    """One untimed exact gradient at a random candidate of ``layout``'s box: loads the
+    gradient's compiled kernels (the maps' Jacobians) here, before the workers are forked,
+    as the timed evaluations do for the cost, so that no job's CPU trace pays for them. A
+    failure is left to the jobs, which record it."""
+    from penaltyrun.optim.gradient import z_gradient
+
+    lb, ub = layout.bounds()
+    try:
+        z_gradient(problem, layout, uniform_box(np.random.default_rng(seed), lb, ub, 1)[0])
+    except Exception as exc:  # the run records failures itself; the forecast never stops it
+        logger.debug("gradient warm-up failed: %s: %s", type(exc).__name__, exc)
+
+
 def extra_evals(problem: Any, holdout: bool) -> int:
     """Evaluations after the search: the best candidate's detail (1) plus, with
     ``holdout``, one per held-out scenario of ``problem`` (0 if it has none)."""
@@ -258,6 +272,8 @@ def forecast_cell(jobs: Sequence[Job], samples: int, root_seed: int = 0,
         timing = time_candidates(problem, layout, samples,
                                  job_seed(root_seed, f"forecast/{label}"),
                                  optimizer_batch(settings, layout.dim))
+    if samples > 0 and settings.uses_gradient:
+        warm_gradient(problem, layout, job_seed(root_seed, f"forecast-gradient/{label}"))
     return CellForecast(label, tuple(jobs), job_evals(job, problem, settings, layout.dim),
                         extra_evals(problem, job.holdout), timing)
 

@@ -106,6 +106,43 @@ def test_timing_error_is_reported_not_raised():
     assert timing.mean_s is None and "kernel exploded" in timing.error
 
 
+@pytest.mark.parametrize("optimizer, options, warmed", [
+    ("lbfgs", {"max_evals": 50, "starts": 1}, 1), ("cmaes", {"max_evals": 50}, 0),
+    ("cmaes", {"max_evals": 50, "polish": "gradient"}, 1)])
+def test_a_cell_that_uses_gradients_computes_one_before_the_fork(monkeypatch, optimizer,
+                                                                 options, warmed):
+    """The forecast loads the gradient's kernels in the parent (one untimed gradient), so
+    that no forked job's CPU trace pays for them; without samples it does nothing."""
+    from penaltyrun.optim import gradient
+
+    calls = []
+    original = gradient.z_gradient
+    monkeypatch.setattr(gradient, "z_gradient", lambda *a: calls.append(1) or original(*a))
+    jobs = plan_jobs("lqr", "default", "givens", optimizer, n_starts=2, root_seed=0,
+                     optimizer_options=options, holdout=False)
+    fc.forecast_cell(jobs, samples=1, root_seed=5)
+    assert len(calls) == warmed
+    fc.forecast_cell(jobs, samples=0)
+    assert len(calls) == warmed
+
+
+def test_a_gradient_warm_up_that_fails_is_left_to_the_jobs(caplog):
+    class Layout:
+        def bounds(self):
+            return np.zeros(2), np.ones(2)
+
+        def split(self, Z):
+            raise RuntimeError("decode exploded")
+
+    class Problem:
+        def gradient(self, mats, scalars=None):
+            raise AssertionError("not reached")
+
+    with caplog.at_level(logging.DEBUG, logger="penaltyrun.runner.forecast"):
+        fc.warm_gradient(Problem(), Layout(), seed=0)
+    assert "decode exploded" in caplog.text
+
+
 def test_extra_evaluations_count_the_held_out_set():
     jobs = plan_jobs("qlaw", "A", "diagonal", "pso", n_starts=1, root_seed=0,
                      optimizer_options=PSO)

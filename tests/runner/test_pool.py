@@ -121,6 +121,7 @@ def test_an_optimizers_heavy_imports_happen_once_before_the_fork():
         assert pool.import_shared([J(optimizer="pso"), J(optimizer="cmaes")]) == [
             "penaltyrun.optim.pso:load_pyswarms"]
         assert "pyswarms" in sys.modules
+        assert pool.import_shared([J(optimizer="lbfgs")]) == ["scipy.optimize"]
         import dataclasses
         from penaltyrun import optim
         optim.OPTIMIZERS["pso"] = dataclasses.replace(

@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.linalg import expm, expm_frechet, solve_discrete_lyapunov
 
+from penaltyrun.dynamics.linear import LoopSolution
 from penaltyrun.dynamics.lyapunov import SchurLyapunov
 from penaltyrun.problems.base import CostGradient
 
@@ -57,7 +58,8 @@ def _sym(X: np.ndarray) -> np.ndarray:
 
 
 def loop_sensitivity(A_cl: np.ndarray, W: np.ndarray, Sigma: np.ndarray, horizon: float,
-                     discrete: bool, lyapunov: SchurLyapunov | None = None
+                     discrete: bool, lyapunov: SchurLyapunov | None = None,
+                     solved: LoopSolution | None = None
                      ) -> tuple[float, np.ndarray, np.ndarray]:
     """Cost tr(Σ M) of a stable loop and its gradients with respect to A_cl and W.
 
@@ -75,6 +77,10 @@ def loop_sensitivity(A_cl: np.ndarray, W: np.ndarray, Sigma: np.ndarray, horizon
     lyapunov : SchurLyapunov, optional
         Continuous time: the Lyapunov solver of A_cl (one Schur decomposition shared with
         the Riccati adjoint); made here when not given.
+    solved : LoopSolution, optional
+        Continuous time: the loop's S and e^{A_cl T} as the evaluation computed them (with
+        their Schur decomposition, which then replaces ``lyapunov``); computed here when
+        not given.
 
     Returns
     -------
@@ -89,6 +95,8 @@ def loop_sensitivity(A_cl: np.ndarray, W: np.ndarray, Sigma: np.ndarray, horizon
         steps = int(horizon)
         S = solve_discrete_lyapunov(A_cl.T, W)
         E = np.linalg.matrix_power(A_cl, steps)
+    elif solved is not None:
+        lyapunov, S, E = solved.lyapunov, solved.S, solved.E
     else:
         lyapunov = lyapunov or SchurLyapunov(A_cl)
         S = lyapunov.solve(-W, transpose=True)
@@ -150,10 +158,11 @@ def riccati_adjoint(A: np.ndarray, B: np.ndarray, R: np.ndarray, K: np.ndarray,
     return Lam, _sym(K @ Lam @ K.T - M_inv @ G_K @ K.T)
 
 
-def gain_gradient(problem: LQRProblem, Q: np.ndarray, R: np.ndarray, K: np.ndarray
-                  ) -> tuple[float, np.ndarray, np.ndarray]:
+def gain_gradient(problem: LQRProblem, Q: np.ndarray, R: np.ndarray, K: np.ndarray,
+                  solved: LoopSolution | None = None) -> tuple[float, np.ndarray, np.ndarray]:
     """Cost of one stabilizing gain and d cost / d (Q̃, R) (steps 1–3 of the module
-    docstring); Q̃ (p, p), R (m, m), K (m, n) its LQR gain."""
+    docstring); Q̃ (p, p), R (m, m), K (m, n) its LQR gain; ``solved`` the loop of K as
+    the evaluation solved it (continuous time; solved here when not given)."""
     A, B = problem.plant.A, problem.plant.B
     X0 = problem.x0
     Sigma = X0.T @ X0 / X0.shape[0]
@@ -166,8 +175,11 @@ def gain_gradient(problem: LQRProblem, Q: np.ndarray, R: np.ndarray, K: np.ndarr
         horizon: float = n_steps(problem.t_max, float(problem.dt))
     else:
         horizon = problem.t_max
-    lyapunov = None if discrete else SchurLyapunov(A_cl)
-    cost, G_A, G_W = loop_sensitivity(A_cl, W, Sigma, horizon, discrete, lyapunov)
+    if discrete:
+        lyapunov = None
+    else:
+        lyapunov = solved.lyapunov if solved is not None else SchurLyapunov(A_cl)
+    cost, G_A, G_W = loop_sensitivity(A_cl, W, Sigma, horizon, discrete, lyapunov, solved)
     G_K = problem.Wu @ K @ (G_W + G_W.T) - B.T @ G_A
     Q_ric = problem.state_penalty(Q[None])[0]
     G_Qric, G_R = riccati_adjoint(A, B, R, K, Q_ric, G_K, discrete, lyapunov)
@@ -210,7 +222,7 @@ def lqr_gradient(problem: LQRProblem, Q: np.ndarray, R: np.ndarray) -> CostGradi
     reason = no_gradient_reason(problem, res)
     if reason:
         return CostGradient(float(cost[0]), str(status[0]), None, {}, reason)
-    _, G_Q, G_R = gain_gradient(problem, Q, R, res["K"][0])
+    _, G_Q, G_R = gain_gradient(problem, Q, R, res["K"][0], res.get("loop"))
     if not (np.all(np.isfinite(G_Q)) and np.all(np.isfinite(G_R))):
         return CostGradient(float(cost[0]), str(status[0]), None, {},
                             "the adjoint Lyapunov solves did not give finite values")

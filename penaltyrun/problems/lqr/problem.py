@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.dynamics import linear_feedback as loop
-from penaltyrun.dynamics.linear import quadratic_cost
+from penaltyrun.dynamics.linear import loop_solution, quadratic_cost
 from penaltyrun.dynamics.riccati import dlqr_gains, lqr_gains
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import criteria, gradient_costs, horizon
@@ -193,7 +193,9 @@ class LQRProblem:
             ``cost`` (graded), ``J`` (raw), ``status`` (str), ``t_final``, ``x_final``
             (C, k, n), ``K`` (C, m, n), ``ok`` (C,) Riccati success, and the measures of
             :meth:`~penaltyrun.problems.lqr.constraints.Limits.measure` (NaN where not
-            computed).
+            computed); ``loop``: for one candidate with a stabilizing gain on the closed-form
+            route, its :class:`~penaltyrun.dynamics.linear.LoopSolution` (S, e^{A_cl T} and
+            the Schur decomposition the exact gradient reuses), else None.
         """
         single = Q.shape[0] == 1 and X0 is self.x0 and thresholds is None and not metrics
         if not single:
@@ -221,6 +223,7 @@ class LQRProblem:
         codes = np.full((n_c, n_k), "converged", dtype=object)
         good = np.flatnonzero(ok)
         steps = None
+        loop_of_one = None
         history = self.limits.needs_history(metrics)
         free = self.params.criterion == criteria.TIME_ENERGY
         if good.size and free:
@@ -248,6 +251,10 @@ class LQRProblem:
             x_final[good] = steps["x_final"].reshape(good.size, n_k, -1)
             codes[good] = np.asarray([_STEP_STATUS[int(s)] for s in steps["status"]],
                                      dtype=object).reshape(good.size, n_k)
+        elif n_c == 1 and good.size and self.closed_form:
+            loop_of_one = loop_solution(self.plant.A - self.plant.B @ K[0],
+                                        self.Wx + K[0].T @ self.Wu @ K[0], self.t_max)
+            J[0], x_final[0] = loop_of_one.cost(X0)
         elif good.size and self.closed_form:
             A_cl = self.plant.A - self.plant.B @ K[good]
             W = self.Wx + np.swapaxes(K[good], 1, 2) @ self.Wu @ K[good]
@@ -280,7 +287,7 @@ class LQRProblem:
             cost[~ok] = (HARD_FACTOR * self.penalty * (1.0 + size[~ok]))[:, None]
             codes[~ok] = "care_failure"
         return {"cost": cost, "J": J, "status": codes, "t_final": t_end, "x_final": x_final,
-                "K": K, "ok": ok, **measures}
+                "K": K, "ok": ok, "loop": loop_of_one, **measures}
 
     def _graded(self, J: np.ndarray, t_end: np.ndarray, x_final: np.ndarray,
                 X0: np.ndarray, codes: np.ndarray, excess: np.ndarray, free: bool

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from penaltyrun.dynamics.linear import COND_MAX, _scipy_route, quadratic_cost
+from penaltyrun.dynamics.linear import COND_MAX, _scipy_route, loop_solution, quadratic_cost
 from penaltyrun.problems import lqr
 from penaltyrun.problems.lqr import reference
 
@@ -47,6 +47,48 @@ def test_quadratic_cost_matches_solve_ivp_and_lyapunov(seed):
             J, xT = ivp_cost(A_cl[b], W[b], X0[k], 3.0)
             assert cost[b, k] == pytest.approx(J, rel=1e-9)
             np.testing.assert_allclose(x_final[b, k], xT, rtol=1e-9, atol=1e-11)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_one_loop_by_schur_matches_the_batch_route_and_solve_ivp(seed):
+    """The single-loop route (Bartels–Stewart on a Schur decomposition, expm) against the
+    batched eigen-route, solve_ivp, and its own Lyapunov residual."""
+    rng = np.random.default_rng(100 + seed)
+    n = 6
+    A_cl = rng.normal(size=(n, n))
+    A_cl -= (np.max(np.linalg.eigvals(A_cl).real) + 0.3) * np.eye(n)
+    W = spd(rng, n)
+    X0 = rng.normal(size=(3, n))
+    solved = loop_solution(A_cl, W, 5.0)
+    cost, x_final = solved.cost(X0)
+    ref, x_ref = quadratic_cost(A_cl[None], W[None], X0, 5.0)
+    np.testing.assert_allclose(cost, ref[0], rtol=1e-11)
+    np.testing.assert_allclose(x_final, x_ref[0], rtol=1e-11, atol=1e-13)
+    residual = A_cl.T @ solved.S + solved.S @ A_cl + W
+    assert np.linalg.norm(residual) < 1e-12 * np.linalg.norm(W) * np.linalg.cond(A_cl)
+    for k in range(3):
+        J, xT = ivp_cost(A_cl, W, X0[k], 5.0)
+        assert cost[k] == pytest.approx(J, rel=1e-9)
+        np.testing.assert_allclose(x_final[k], xT, rtol=1e-9, atol=1e-11)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_one_candidate_costs_what_it_costs_in_a_batch(seed):
+    """problem=lqr evaluates one candidate by the Schur route and a batch by the eigen-route:
+    the same cost and status to round-off."""
+    rng = np.random.default_rng(200 + seed)
+    n, m = 7, 2
+    A, B = random_plant(rng, n, m)
+    prob = lqr.make_problem("default", {"A": A.tolist(), "B": B.tolist(),
+                                        "x0": rng.normal(size=(4, n)).tolist(),
+                                        "t_max": 8.0})
+    Q = np.stack([spd(rng, n) for _ in range(3)])
+    R = np.stack([spd(rng, m) for _ in range(3)])
+    batch = prob.evaluate_batch({"Q": Q, "R": R})
+    for c in range(3):
+        one = prob.evaluate_batch({"Q": Q[c:c + 1], "R": R[c:c + 1]})
+        assert one.cost[0] == pytest.approx(batch.cost[c], rel=1e-11)
+        assert one.status[0] == batch.status[c]
 
 
 def test_defective_and_unstable_loops_take_the_fallback_exactly():

@@ -249,6 +249,23 @@ def test_an_evaluation_then_its_gradient_solve_the_point_once_and_match_a_fresh_
     assert len(solves) == 6
 
 
+def test_the_gradient_from_the_evaluation_s_loop_equals_one_solved_afresh():
+    """The gradient reuses the evaluation's Schur decomposition, S and e^{A_cl T}; solving
+    them again gives the same gradient to round-off."""
+    from penaltyrun.problems.lqr.gradient import gain_gradient
+
+    prob, rng = _plant(13, 5, 2)
+    Q, R = _spd(rng, 5), _spd(rng, 2)
+    res = prob.rows(Q[None], R[None], prob.x0)
+    assert res["loop"] is not None
+    shared = gain_gradient(prob, Q, R, res["K"][0], res["loop"])
+    afresh = gain_gradient(prob, Q, R, res["K"][0])
+    assert shared[0] == pytest.approx(afresh[0], rel=1e-13)
+    for a, b in zip(shared[1:], afresh[1:]):
+        np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-13 * np.abs(b).max())
+    assert prob.rows(np.stack([Q, Q]), np.stack([R, R]), prob.x0)["loop"] is None
+
+
 def test_a_copy_at_another_horizon_never_answers_from_the_original_s_rows():
     from penaltyrun.problems.horizon import at_horizon
 

@@ -54,8 +54,10 @@ import subprocess
 import sys
 import tempfile
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
+from base_tree import base_worktree
 from machine import machine
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -237,32 +239,23 @@ def main() -> None:
         large(args.large, args.steps)
         return
     print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; input {args.input}")
-    with tempfile.TemporaryDirectory() as tmp:
-        base_tree = None
-        if not args.no_base:
-            base_tree = Path(tmp) / "base"
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach",
-                            str(base_tree), args.base], check=True, capture_output=True)
-        try:
-            runs: dict[str, list[dict[str, float]]] = {"read": [], "report": [], "base": []}
-            runs["read"].append(measure(READ, [args.input], str(ROOT)))
-            for i in range(args.repeats):
-                for n in args.workers or []:
-                    runs.setdefault(f"report --workers {n}", []).append(measure(
-                        REPORT, [args.input, f"{tmp}/w{n}_{i}", "--workers", n], str(ROOT)))
-                    shutil.rmtree(f"{tmp}/w{n}_{i}", ignore_errors=True)
-                if args.workers:
-                    continue
-                runs["report"].append(measure(REPORT, [args.input, f"{tmp}/r{i}"], str(ROOT)))
-                shutil.rmtree(f"{tmp}/r{i}", ignore_errors=True)
-                if base_tree is not None:
-                    runs["base"].append(measure(REPORT, [args.input, f"{tmp}/b{i}"],
-                                                str(base_tree)))
-                    shutil.rmtree(f"{tmp}/b{i}", ignore_errors=True)
-        finally:
+    with tempfile.TemporaryDirectory() as tmp, \
+            (nullcontext() if args.no_base else base_worktree(args.base, Path(tmp))) as base_tree:
+        runs: dict[str, list[dict[str, float]]] = {"read": [], "report": [], "base": []}
+        runs["read"].append(measure(READ, [args.input], str(ROOT)))
+        for i in range(args.repeats):
+            for n in args.workers or []:
+                runs.setdefault(f"report --workers {n}", []).append(measure(
+                    REPORT, [args.input, f"{tmp}/w{n}_{i}", "--workers", n], str(ROOT)))
+                shutil.rmtree(f"{tmp}/w{n}_{i}", ignore_errors=True)
+            if args.workers:
+                continue
+            runs["report"].append(measure(REPORT, [args.input, f"{tmp}/r{i}"], str(ROOT)))
+            shutil.rmtree(f"{tmp}/r{i}", ignore_errors=True)
             if base_tree is not None:
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
-                                str(base_tree)], check=False, capture_output=True)
+                runs["base"].append(measure(REPORT, [args.input, f"{tmp}/b{i}"],
+                                            str(base_tree)))
+                shutil.rmtree(f"{tmp}/b{i}", ignore_errors=True)
     print("| run | CPU s | wall s | peak RSS MB |\n|---|---|---|---|")
     for name, ms in runs.items():
         for m in ms:

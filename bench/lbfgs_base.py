@@ -27,9 +27,9 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from base_tree import ROOT, base_worktree
 from machine import machine
 
-ROOT = Path(__file__).resolve().parents[1]
 BENCH = Path(__file__).resolve().parent
 
 #: The child: one lbfgs start of the study's settings at size n, seed s; prints JSON.
@@ -64,26 +64,19 @@ def main() -> None:
     print(machine())
     print(f"{'n':>3} {'this tree s':>11} {'base s':>8} {'evals this / base':>18} "
           f"{'ratio base/this min':>19} {'median':>7}")
-    with tempfile.TemporaryDirectory() as tmp:
-        base_tree = Path(tmp) / "base"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(base_tree),
-                        args.base], check=True, capture_output=True)
-        try:
-            for n in args.sizes:
-                rows = []
-                for seed in range(args.seeds):
-                    trees = [ROOT, base_tree] if seed % 2 == 0 else [base_tree, ROOT]
-                    runs = {tree: one_start(n, seed, tree) for tree in trees}
-                    rows.append((runs[ROOT]["cpu"], runs[base_tree]["cpu"],
-                                 runs[ROOT]["evals"], runs[base_tree]["evals"]))
-                a = np.asarray(rows, float)
-                ratio = a[:, 1] / a[:, 0]
-                print(f"{n:>3} {np.median(a[:, 0]):11.3g} {np.median(a[:, 1]):8.3g} "
-                      f"{np.median(a[:, 2]):8.6g} / {np.median(a[:, 3]):<8.6g}"
-                      f"{ratio.min():19.3g} {np.median(ratio):7.3g}", flush=True)
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force",
-                            str(base_tree)], check=True, capture_output=True)
+    with tempfile.TemporaryDirectory() as tmp, base_worktree(args.base, Path(tmp)) as base:
+        for n in args.sizes:
+            rows = []
+            for seed in range(args.seeds):
+                trees = [ROOT, base] if seed % 2 == 0 else [base, ROOT]
+                runs = {tree: one_start(n, seed, tree) for tree in trees}
+                rows.append((runs[ROOT]["cpu"], runs[base]["cpu"], runs[ROOT]["evals"],
+                             runs[base]["evals"]))
+            a = np.asarray(rows, float)
+            ratio = a[:, 1] / a[:, 0]
+            print(f"{n:>3} {np.median(a[:, 0]):11.3g} {np.median(a[:, 1]):8.3g} "
+                  f"{np.median(a[:, 2]):8.6g} / {np.median(a[:, 3]):<8.6g}"
+                  f"{ratio.min():19.3g} {np.median(ratio):7.3g}", flush=True)
     print(f"base: {args.base}; CPU to J* within 1e-6 (inf: not reached), median over "
           f"{args.seeds} seeds")
 

@@ -13,12 +13,13 @@ equation A_clᵀ S + S A_cl + W = 0. Two routes compute it:
   exponents exact), and x(T) = V e^{DT} V⁻¹ x0. Its round-off grows with the condition
   number of V, so candidates whose eigenvector matrix is worse conditioned than
   :data:`COND_MAX` take the second route;
-* Bartels–Stewart (``scipy.linalg.solve_continuous_lyapunov``) and ``scipy.linalg.expm``
-  (a loop that is not Hurwitz: the exponential of the lifted linear system of x xᵀ and J).
+* :func:`loop_solution`: S by Bartels–Stewart on a real Schur decomposition of A_cl, and
+  ``scipy.linalg.expm`` (a loop that is not Hurwitz: the exponential of the lifted linear
+  system of x xᵀ and J).
 
 One Hurwitz loop alone (a gradient search asks for one candidate, then its gradient) takes
-:func:`loop_solution`: S by Bartels–Stewart on a real Schur decomposition of A_cl that the
-exact gradient's adjoint Lyapunov equations reuse (:class:`LoopSolution`), and e^{A_cl T}.
+:func:`loop_solution` directly: the exact gradient's adjoint Lyapunov equations reuse its
+Schur decomposition, S and e^{A_cl T} (:class:`LoopSolution`).
 
 No time stepping: both routes are exact up to round-off (tests compare them with each other
 and with ``solve_ivp``).
@@ -59,21 +60,16 @@ def _eig_route(lam: np.ndarray, V: np.ndarray, W: np.ndarray, X0: np.ndarray, t_
 
 def _scipy_route(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
                  ) -> tuple[np.ndarray, np.ndarray]:
-    from scipy.linalg import solve_continuous_lyapunov
-
-    E = expm(A_cl * t_max)
     if np.max(np.linalg.eigvals(A_cl).real) < 0.0:
-        S = solve_continuous_lyapunov(A_cl.T, -W)
-        M = S - E.T @ S @ E
-    else:  # not Hurwitz: lift to X = x xᵀ, Ẋ = A X + X Aᵀ, J̇ = tr(W X) (linear, n² + 1)
-        n = A_cl.shape[0]
-        L = np.zeros((n * n + 1, n * n + 1))
-        L[:-1, :-1] = np.kron(A_cl, np.eye(n)) + np.kron(np.eye(n), A_cl)
-        L[-1, :-1] = W.reshape(-1)
-        F = expm(L * t_max)
-        M = F[-1, :-1].reshape(n, n)
+        return loop_solution(A_cl, W, t_max).cost(X0)
+    # not Hurwitz: lift to X = x xᵀ, Ẋ = A X + X Aᵀ, J̇ = tr(W X) (linear, n² + 1)
+    n = A_cl.shape[0]
+    L = np.zeros((n * n + 1, n * n + 1))
+    L[:-1, :-1] = np.kron(A_cl, np.eye(n)) + np.kron(np.eye(n), A_cl)
+    L[-1, :-1] = W.reshape(-1)
+    M = expm(L * t_max)[-1, :-1].reshape(n, n)
     M = 0.5 * (M + M.T)
-    return np.einsum("ki,ij,kj->k", X0, M, X0), X0 @ E.T
+    return np.einsum("ki,ij,kj->k", X0, M, X0), X0 @ expm(A_cl * t_max).T
 
 
 def _eig_batch(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float,

@@ -37,14 +37,13 @@ from typing import Any
 import matplotlib.pyplot as plt
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-from scipy import stats  # noqa: E402
 
 from penaltyrun.io import decode_json  # noqa: E402
 from penaltyrun.jobrecord import NO_RESULT_STATUSES  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
 from penaltyrun.report.rows import full_row, has, with_columns  # noqa: E402
-from penaltyrun.report.stats import holm  # noqa: E402
+from penaltyrun.report.stats import holm, signed_rank_p  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
     alt_text,
     file_stem,
@@ -140,8 +139,7 @@ def ratio_stats(jd: np.ndarray, jf: np.ndarray) -> dict[str, Any]:
     log_r = np.log(jf[good] / jd[good])
     p = np.nan
     if log_r.size and np.any(log_r != 0.0):
-        p = float(stats.wilcoxon(log_r, zero_method="wilcox",
-                                 alternative="two-sided").pvalue)
+        p = signed_rank_p(log_r)
     ratio = np.exp(log_r)
     return {"n_ratio": int(good.sum()),
             "ratio_median": float(np.median(ratio)) if ratio.size else np.nan,
@@ -188,8 +186,7 @@ def paired(diag: pd.DataFrame, full: pd.DataFrame) -> dict[str, Any]:
     p, note = np.nan, ""
     diff = jd - jf
     if diff.size and np.any(diff != 0.0):
-        p = float(stats.wilcoxon(jd, jf, zero_method="wilcox",
-                                 alternative="two-sided").pvalue)
+        p = signed_rank_p(jd - jf)
     elif diff.size:
         note = "identical costs"
     if diff.size < MIN_PAIRS:

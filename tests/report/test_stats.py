@@ -13,6 +13,7 @@ from scipy import stats as sps
 
 from penaltyrun.report.stats import (
     BOOTSTRAP_BATCH_VALUES,
+    EXACT_FLIP_MAX,
     a12,
     a12_magnitude,
     add_variant,
@@ -22,6 +23,7 @@ from penaltyrun.report.stats import (
     holm,
     jackknife_values,
     large_sample_ci,
+    signed_rank_p,
 )
 from penaltyrun.report.tables import fmt, markdown, write_table
 
@@ -411,3 +413,24 @@ def test_bca_of_a_large_sample_runs_in_batches_of_bounded_memory(monkeypatch):
     assert peak < 16e6
     assert batched[2] == whole[2] == ""
     assert batched[:2] == whole[:2]  # batches of even size: the same draws, same interval
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.sampled_from([-3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 3.0]),
+                min_size=1, max_size=EXACT_FLIP_MAX + 2))
+def test_signed_rank_p_is_scipys_wilcoxon(values):
+    """Small samples with ties and zeros (scipy's enumerated permutation test) and every
+    other sample (scipy itself): the same two-sided p-value."""
+    d = np.array(values)
+    if not np.any(d != 0.0):
+        assert math.isnan(signed_rank_p(d))
+        return
+    want = sps.wilcoxon(d, zero_method="wilcox", alternative="two-sided").pvalue
+    assert signed_rank_p(d) == pytest.approx(want, rel=1e-12, abs=1e-15)
+
+
+def test_signed_rank_p_of_continuous_samples_is_scipys():
+    rng = np.random.default_rng(3)
+    for n in (5, 12, 40):
+        d = rng.normal(0.3, 1.0, n)
+        assert signed_rank_p(d) == sps.wilcoxon(d, zero_method="wilcox").pvalue

@@ -23,6 +23,7 @@ from cli_subprocess import (
 from penaltyrun.io import RESULTS_FILE
 
 
+@pytest.mark.slow  # whole runs in subprocesses (~15 s); tests/runner/test_pool*.py stay
 def test_killed_pool_worker_fails_only_its_job_which_is_retried(tmp_path):
     """Row 1: SIGKILL one local pool worker mid-run (after the first record, both workers
     still have a job: four jobs on two workers)."""
@@ -125,8 +126,8 @@ def test_truncated_job_record_is_moved_aside_and_rerun(tmp_path):
         assert "no readable results" in one_error_line(rep)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM,
-                                 pytest.param(signal.SIGHUP, marks=pytest.mark.slow)])
+@pytest.mark.slow  # whole runs in subprocesses (~13 s); tests/runner/test_interrupts.py stays
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
 def test_sigterm_and_sighup_stop_like_ctrl_c(tmp_path, sig):
     """Row 6: SIGTERM / SIGHUP of the main process."""
     run = tmp_path / "run"

@@ -6,6 +6,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 
 def test_report_modules_keep_the_callers_backend():
     code = ("import matplotlib; matplotlib.use('svg'); "
@@ -16,6 +18,7 @@ def test_report_modules_keep_the_callers_backend():
     assert out == "svg"
 
 
+@pytest.mark.slow  # two whole reports in a subprocess (~13 s)
 def test_the_library_report_keeps_arrows_memory_pool_the_command_line_makes_it_lean(tmp_path):
     """Reporting through the library leaves Arrow's memory pool as the caller had it; the
     command line (a process of its own) gives freed memory back to the system

@@ -12,6 +12,7 @@ from pathlib import Path
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
+import pytest
 
 from penaltyrun.io.schema import RESULTS_FILE, to_table
 from penaltyrun.problems import trust
@@ -42,6 +43,7 @@ def _two_cases(folder: Path) -> Path:
     return folder
 
 
+@pytest.mark.slow  # two whole reports (~8 s); section order and progress stay in the default suite
 def test_the_report_is_the_same_file_for_file_for_one_or_two_workers(tmp_path):
     """Figures, tables and text byte for byte (the probe and the basin maps, which are
     computed in the sections too, in the slow golden test of two studies)."""

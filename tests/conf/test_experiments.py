@@ -21,7 +21,16 @@ def test_profile_composes(name):
     assert cfg.problem.name in problems.available()
 
 
-@pytest.mark.parametrize("name", sorted(p.stem for p in (CONF / "experiment").glob("*.yaml")))
+#: Profiles preflighted in the default suite: the ones with lists of scenario mappings (a
+#: list of mappings once failed the list-of-numbers check) and a multi-cell sweep; every
+#: profile is preflighted in the slow suite (about a second each: one composition per cell).
+PREFLIGHT_DEFAULT = ("attitude_multiscenario", "lowthrust_multiscenario", "robust_mpc",
+                     "lqr_scaling_n4")
+
+
+@pytest.mark.parametrize("name", [
+    name if name in PREFLIGHT_DEFAULT else pytest.param(name, marks=pytest.mark.slow)
+    for name in sorted(p.stem for p in (CONF / "experiment").glob("*.yaml"))])
 def test_profile_passes_the_preflight(name):
     """The command line's checks accept every shipped profile (a profile's list of scenario
     mappings once failed the list-of-numbers check and no study of it could start)."""

@@ -208,11 +208,11 @@ def module(name: str, module_path: str | None = None) -> ModuleType:
         While results are read: ``module_path``, or a problem that is neither penaltyrun's
         own, an entry point, nor named by the user (see :mod:`.trust`).
     """
+    if module_path and not trust.is_reading():  # the config being run names it: it wins
+        return check_module(_import(str(module_path), "problem.module"), str(module_path))
     user = trust.named()
     if name in user:
         return check_module(_import(user[name], "problem.module"), user[name])
-    if module_path and not trust.is_reading():
-        return check_module(_import(str(module_path), "problem.module"), str(module_path))
     if name in REGISTRY and importlib.util.find_spec(REGISTRY[name]):
         return importlib.import_module(REGISTRY[name])
     eps = _entry_points()

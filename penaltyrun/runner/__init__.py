@@ -14,7 +14,7 @@ _NAMES = {
     "JOB_STATUSES": "validate", "NO_RESULT_STATUSES": "validate", "run_job": "job",
     "check_runner_options": "options", "check_report_options": "options",
     "Job": "plan", "config_hash": "plan", "job_seed": "plan", "plan_jobs": "plan",
-    "module_source_hash": "plan", "user_code_hash": "plan",
+    "module_source_hash": "usercode", "user_code_hash": "usercode",
     "job_path": "records", "pending_jobs": "records", "read_record": "records",
     "build": "setup", "build_layout": "setup",
     "RunSpec": "spec", "RunnerOptions": "spec",

@@ -153,7 +153,8 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, *, n_starts: 
     cutoff : bool
         Let the problem stop hopeless candidates early (not part of the job's identity).
     module_hash : str
-        :func:`module_source_hash` of ``problem_module`` (part of the job ids).
+        :func:`~penaltyrun.runner.usercode.user_code_hash` of the user code (part of the job
+        ids).
 
     Raises
     ------
@@ -171,32 +172,6 @@ def plan_jobs(problem: str, case: str, param: str, optimizer: str, *, n_starts: 
                         str(problem_module or ""), bool(cutoff), int(root_seed),
                         str(module_hash or "")))
     return jobs
-
-
-def module_source_hash(module: str | None) -> str:
-    """Short SHA-256 of the source file of the problem module ``module`` (dotted name), or
-    "" for none, an in-memory problem (``object:<name>``), a module of penaltyrun itself
-    (its version is recorded with the results) or a module without a source file.
-
-    Only the named module's own file is hashed, not the modules it imports. Finding the
-    file imports the module's parent packages, as running the problem does.
-    """
-    if not module or ":" in module or module.split(".")[0] == "penaltyrun":
-        return ""
-    import importlib.util
-
-    try:
-        spec = importlib.util.find_spec(module)
-    except (ImportError, ValueError):  # the run reports an unimportable module itself
-        return ""
-    origin = getattr(spec, "origin", None) if spec is not None else None
-    if not origin or not getattr(spec, "has_location", False):
-        return ""
-    try:
-        with open(origin, "rb") as fh:
-            return hashlib.sha256(fh.read()).hexdigest()[:16]
-    except OSError:
-        return ""
 
 
 def check_n_starts(n_starts: Any) -> None:
@@ -236,20 +211,3 @@ def order_longest_first(jobs: Iterable[Job], expected_s: Mapping[str, float] | N
     known = [j for j in jobs if expected_s.get(j.job_id) is not None]
     unknown = [j for j in jobs if expected_s.get(j.job_id) is None]
     return sorted(known, key=lambda j: -float(expected_s[j.job_id])) + unknown
-
-
-#: Problem parameters that name user code as ``module:attribute`` (the LQR problem's plant
-#: and nonlinear dynamics); their modules' sources are part of the job identity too.
-CODE_PARAMS = ("plant", "dynamics")
-
-
-def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
-    """:func:`module_source_hash` of the problem module and of the modules that
-    :data:`CODE_PARAMS` name (``module:attribute``), combined; "" when there is none."""
-    names = [problem_module or ""]
-    names += [value.partition(":")[0] for key in CODE_PARAMS
-              if isinstance(value := problem_params.get(key), str) and ":" in value]
-    hashes = [h for h in map(module_source_hash, names) if h]
-    if len(hashes) <= 1:
-        return hashes[0] if hashes else ""
-    return config_hash(hashes)

@@ -171,7 +171,9 @@ def pending_jobs(jobs: Iterable[Job], run_dir: Path, resume: bool,
 
 def warn_edited_module(jobs: list[Job], run_dir: Path) -> int:
     """Say (one warning) when records in ``run_dir`` ran the same problem module with
-    another source: the module was edited since, and the planned jobs, a new configuration
+    another source: the module or a local module it imports
+    (:func:`~penaltyrun.runner.usercode.module_source_hash`) was edited since, and the
+    planned jobs, a new configuration
     (:attr:`~penaltyrun.runner.plan.Job.module_hash` is part of the job id), run again.
     Returns how many such records there are."""
     current = {job.module_hash for job in jobs if job.module_hash}
@@ -188,7 +190,8 @@ def warn_edited_module(jobs: list[Job], run_dir: Path) -> int:
         if record is not None and record["problem"] == problem and old and old not in current:
             before[old] = before.get(old, 0) + 1
     if before:
-        logger.warning("resume: the problem module %s was edited since %d finished job(s) in "
+        logger.warning("resume: the problem module %s or a local module it imports was "
+                       "edited since %d finished job(s) in "
                        "%s ran (source hash %s then, %s now): an edited module is a new "
                        "configuration, so its jobs run again; the old records stay on disk, "
                        "left out of results.parquet", module, sum(before.values()),

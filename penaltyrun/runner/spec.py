@@ -15,7 +15,8 @@ from typing import Any
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.runner.options import check_runner_options, resolve_workers
-from penaltyrun.runner.plan import Job, plan_jobs, user_code_hash
+from penaltyrun.runner.plan import Job, plan_jobs
+from penaltyrun.runner.usercode import user_code_hash
 
 
 @dataclass(frozen=True)

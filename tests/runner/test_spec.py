@@ -9,8 +9,9 @@ import pytest
 
 from penaltyrun.api.compose import CONF, read_yaml
 from penaltyrun.errors import ConfigError
-from penaltyrun.runner.plan import plan_jobs, user_code_hash
+from penaltyrun.runner.plan import plan_jobs
 from penaltyrun.runner.spec import RunnerOptions, RunSpec
+from penaltyrun.runner.usercode import user_code_hash
 
 
 def test_defaults_are_those_of_the_shipped_config():

@@ -1,0 +1,158 @@
+"""The source of user code as part of a job's identity.
+
+A problem module of the user's own (and a module a problem parameter names, e.g. the LQR
+problem's ``plant`` and ``dynamics``) is hashed with the local modules it imports: the
+files its ``import`` statements reach inside the folder it was found in (its ``sys.path``
+entry), followed transitively. Installed packages, the standard library and penaltyrun
+itself are not hashed (their versions are recorded with every result). The imports are
+read from the source (``ast``), not from what happens to be imported in the process, so
+the hash depends on the files alone.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from penaltyrun.runner.plan import config_hash
+
+#: Problem parameters that name user code as ``module:attribute`` (the LQR problem's plant
+#: and nonlinear dynamics); their modules' sources are part of the job identity too.
+CODE_PARAMS = ("plant", "dynamics")
+#: Most local files followed from one module (a bound on the work for a huge folder).
+MAX_LOCAL_FILES = 500
+
+
+def module_source_hash(module: str | None) -> str:
+    """Short SHA-256 of the source of the user module ``module`` (dotted name) and of the
+    local modules it imports (:func:`local_sources`); "" for none, an in-memory problem
+    (``object:<name>``), a module of penaltyrun itself or a module without a source file.
+
+    A module that imports no local module hashes as its own file alone. Finding the file
+    imports the module's parent packages, as running the problem does.
+    """
+    if not module or ":" in module or module.split(".")[0] == "penaltyrun":
+        return ""
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec(module)
+    except (ImportError, ValueError):  # the run reports an unimportable module itself
+        return ""
+    origin = getattr(spec, "origin", None) if spec is not None else None
+    if not origin or not getattr(spec, "has_location", False):
+        return ""
+    origin_path = Path(origin)
+    try:
+        digest = hashlib.sha256(origin_path.read_bytes())
+        root = source_root(module, origin_path)
+        for path in local_sources(module, origin_path):
+            digest.update(b"\0" + path.relative_to(root).as_posix().encode() + b"\0")
+            digest.update(path.read_bytes())
+    except (OSError, ValueError):
+        return ""
+    return digest.hexdigest()[:16]
+
+
+def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
+    """:func:`module_source_hash` of the problem module and of the modules that
+    :data:`CODE_PARAMS` name (``module:attribute``), combined; "" when there is none."""
+    names = [problem_module or ""]
+    names += [value.partition(":")[0] for key in CODE_PARAMS
+              if isinstance(value := problem_params.get(key), str) and ":" in value]
+    hashes = [h for h in map(module_source_hash, names) if h]
+    if len(hashes) <= 1:
+        return hashes[0] if hashes else ""
+    return config_hash(hashes)
+
+
+def source_root(module: str, origin: Path) -> Path:
+    """The folder ``module`` was found in (its ``sys.path`` entry): ``origin``'s folder,
+    one level up per dot of the name and one more for a package's ``__init__.py``."""
+    root = origin.parent
+    for _ in range(module.count(".") + (origin.name == "__init__.py")):
+        root = root.parent
+    return root
+
+
+def local_sources(module: str, origin: Path) -> list[Path]:
+    """Source files of the local modules that ``module`` (file ``origin``) imports,
+    transitively, sorted, ``origin`` itself excluded.
+
+    Local: found under :func:`source_root` by the import's dotted name (a module file, or a
+    package's ``__init__.py`` and the packages on the way), outside the interpreter's
+    prefixes (an installed module's imports are not followed) and not penaltyrun. Each
+    import is resolved statically, ``from . import x`` relative to the importing file's
+    package.
+    """
+    root = source_root(module, origin)
+    todo, seen = [(origin, _dotted(origin, root))], {origin}
+    while todo and len(seen) <= MAX_LOCAL_FILES:
+        path, dotted = todo.pop()
+        for name in _imported_names(path, dotted, path.name == "__init__.py"):
+            if name.split(".")[0] == "penaltyrun":
+                continue
+            for found in _module_files(root, name):
+                if found not in seen and not _under_prefix(found):
+                    seen.add(found)
+                    todo.append((found, _dotted(found, root)))
+    return sorted(seen - {origin})
+
+
+def _dotted(path: Path, root: Path) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imported_names(path: Path, dotted: str, is_package: bool) -> list[str]:
+    """Dotted names a source file imports (``import a.b`` → a.b; ``from a import b`` → a
+    and a.b), relative imports resolved; [] for a file that does not parse."""
+    try:
+        tree = ast.parse(path.read_bytes(), filename=str(path))
+    except (SyntaxError, ValueError, OSError):
+        return []
+    package = dotted.split(".") if is_package else dotted.split(".")[:-1]
+    names = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            keep = len(package) - node.level + 1
+            if node.level and (not package or keep < 1):
+                continue  # no parent package, or beyond the top: Python refuses it too
+            base = package[:keep] if node.level else []
+            stem = ".".join(base + ([node.module] if node.module else []))
+            if not stem:
+                continue
+            names.append(stem)
+            names += [f"{stem}.{alias.name}" for alias in node.names if alias.name != "*"]
+    return names
+
+
+def _module_files(root: Path, name: str) -> list[Path]:
+    """Files under ``root`` that importing ``name`` runs: each package's ``__init__.py``
+    on the way and the module's own file; [] when the first part is not under ``root``."""
+    files, base = [], root
+    for part in name.split("."):
+        if not part.isidentifier():
+            break
+        base = base / part
+        if (base / "__init__.py").is_file():
+            files.append(base / "__init__.py")
+        elif base.with_suffix(".py").is_file():
+            files.append(base.with_suffix(".py"))
+            break
+        elif not base.is_dir():  # a namespace package is a folder without __init__.py
+            break
+    return files
+
+
+def _under_prefix(path: Path) -> bool:
+    """Whether ``path`` lies in the interpreter's installation or environment."""
+    prefixes = {Path(p).resolve() for p in (sys.prefix, sys.base_prefix, sys.exec_prefix)}
+    resolved = path.resolve()
+    return any(resolved == p or p in resolved.parents for p in prefixes)

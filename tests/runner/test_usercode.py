@@ -131,3 +131,24 @@ def test_an_edited_helper_is_a_new_configuration_on_resume(package, tmp_path, ca
                for r in caplog.records) == 1
     assert not set(first.records["job_id"]) & set(second.records["job_id"])
     assert (second.records["best_cost"] - first.records["best_cost"]).round(12).eq(5.0).all()
+
+
+def test_two_problem_modules_of_one_name_in_one_process_do_not_mix(tmp_path, monkeypatch):
+    """``lab_a.fit`` then ``lab_b.fit`` (both problem ``fit``) tuned in one process: the
+    second run imports its own module, not the one the first run registered."""
+    labs = [f"lab_{uuid.uuid4().hex[:8]}" for _ in range(2)]
+    for lab, offset in zip(labs, ("0.0", "5.0")):
+        (tmp_path / lab).mkdir()
+        (tmp_path / lab / "__init__.py").write_text("")
+        (tmp_path / lab / "helper.py").write_text(f"def offset():\n    return {offset}\n")
+        (tmp_path / lab / "sub").mkdir()
+        (tmp_path / lab / "sub" / "__init__.py").write_text("")
+        (tmp_path / lab / "sub" / "deep.py").write_text("SCALE = 1.0\n")
+        (tmp_path / lab / "fit.py").write_text(PROBLEM)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    costs = [penaltyrun.tune(f"{lab}.fit", param="diagonal", optimizer="baseline", n_starts=1,
+                             workers=1, run_dir=tmp_path / lab / "run").best.cost
+             for lab in labs]
+    assert costs[1] - costs[0] == pytest.approx(5.0, abs=1e-12)
+    for name in [n for n in sys.modules if n.split(".")[0] in labs]:
+        del sys.modules[name]

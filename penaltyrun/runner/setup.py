@@ -60,6 +60,55 @@ def build(problem: str, case: str | None, problem_params: Mapping[str, Any], par
     return prob, layout, optim.with_gradient_cost(settings, prob)
 
 
+def build_within(time_limit_s: float | None, *args: Any) -> tuple[Problem, DecisionLayout, Any]:
+    """:func:`build` (same arguments after the first), for a problem that is not one of
+    penaltyrun's own first tried in a forked process of its own under ``time_limit_s``
+    (``runner.job_timeout``): a user problem whose construction hangs, or ends its process
+    (``os._exit``, a segmentation fault, ``SystemExit``), is then one :class:`ConfigError`
+    instead of a run that never starts or a main process that ends without a word. An
+    ordinary error is left to the build in this process, which raises it as usual; there a
+    ``SystemExit`` or ``KeyboardInterrupt`` raised by the problem's code (not a Ctrl-C of
+    the run) is one :class:`ConfigError` too. Without a limit, or where processes cannot be
+    forked, only the build in this process.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`build`; also ``problem.module`` for a construction that ran past the
+        limit or ended its process.
+    """
+    from penaltyrun.runner import interrupts, isolated
+
+    problem = args[0]
+    if problem in problems.REGISTRY:
+        return build(*args)
+    if time_limit_s is not None and isolated.can_isolate():
+        try:
+            isolated.call_isolated(_trial_build, args, float(time_limit_s),
+                                   "runner.job_timeout")
+        except isolated.IsolatedCallError as exc:
+            raise ConfigError("problem.module", f"building problem {problem!r} in a process "
+                              f"of its own: {exc}; fix its make_problem (or raise "
+                              "runner.job_timeout)") from None
+    with interrupts.sigint_marked():  # a Ctrl-C of the run is told apart while it holds
+        try:
+            return build(*args)
+        except (KeyboardInterrupt, SystemExit) as exc:
+            if not interrupts.raised_by_job(exc):
+                raise
+            raise ConfigError("problem.module", f"building problem {problem!r}: its code "
+                              f"raised {type(exc).__name__}"
+                              + (f" ({exc})" if str(exc) else "")
+                              + "; fix its make_problem") from None
+
+
+def _trial_build(*args: Any) -> None:
+    try:
+        build(*args)
+    except Exception:  # an ordinary error: the build in the calling process raises it
+        pass
+
+
 def checked(key: str, func: Callable[..., T], *args: Any) -> T:
     """``func(*args)``; an error other than ConfigError (a problem's or a map's own
     ``TypeError``, ``ValueError``, ``KeyError``, ``IndexError`` on a bad value) becomes one

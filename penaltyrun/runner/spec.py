@@ -128,12 +128,14 @@ class RunSpec:
 
     def build(self) -> tuple[Any, Any, Any]:
         """Validated (problem, decision layout, optimizer settings) of the cell
-        (:func:`penaltyrun.runner.setup.build`: the optimizer's grid fits the dimension)."""
-        from penaltyrun.runner.setup import build
+        (:func:`penaltyrun.runner.setup.build`: the optimizer's grid fits the dimension; a
+        problem not of penaltyrun's own is first built under ``runner.job_timeout``,
+        :func:`penaltyrun.runner.setup.build_within`)."""
+        from penaltyrun.runner.setup import build_within
 
-        return build(self.problem, self.case, self.problem_params, self.param,
-                     self.param_options, self.optimizer, self.optimizer_options,
-                     self.problem_module)
+        return build_within(self.runner.job_timeout, self.problem, self.case,
+                            self.problem_params, self.param, self.param_options,
+                            self.optimizer, self.optimizer_options, self.problem_module)
 
     def warm_start_share(self) -> float:
         """Share of the budget spent on the diagonal stage (0: no warm start).

@@ -207,3 +207,30 @@ def test_a_module_edited_before_resume_is_a_new_configuration(lab):
     new = pd.read_parquet(run / RESULTS_FILE)
     assert len(new) == 3 and not set(new["job_id"]) & old  # nothing mixed
     assert len(list((run / "jobs").glob("*.json"))) == 6
+
+
+def test_a_problem_whose_construction_misbehaves_is_one_line_and_exit_2(lab):
+    """``make_problem`` itself runs in the main process before any job: with
+    ``runner.job_timeout`` it is first built in a process of its own (a hang or an ended
+    process is one line, not a run that never starts or a silent exit); without one, a
+    SystemExit or KeyboardInterrupt it raises is one line too."""
+    source = MODULE.replace("    return Bad(case)", "    misbehave(case)\n    return Bad(case)")
+    (lab / "lab" / "build.py").write_text(source.replace('name = "bad"', 'name = "build"'))
+    cases = [("sleep", ["runner.job_timeout=1"], "ran longer than runner.job_timeout=1 s"),
+             ("osexit", ["runner.job_timeout=30"], "exited with code 3"),
+             ("sysexit", [], "its code raised SystemExit (3)"),
+             ("interrupt", [], "its code raised KeyboardInterrupt")]
+    runs = []
+    for k, (case, extra, _) in enumerate(cases):
+        cwd = lab / f"build-{k}"
+        cwd.mkdir()
+        runs.append((["problem=lab.build", *ARGS[1:], f"case={case}", *extra,
+                      f"hydra.run.dir={cwd / 'run'}"], cwd))
+    t0 = time.monotonic()
+    procs = cli_forked(runs, timeout=120)
+    assert time.monotonic() - t0 < 60
+    for proc, (_, _, fragment) in zip(procs, cases):
+        assert proc.returncode == 2, proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and "problem.module: building problem 'build'" in lines[0]
+        assert fragment in lines[0], lines[0]

@@ -49,7 +49,12 @@ MAX_CHARS = 65_536
 
 def count_values(arg: str) -> int:
     """Comma-separated values of an override: commas outside quotes, plus one."""
-    commas = 0
+    return _scan(arg)[0]
+
+
+def _scan(arg: str) -> tuple[int, int]:
+    """(comma-separated values, deepest nesting of ``[]``, ``{}``, ``()``) outside quotes."""
+    commas = depth = deepest = 0
     quote = ""
     escaped = False
     for char in arg:
@@ -63,28 +68,40 @@ def count_values(arg: str) -> int:
             quote = char
         elif char == ",":
             commas += 1
-    return commas + 1
+        elif char in "[{(":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]})":
+            depth -= 1
+    return commas + 1, deepest
 
 
 def check_size(arg: str, key: str | None = None) -> None:
-    """Refuse an override longer than :data:`MAX_CHARS` characters or with more than
-    :data:`MAX_VALUES` comma-separated values, before any parser sees it.
+    """Refuse an override longer than :data:`MAX_CHARS` characters, with more than
+    :data:`MAX_VALUES` comma-separated values or nested deeper than
+    :data:`~penaltyrun.yamlsafe.MAX_DEPTH` (the limit of a YAML file: Hydra's parser
+    recurses once per level), before any parser sees it.
 
     Raises
     ------
     ConfigError
         Naming the key, the size and the limit, and where larger data belongs.
     """
+    from penaltyrun.yamlsafe import MAX_DEPTH
+
     key = key or arg.split("=", 1)[0].lstrip("+~")[:80]
     fix = ("put larger data in a file (an LQR plant: problem.params.plant_file=plant.yaml) "
            "or split the sweep over several commands")
     if len(arg) > MAX_CHARS:
         raise ConfigError(key, f"override of {len(arg)} characters (the limit is "
                           f"{MAX_CHARS}): {fix}")
-    values = count_values(arg)
+    values, depth = _scan(arg)
     if values > MAX_VALUES:
         raise ConfigError(key, f"override of {values} comma-separated values (the limit is "
                           f"{MAX_VALUES} per override): {fix}")
+    if depth > MAX_DEPTH:
+        raise ConfigError(key, f"override nested {depth} levels deep (the limit is "
+                          f"{MAX_DEPTH}): a matrix is a list of lists")
 
 
 def check_sweep_size(override: Any) -> None:

@@ -88,6 +88,8 @@ def test_b3_b4_a_primary_config_or_a_searchpath_file_beyond_a_limit_is_one_line(
     ("runner.seed=" + ",".join(map(str, range(MAX_VALUES + 1))),
      f"{MAX_VALUES + 1} comma-separated values (the limit is {MAX_VALUES} per override)"),
     ("runner.seed=range(0,1000000)", f"sweep of 1000000 values (the limit is {MAX_VALUES}"),
+    ("problem.params.x0=" + "[" * 3000 + "]" * 3000,
+     "override nested 3000 levels deep (the limit is 50)"),
 ])
 def test_minor_an_oversized_command_line_list_is_one_line(tmp_path, arg, words):
     proc, seconds = cli("-m", "mode=plan", arg, cwd=tmp_path)

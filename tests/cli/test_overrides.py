@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from penaltyrun.cli.overrides import MAX_CHARS, MAX_VALUES, count_values, parse_each, split_argv
 from penaltyrun.cli.preflight import preflight
 from penaltyrun.errors import ConfigError
+from penaltyrun.yamlsafe import MAX_DEPTH
 
 
 def test_an_option_value_with_equals_is_not_an_override():
@@ -55,3 +56,14 @@ def test_the_size_check_comes_before_the_parser(monkeypatch):
         parse_each(["k=" + ",".join(["1"] * (MAX_VALUES + 1))], str)
     with pytest.raises(ConfigError, match=f"the limit is {MAX_CHARS}\\)"):
         parse_each(["k=" + "x" * MAX_CHARS], str)
+    with pytest.raises(ConfigError, match=f"nested {MAX_DEPTH + 1} levels deep"):
+        parse_each(["k=" + "[" * (MAX_DEPTH + 1) + "]" * (MAX_DEPTH + 1)], str)
+    with pytest.raises(ConfigError, match="nested 3000 levels deep"):
+        parse_each(["k=choice(" + "{a:" * 2999 + "1" + "}" * 2999 + ")"], str)
+
+
+def test_brackets_inside_quotes_do_not_nest_and_a_matrix_passes():
+    deep = "[" * (MAX_DEPTH + 5)
+    parsed = parse_each([f"k='{deep}'", "m=[[1,2],[3,4]]", f"n=[[[{deep[:MAX_DEPTH - 3]}"
+                         f"{']' * (MAX_DEPTH - 3)}]]]"], str)
+    assert parsed[0].value() == deep and parsed[1].value() == [[1, 2], [3, 4]]

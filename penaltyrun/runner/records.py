@@ -27,6 +27,7 @@ from penaltyrun.errors import EnvironmentProblemError, describe_os_error
 from penaltyrun.jobrecord import NO_RESULT_STATUSES, SCHEMA_VERSION
 from penaltyrun.runner.plan import Job
 from penaltyrun.runner.provenance import packages_json
+from penaltyrun.runner.usercode import describe_user_code
 from penaltyrun.runner.validate import record_problem
 
 logger = logging.getLogger(__name__)
@@ -170,17 +171,18 @@ def pending_jobs(jobs: Iterable[Job], run_dir: Path, resume: bool,
 
 
 def warn_edited_module(jobs: list[Job], run_dir: Path) -> int:
-    """Say (one warning) when records in ``run_dir`` ran the same problem module with
-    another source: the module or a local module it imports
-    (:func:`~penaltyrun.runner.usercode.module_source_hash`) was edited since, and the
-    planned jobs, a new configuration
+    """Say (one warning) when records in ``run_dir`` ran the same problem with other user
+    code or data: the problem module, a local module it imports or a data file a problem
+    parameter names (:func:`~penaltyrun.runner.usercode.user_code_hash`) was edited since,
+    and the planned jobs, a new configuration
     (:attr:`~penaltyrun.runner.plan.Job.module_hash` is part of the job id), run again.
     Returns how many such records there are."""
     current = {job.module_hash for job in jobs if job.module_hash}
     if not current:
         return 0
     planned = {job.job_id for job in jobs}
-    problem, module = jobs[0].problem, jobs[0].problem_module
+    problem = jobs[0].problem
+    what = describe_user_code(jobs[0].problem_module, jobs[0].problem_params)
     before: dict[str, int] = {}
     for path in Path(run_dir, JOBS_DIR).glob(f"{problem}-*.json"):
         if path.stem in planned:
@@ -190,11 +192,10 @@ def warn_edited_module(jobs: list[Job], run_dir: Path) -> int:
         if record is not None and record["problem"] == problem and old and old not in current:
             before[old] = before.get(old, 0) + 1
     if before:
-        logger.warning("resume: the problem module %s or a local module it imports was "
-                       "edited since %d finished job(s) in "
-                       "%s ran (source hash %s then, %s now): an edited module is a new "
-                       "configuration, so its jobs run again; the old records stay on disk, "
-                       "left out of results.parquet", module, sum(before.values()),
+        logger.warning("resume: %s was edited since %d finished job(s) in "
+                       "%s ran (source hash %s then, %s now): an edited module or file is a "
+                       "new configuration, so its jobs run again; the old records stay on "
+                       "disk, left out of results.parquet", what, sum(before.values()),
                        Path(run_dir, JOBS_DIR), ", ".join(sorted(before)),
                        ", ".join(sorted(current)))
     return sum(before.values())

@@ -1,4 +1,4 @@
-"""The source of user code as part of a job's identity.
+"""The source of user code (and of data files a problem reads) as part of a job's identity.
 
 A problem module of the user's own (and a module a problem parameter names, e.g. the LQR
 problem's ``plant`` and ``dynamics``) is hashed with the local modules it imports: the
@@ -23,6 +23,9 @@ from penaltyrun.runner.plan import config_hash
 #: Problem parameters that name user code as ``module:attribute`` (the LQR problem's plant
 #: and nonlinear dynamics); their modules' sources are part of the job identity too.
 CODE_PARAMS = ("plant", "dynamics")
+#: Problem parameters that name a data file the problem reads (the LQR problem's plant
+#: file); their contents are part of the job identity too.
+FILE_PARAMS = ("plant_file",)
 #: Most local files followed from one module (a bound on the work for a huge folder).
 MAX_LOCAL_FILES = 500
 
@@ -60,14 +63,39 @@ def module_source_hash(module: str | None) -> str:
 
 def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
     """:func:`module_source_hash` of the problem module and of the modules that
-    :data:`CODE_PARAMS` name (``module:attribute``), combined; "" when there is none."""
+    :data:`CODE_PARAMS` name (``module:attribute``) and the contents of the files that
+    :data:`FILE_PARAMS` name, combined; "" when there is none (a missing file counts as
+    none: the run itself says it is missing)."""
     names = [problem_module or ""]
     names += [value.partition(":")[0] for key in CODE_PARAMS
               if isinstance(value := problem_params.get(key), str) and ":" in value]
     hashes = [h for h in map(module_source_hash, names) if h]
+    hashes += [h for key in FILE_PARAMS if isinstance(value := problem_params.get(key), str)
+               and (h := file_hash(value))]
     if len(hashes) <= 1:
         return hashes[0] if hashes else ""
     return config_hash(hashes)
+
+
+def describe_user_code(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
+    """What :func:`user_code_hash` covers, for a message: e.g. "the problem module lab.fit
+    or a local module it imports; the plant_file plant.yaml"."""
+    parts = [f"the problem module {problem_module} or a local module it imports"
+             if problem_module else ""]
+    parts += [f"the {key} module {value.partition(':')[0]} or a local module it imports"
+              for key in CODE_PARAMS
+              if isinstance(value := problem_params.get(key), str) and ":" in value]
+    parts += [f"the {key} {value}" for key in FILE_PARAMS
+              if isinstance(value := problem_params.get(key), str)]
+    return "; ".join(p for p in parts if p) or "the problem's code"
+
+
+def file_hash(path: str) -> str:
+    """Short SHA-256 of the file ``path``'s bytes; "" when it cannot be read."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+    except (OSError, ValueError):
+        return ""
 
 
 def source_root(module: str, origin: Path) -> Path:

@@ -12,7 +12,12 @@ import uuid
 import pytest
 
 import penaltyrun
-from penaltyrun.runner.usercode import local_sources, module_source_hash, source_root
+from penaltyrun.runner.usercode import (
+    local_sources,
+    module_source_hash,
+    source_root,
+    user_code_hash,
+)
 
 PROBLEM = textwrap.dedent('''
     import json
@@ -152,3 +157,21 @@ def test_two_problem_modules_of_one_name_in_one_process_do_not_mix(tmp_path, mon
     assert costs[1] - costs[0] == pytest.approx(5.0, abs=1e-12)
     for name in [n for n in sys.modules if n.split(".")[0] in labs]:
         del sys.modules[name]
+
+
+def test_an_edited_plant_file_is_a_new_configuration_on_resume(tmp_path, caplog):
+    plant = tmp_path / "plant.yaml"
+    plant.write_text("A: [[0.0, 1.0], [0.0, 0.0]]\nB: [[0.0], [1.0]]\n")
+    params = {"plant_file": str(plant)}
+    assert user_code_hash(None, params) == hashlib.sha256(plant.read_bytes()).hexdigest()[:16]
+    assert user_code_hash(None, {"plant_file": str(tmp_path / "missing.yaml")}) == ""
+    kwargs = {"param": "diagonal", "optimizer": "baseline", "n_starts": 1, "workers": 1,
+              "params": params, "run_dir": tmp_path / "run"}
+    first = penaltyrun.tune("lqr", **kwargs)
+    plant.write_text("A: [[0.0, 1.0], [-1.0, 0.0]]\nB: [[0.0], [1.0]]\n")
+    with caplog.at_level(logging.WARNING):
+        second = penaltyrun.tune("lqr", resume=True, **kwargs)
+    assert not set(first.records["job_id"]) & set(second.records["job_id"])
+    assert first.best.cost != second.best.cost
+    assert sum(f"the plant_file {plant} was edited since 1 finished" in r.getMessage()
+               for r in caplog.records) == 1

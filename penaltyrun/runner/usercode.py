@@ -91,9 +91,14 @@ def describe_user_code(problem_module: str | None, problem_params: Mapping[str, 
 
 
 def file_hash(path: str) -> str:
-    """Short SHA-256 of the file ``path``'s bytes; "" when it cannot be read."""
+    """Short SHA-256 of the bytes of the file ``path`` (``~`` expanded, as the problem reads
+    it); "" when it is not a regular file (a FIFO or a device is never read) or cannot be
+    read."""
+    file = Path(path).expanduser()
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+        if not file.is_file():
+            return ""
+        return hashlib.sha256(file.read_bytes()).hexdigest()[:16]
     except (OSError, ValueError):
         return ""
 

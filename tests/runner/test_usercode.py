@@ -165,6 +165,7 @@ def test_an_edited_plant_file_is_a_new_configuration_on_resume(tmp_path, caplog)
     params = {"plant_file": str(plant)}
     assert user_code_hash(None, params) == hashlib.sha256(plant.read_bytes()).hexdigest()[:16]
     assert user_code_hash(None, {"plant_file": str(tmp_path / "missing.yaml")}) == ""
+    assert user_code_hash(None, {"plant_file": "/dev/zero"}) == ""  # never read
     kwargs = {"param": "diagonal", "optimizer": "baseline", "n_starts": 1, "workers": 1,
               "params": params, "run_dir": tmp_path / "run"}
     first = penaltyrun.tune("lqr", **kwargs)

@@ -79,16 +79,28 @@ def group_node(group: str, name: str) -> dict[str, Any]:
     return node if own_merged else _merge(node, data)
 
 
-def plain(value: Any) -> Any:
+def plain(value: Any, key: str = "value", depth: int = 0) -> Any:
     """``value`` as the plain data a config holds: numpy arrays and scalars as lists and
     Python numbers, tuples as lists, mappings as dicts (e.g. a plant matrix ``A`` given as
-    an array is stored, hashed and recorded as the nested list the command line takes)."""
+    an array is stored, hashed and recorded as the nested list the command line takes).
+
+    Raises
+    ------
+    ConfigError
+        On ``key``: nested deeper than :data:`~penaltyrun.yamlsafe.MAX_DEPTH` levels, the
+        limit of a config file and of a command-line override.
+    """
+    from penaltyrun.yamlsafe import MAX_DEPTH
+
+    if depth > MAX_DEPTH:
+        raise ConfigError(key, f"nested deeper than {MAX_DEPTH} levels (the limit of a "
+                          "config value; a matrix is a list of lists)")
     if isinstance(value, Mapping):
-        return {str(k): plain(v) for k, v in value.items()}
+        return {str(k): plain(v, key, depth + 1) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
+        return [plain(v, key, depth + 1) for v in value]
     if hasattr(value, "tolist") and callable(value.tolist):  # numpy arrays and scalars
-        return plain(value.tolist())
+        return plain(value.tolist(), key, depth)
     return value
 
 
@@ -130,17 +142,17 @@ def compose(problem: str, module: str | None, *, case: str | None, param: str,
     base.pop("hydra", None)
     prob = problem_node(problem, module)
     if params:
-        prob["params"] = _merge(prob.get("params") or {}, plain(params))
+        prob["params"] = _merge(prob.get("params") or {}, plain(params, "params"))
     opt = group_node("optimizer", optimizer)
     unknown = sorted(set(optimizer_options or {}) - set(opt) - {"name"})
     if unknown:
         raise ConfigError(f"optimizer.{unknown[0]}", f"not an option of optimizer "
                           f"{optimizer!r}", allowed=sorted(set(opt) - {"name"}))
-    opt.update(plain(optimizer_options or {}))
+    opt.update(plain(optimizer_options or {}, "optimizer_options"))
     config = {"problem": prob, "param": group_node("param", param), "optimizer": opt}
     config.update(base)
     config["case"] = case
-    config["runner"] = _merge(base["runner"], plain(runner))
+    config["runner"] = _merge(base["runner"], plain(runner, "runner"))
     return config
 
 

@@ -7,10 +7,11 @@ import pytest
 from hydra import compose as hydra_compose
 from hydra import initialize_config_module
 
-from penaltyrun.api.compose import choices, compose, run_spec
+from penaltyrun.api.compose import choices, compose, plain, run_spec
 from penaltyrun.cli import spec as cells
 from penaltyrun.errors import ConfigError
 from penaltyrun.runner import config_hash
+from penaltyrun.yamlsafe import MAX_DEPTH
 
 #: Every problem file, every map file and every optimizer file (some with a defaults list of
 #: their own), each once.
@@ -54,3 +55,15 @@ def test_unknown_choices_list_the_files():
     with pytest.raises(ConfigError, match="unknown param 'spiral'.*givens"):
         compose("zermelo", None, case=None, param="spiral", optimizer="pso",
                 optimizer_options=None, params=None, runner={})
+
+
+def test_a_value_nested_deeper_than_a_config_file_may_be_is_one_config_error():
+    deep: list = []
+    inner = deep
+    for _ in range(3000):
+        inner.append([])
+        inner = inner[0]
+    with pytest.raises(ConfigError, match=f"params: nested deeper than {MAX_DEPTH} levels"):
+        plain({"x0": deep}, "params")
+    ok = [[1.0, 2.0], [3.0, 4.0]]
+    assert plain({"A": ok, "n": (1, 2)}, "params") == {"A": ok, "n": [1, 2]}

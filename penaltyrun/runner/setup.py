@@ -60,16 +60,21 @@ def build(problem: str, case: str | None, problem_params: Mapping[str, Any], par
     return prob, layout, optim.with_gradient_cost(settings, prob)
 
 
-def build_within(time_limit_s: float | None, *args: Any) -> tuple[Problem, DecisionLayout, Any]:
-    """:func:`build` (same arguments after the first), for a problem that is not one of
-    penaltyrun's own first tried in a forked process of its own under ``time_limit_s``
-    (``runner.job_timeout``): a user problem whose construction hangs, or ends its process
-    (``os._exit``, a segmentation fault, ``SystemExit``), is then one :class:`ConfigError`
-    instead of a run that never starts or a main process that ends without a word. An
-    ordinary error is left to the build in this process, which raises it as usual; there a
-    ``SystemExit`` or ``KeyboardInterrupt`` raised by the problem's code (not a Ctrl-C of
-    the run) is one :class:`ConfigError` too. Without a limit, or where processes cannot be
-    forked, only the build in this process.
+def build_within(time_limit_s: float | None, problem: str, case: str | None,
+                 problem_params: Mapping[str, Any], param: str,
+                 param_options: Mapping[str, Any], optimizer: str,
+                 optimizer_options: Mapping[str, Any], problem_module: str | None = None
+                 ) -> tuple[Problem, DecisionLayout, Any]:
+    """:func:`build` (the arguments after the first). A problem that is not one of
+    penaltyrun's own (a problem module, an entry point or an in-memory problem) is first
+    built in a forked process of its own under ``time_limit_s`` (``runner.job_timeout``):
+    a construction that hangs, or ends its process (``os._exit``, a segmentation fault,
+    ``SystemExit``), is then one :class:`ConfigError` instead of a run that never starts
+    or a main process that ends without a word. An ordinary error is left to the build in
+    this process, which raises it as usual; there a ``SystemExit`` or
+    ``KeyboardInterrupt`` raised by the problem's code (not a Ctrl-C of the run) is one
+    :class:`ConfigError` too. Without a limit, or where processes cannot be forked, only
+    the build in this process.
 
     Raises
     ------
@@ -79,8 +84,9 @@ def build_within(time_limit_s: float | None, *args: Any) -> tuple[Problem, Decis
     """
     from penaltyrun.runner import interrupts, isolated
 
-    problem = args[0]
-    if problem in problems.REGISTRY:
+    args = (problem, case, problem_params, param, param_options, optimizer,
+            optimizer_options, problem_module)
+    if problem in problems.REGISTRY and not problem_module:
         return build(*args)
     if time_limit_s is not None and isolated.can_isolate():
         try:

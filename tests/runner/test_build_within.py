@@ -27,6 +27,13 @@ def test_own_problems_are_built_directly(monkeypatch):
     assert layout.dim == build(*ZERMELO)[1].dim and prob.name == "zermelo"
 
 
+def test_a_module_of_a_built_in_name_is_still_user_code(monkeypatch):
+    calls = []
+    monkeypatch.setattr(isolated, "call_isolated", lambda *a, **k: calls.append(a))
+    prob, _, _ = build_within(5.0, *ZERMELO, "penaltyrun.problems.zermelo")
+    assert prob.name == "zermelo" and len(calls) == 1  # named by a module path: tried first
+
+
 def test_a_construction_past_the_limit_is_one_config_error(monkeypatch):
     prob = penaltyrun.from_cost(lambda K: float(np.trace(K)), {"K": (2, (0.1, 10.0))},
                                 name="slowbuild")

@@ -24,7 +24,7 @@ PROBLEM = textwrap.dedent('''
 
     import numpy as np
 
-    from penaltyrun.problems.base import BatchEvaluation, MatrixSpec
+    import penaltyrun
 
     from . import helper
     from .sub.deep import SCALE
@@ -33,27 +33,9 @@ PROBLEM = textwrap.dedent('''
     DEFAULT_CASE = "one"
 
 
-    class Fit:
-        name = "fit"
-        case = "one"
-        matrices = (MatrixSpec("K", 1, (0.1, 10.0)),)
-        scalars = ()
-
-        def evaluate_batch(self, mats, scalars=None):
-            cost = SCALE * np.sum(np.asarray(mats["K"]) ** 2, axis=(1, 2)) + helper.offset()
-            return BatchEvaluation(cost, np.ones(len(cost), bool),
-                                   np.array(["converged"] * len(cost), dtype=object))
-
-        def evaluate(self, mats, scalars=None):
-            cost = SCALE * float(np.sum(np.asarray(mats["K"]) ** 2)) + helper.offset()
-            return {"cost": cost, "converged": True, "status": "converged", "t_final": 0.0}
-
-        def simulate(self, mats, scalars=None):
-            return {"t": np.zeros(1)}
-
-
     def make_problem(case, params):
-        return Fit()
+        return penaltyrun.from_cost(lambda K: SCALE * float(np.sum(K ** 2)) + helper.offset(),
+                                    {"K": (1, (0.1, 10.0))}, name="fit")
 ''')
 
 

@@ -182,7 +182,6 @@ def warn_edited_module(jobs: list[Job], run_dir: Path) -> int:
         return 0
     planned = {job.job_id for job in jobs}
     problem = jobs[0].problem
-    what = describe_user_code(jobs[0].problem_module, jobs[0].problem_params)
     before: dict[str, int] = {}
     for path in Path(run_dir, JOBS_DIR).glob(f"{problem}-*.json"):
         if path.stem in planned:
@@ -192,6 +191,7 @@ def warn_edited_module(jobs: list[Job], run_dir: Path) -> int:
         if record is not None and record["problem"] == problem and old and old not in current:
             before[old] = before.get(old, 0) + 1
     if before:
+        what = describe_user_code(jobs[0].problem_module, jobs[0].problem_params)
         logger.warning("resume: %s was edited since %d finished job(s) in "
                        "%s ran (source hash %s then, %s now): an edited module or file is a "
                        "new configuration, so its jobs run again; the old records stay on "

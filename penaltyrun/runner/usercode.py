@@ -66,12 +66,9 @@ def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]
     :data:`CODE_PARAMS` name (``module:attribute``) and the contents of the files that
     :data:`FILE_PARAMS` name, combined; "" when there is none (a missing file counts as
     none: the run itself says it is missing)."""
-    names = [problem_module or ""]
-    names += [value.partition(":")[0] for key in CODE_PARAMS
-              if isinstance(value := problem_params.get(key), str) and ":" in value]
-    hashes = [h for h in map(module_source_hash, names) if h]
-    hashes += [h for key in FILE_PARAMS if isinstance(value := problem_params.get(key), str)
-               and (h := file_hash(value))]
+    modules, files = _user_code(problem_module, problem_params)
+    hashes = [h for _, name in modules if (h := module_source_hash(name))]
+    hashes += [h for _, path in files if (h := file_hash(path))]
     if len(hashes) <= 1:
         return hashes[0] if hashes else ""
     return config_hash(hashes)
@@ -80,14 +77,23 @@ def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]
 def describe_user_code(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
     """What :func:`user_code_hash` covers, for a message: e.g. "the problem module lab.fit
     or a local module it imports; the plant_file plant.yaml"."""
-    parts = [f"the problem module {problem_module} or a local module it imports"
-             if problem_module else ""]
-    parts += [f"the {key} module {value.partition(':')[0]} or a local module it imports"
-              for key in CODE_PARAMS
-              if isinstance(value := problem_params.get(key), str) and ":" in value]
-    parts += [f"the {key} {value}" for key in FILE_PARAMS
-              if isinstance(value := problem_params.get(key), str)]
-    return "; ".join(p for p in parts if p) or "the problem's code"
+    modules, files = _user_code(problem_module, problem_params)
+    parts = [f"the {kind} module {name} or a local module it imports" for kind, name in modules]
+    parts += [f"the {key} {path}" for key, path in files]
+    return "; ".join(parts) or "the problem's code"
+
+
+def _user_code(problem_module: str | None, problem_params: Mapping[str, Any]
+               ) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
+    """(modules, files) of user code a cell names, each as (what names it, name or path):
+    ``problem`` for the problem module, a :data:`CODE_PARAMS` key for the module of its
+    ``module:attribute`` value, a :data:`FILE_PARAMS` key for its file."""
+    modules = [("problem", problem_module)] if problem_module else []
+    modules += [(key, value.partition(":")[0]) for key in CODE_PARAMS
+                if isinstance(value := problem_params.get(key), str) and ":" in value]
+    files = [(key, value) for key in FILE_PARAMS
+             if isinstance(value := problem_params.get(key), str)]
+    return modules, files
 
 
 def file_hash(path: str) -> str:
@@ -123,6 +129,7 @@ def local_sources(module: str, origin: Path) -> list[Path]:
     package.
     """
     root = source_root(module, origin)
+    prefixes = {Path(p).resolve() for p in (sys.prefix, sys.base_prefix, sys.exec_prefix)}
     todo, seen = [(origin, _dotted(origin, root))], {origin}
     while todo and len(seen) <= MAX_LOCAL_FILES:
         path, dotted = todo.pop()
@@ -130,7 +137,7 @@ def local_sources(module: str, origin: Path) -> list[Path]:
             if name.split(".")[0] == "penaltyrun":
                 continue
             for found in _module_files(root, name):
-                if found not in seen and not _under_prefix(found):
+                if found not in seen and not _under(found, prefixes):
                     seen.add(found)
                     todo.append((found, _dotted(found, root)))
     return sorted(seen - {origin})
@@ -184,8 +191,8 @@ def _module_files(root: Path, name: str) -> list[Path]:
     return files
 
 
-def _under_prefix(path: Path) -> bool:
-    """Whether ``path`` lies in the interpreter's installation or environment."""
-    prefixes = {Path(p).resolve() for p in (sys.prefix, sys.base_prefix, sys.exec_prefix)}
+def _under(path: Path, prefixes: set[Path]) -> bool:
+    """Whether ``path`` lies in one of the (resolved) folders ``prefixes``: the
+    interpreter's installation or environment."""
     resolved = path.resolve()
     return any(resolved == p or p in resolved.parents for p in prefixes)

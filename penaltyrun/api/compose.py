@@ -90,10 +90,8 @@ def plain(value: Any, key: str = "value", depth: int = 0) -> Any:
         On ``key``: nested deeper than :data:`~penaltyrun.yamlsafe.MAX_DEPTH` levels, the
         limit of a config file and of a command-line override.
     """
-    from penaltyrun.yamlsafe import MAX_DEPTH
-
-    if depth > MAX_DEPTH:
-        raise ConfigError(key, f"nested deeper than {MAX_DEPTH} levels (the limit of a "
+    if depth > yamlsafe.MAX_DEPTH:
+        raise ConfigError(key, f"nested deeper than {yamlsafe.MAX_DEPTH} levels (the limit of a "
                           "config value; a matrix is a list of lists)")
     if isinstance(value, Mapping):
         return {str(k): plain(v, key, depth + 1) for k, v in value.items()}

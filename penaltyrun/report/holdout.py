@@ -186,7 +186,7 @@ def paired(diag: pd.DataFrame, full: pd.DataFrame) -> dict[str, Any]:
     p, note = np.nan, ""
     diff = jd - jf
     if diff.size and np.any(diff != 0.0):
-        p = signed_rank_p(jd - jf)
+        p = signed_rank_p(diff)
     elif diff.size:
         note = "identical costs"
     if diff.size < MIN_PAIRS:

@@ -20,6 +20,7 @@ from penaltyrun import yamlsafe
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.criteria import hashed_node
 from penaltyrun.runner.spec import RunnerOptions, RunSpec
+from penaltyrun.typed import is_number
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 #: ``runner.*`` values the API uses where the command line's defaults differ: no report
@@ -124,6 +125,52 @@ def problem_node(name: str, module: str | None) -> dict[str, Any]:
     return node
 
 
+def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
+                        prefix: str) -> None:
+    """Check values against the type of the shipped default of the same key: a number
+    for a number, true/false for a boolean, a list of as many numbers for a list of numbers,
+    a list for any other list (a ``null`` default accepts anything; the problem checks it)."""
+    for key, default in defaults.items():
+        value = values.get(key, default)
+        if default is None or value is None:
+            continue
+        if isinstance(default, bool):
+            ok, what = isinstance(value, bool), "true or false"
+        elif isinstance(default, (int, float)):
+            ok, what = is_number(value), "a number"
+        elif isinstance(default, list) and not all(is_number(v) for v in default):
+            ok, what = isinstance(value, list), "a list"
+        elif isinstance(default, list):
+            ok = isinstance(value, list) and len(value) == len(default) and all(
+                is_number(v) for v in value)
+            what = f"a list of {len(default)} numbers"
+        else:
+            continue
+        if not ok:
+            hint = ""
+            if isinstance(value, str) and value.strip().lower() in YAML_INFINITY:
+                hint = " (Hydra reads YAML's .inf as text: write inf or -inf)"
+            raise ConfigError(f"{prefix}.{key}", f"must be {what}, got {value!r}{hint}")
+
+
+#: YAML's spellings of infinity, which the command-line grammar reads as strings.
+YAML_INFINITY = (".inf", "+.inf", "-.inf")
+
+
+def checked_params(node: Mapping[str, Any], params: Mapping[str, Any]) -> dict[str, Any]:
+    """The parameters of problem node ``node`` with ``params`` over them, each given value
+    checked against the type of its shipped default (:func:`check_like_defaults`).
+
+    Raises
+    ------
+    ConfigError
+        On ``problem.params.<key>``: a value of the wrong type, or nested too deep.
+    """
+    given = plain(params, "params")
+    check_like_defaults(given, node.get("params") or {}, "problem.params")
+    return _merge(node.get("params") or {}, given)
+
+
 def compose(problem: str, module: str | None, *, case: str | None, param: str,
             optimizer: str, optimizer_options: Mapping[str, Any] | None,
             params: Mapping[str, Any] | None, runner: Mapping[str, Any]) -> dict[str, Any]:
@@ -140,7 +187,7 @@ def compose(problem: str, module: str | None, *, case: str | None, param: str,
     base.pop("hydra", None)
     prob = problem_node(problem, module)
     if params:
-        prob["params"] = _merge(prob.get("params") or {}, plain(params, "params"))
+        prob["params"] = checked_params(prob, params)
     opt = group_node("optimizer", optimizer)
     unknown = sorted(set(optimizer_options or {}) - set(opt) - {"name"})
     if unknown:
@@ -181,5 +228,6 @@ def run_spec(config: Mapping[str, Any]) -> RunSpec:
                                                                                  True)))
 
 
-__all__ = ["API_RUNNER", "CONF", "choices", "compose", "group_node", "plain",
+__all__ = ["API_RUNNER", "CONF", "YAML_INFINITY", "check_like_defaults", "checked_params",
+           "choices", "compose", "group_node", "plain",
            "problem_node", "read_yaml", "run_spec"]

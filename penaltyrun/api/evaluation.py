@@ -198,12 +198,12 @@ def evaluate(problem: Any, matrices: Mapping[str, Any] | None = None, *,
     dict
         ``cost``, ``converged``, ``status``, ``t_final`` and the problem's own entries.
     """
-    from penaltyrun.api.compose import problem_node
+    from penaltyrun.api.compose import checked_params, problem_node
     from penaltyrun.api.tuning import held, resolve_problem
 
     name, module, obj = resolve_problem(problem)
     node = problem_node(name, module)
-    merged = {**(node.get("params") or {}), **dict(params or {})}
+    merged = checked_params(node, params or {})
     with held(obj):
         prob = problems.make(name, case, {k: v for k, v in merged.items() if v is not None},
                              module)

@@ -180,38 +180,6 @@ def check_evaluate_extras(mode: str, gradient: Any, z: Any) -> None:
                                f"z_names order), e.g. z=[1.0,2.5]; got {z!r}")
 
 
-def check_like_defaults(values: Mapping[str, Any], defaults: Mapping[str, Any],
-                        prefix: str) -> None:
-    """Check values against the type of the shipped default of the same key: a number
-    for a number, true/false for a boolean, a list of as many numbers for a list of numbers,
-    a list for any other list (a ``null`` default accepts anything; the problem checks it)."""
-    for key, default in defaults.items():
-        value = values.get(key, default)
-        if default is None or value is None:
-            continue
-        if isinstance(default, bool):
-            ok, what = isinstance(value, bool), "true or false"
-        elif isinstance(default, (int, float)):
-            ok, what = is_number(value), "a number"
-        elif isinstance(default, list) and not all(is_number(v) for v in default):
-            ok, what = isinstance(value, list), "a list"
-        elif isinstance(default, list):
-            ok = isinstance(value, list) and len(value) == len(default) and all(
-                is_number(v) for v in value)
-            what = f"a list of {len(default)} numbers"
-        else:
-            continue
-        if not ok:
-            hint = ""
-            if isinstance(value, str) and value.strip().lower() in YAML_INFINITY:
-                hint = " (Hydra reads YAML's .inf as text: write inf or -inf)"
-            raise ConfigError(f"{prefix}.{key}", f"must be {what}, got {value!r}{hint}")
-
-
-#: YAML's spellings of infinity, which the command-line grammar reads as strings.
-YAML_INFINITY = (".inf", "+.inf", "-.inf")
-
-
 def check_param_options(options: Mapping[str, Any]) -> None:
     """Check ``param.eig_bounds`` (null or [lower, upper] with 0 <= lower < upper) and
     ``param.cayley_bound`` (positive number)."""
@@ -270,6 +238,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
         check_param_options(_options(cfg, "param"))
     params = cells.problem_params(cfg)
     if base is not None:
+        from penaltyrun.api.compose import check_like_defaults
         check_like_defaults(params, plain(base.problem.get("params")) or {}, "problem.params")
     if mode not in JOB_MODES:
         checked("problem.params", problems.make, cfg.problem.name, cfg.get("case"), params,

@@ -7,7 +7,8 @@ import pytest
 from hydra import compose as hydra_compose
 from hydra import initialize_config_module
 
-from penaltyrun.api.compose import choices, compose, plain, run_spec
+from penaltyrun import api
+from penaltyrun.api.compose import check_like_defaults, choices, compose, plain, run_spec
 from penaltyrun.cli import spec as cells
 from penaltyrun.errors import ConfigError
 from penaltyrun.runner import config_hash
@@ -67,3 +68,32 @@ def test_a_value_nested_deeper_than_a_config_file_may_be_is_one_config_error():
         plain({"x0": deep}, "params")
     ok = [[1.0, 2.0], [3.0, 4.0]]
     assert plain({"A": ok, "n": (1, 2)}, "params") == {"A": ok, "n": [1, 2]}
+
+
+@pytest.mark.parametrize(("values", "fragment"), [
+    ({"x0": "abc"}, "list of 2 numbers"), ({"x0": [1, 2, 3]}, "list of 2 numbers"),
+    ({"t_max": True}, "a number"), ({"t_max": "1"}, "a number"), ({"flag": 1}, "true or"),
+])
+def test_problem_params_like_defaults(values, fragment):
+    defaults = {"x0": [0.0, 1.0], "t_max": 10.0, "flag": False, "free": None}
+    check_like_defaults({"x0": [1, 2], "t_max": 3, "free": "x"}, defaults, "p")
+    with pytest.raises(ConfigError, match=fragment):
+        check_like_defaults(values, defaults, "p")
+
+
+def test_yaml_infinity_on_the_command_line_names_the_spelling_that_works():
+    with pytest.raises(ConfigError, match=r"got '\.inf' \(Hydra reads YAML's \.inf as text: "
+                                          r"write inf or -inf\)"):
+        check_like_defaults({"event_spacing": ".inf"}, {"event_spacing": 0.05}, "p")
+    check_like_defaults({"event_spacing": float("inf")}, {"event_spacing": 0.05}, "p")
+
+
+@pytest.mark.parametrize("params", [{"x0": [[[[1.0]]]]}, {"x0": "abc"}, {"t_max": "x"}])
+def test_library_refuses_problem_params_unlike_their_defaults(params, tmp_path):
+    key = f"problem.params.{next(iter(params))}"
+    with pytest.raises(ConfigError, match=key):
+        api.evaluate("zermelo", matrices={"K": [[1.0, 0.0], [0.0, 1.0]]}, params=params)
+    with pytest.raises(ConfigError, match=key):
+        api.tune("zermelo", n_starts=1, optimizer_options={"max_evals": 20}, params=params,
+                 run_dir=tmp_path, workers=1)
+    assert not list(tmp_path.iterdir())

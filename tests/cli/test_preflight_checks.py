@@ -40,17 +40,6 @@ def test_the_charge_per_gradient_may_be_added_after_any_preset():
                                                "grad_costs": 3.0}}, base)
 
 
-@pytest.mark.parametrize(("values", "fragment"), [
-    ({"x0": "abc"}, "list of 2 numbers"), ({"x0": [1, 2, 3]}, "list of 2 numbers"),
-    ({"t_max": True}, "a number"), ({"t_max": "1"}, "a number"), ({"flag": 1}, "true or"),
-])
-def test_problem_params_like_defaults(values, fragment):
-    defaults = {"x0": [0.0, 1.0], "t_max": 10.0, "flag": False, "free": None}
-    checks.check_like_defaults({"x0": [1, 2], "t_max": 3, "free": "x"}, defaults, "p")
-    with pytest.raises(ConfigError, match=fragment):
-        checks.check_like_defaults(values, defaults, "p")
-
-
 def test_report_and_param_options():
     check_report_options({"input": None, "output": "x", "paper": True})
     with pytest.raises(ConfigError, match="report.paper"):
@@ -103,13 +92,6 @@ def test_sweeper_params_on_the_command_line_are_one_line():
 
     with pytest.raises(ConfigError, match="bogus=a,b with -m"):
         preflight(["-m", "mode=plan", "hydra.sweeper.params.bogus=1"])
-
-
-def test_yaml_infinity_on_the_command_line_names_the_spelling_that_works():
-    with pytest.raises(ConfigError, match=r"got '\.inf' \(Hydra reads YAML's \.inf as text: "
-                                          r"write inf or -inf\)"):
-        checks.check_like_defaults({"event_spacing": ".inf"}, {"event_spacing": 0.05}, "p")
-    checks.check_like_defaults({"event_spacing": float("inf")}, {"event_spacing": 0.05}, "p")
 
 
 def test_the_root_folder_as_a_choice_is_one_line():

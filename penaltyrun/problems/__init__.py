@@ -229,6 +229,28 @@ def module(name: str, module_path: str | None = None) -> ModuleType:
     raise ConfigError("problem", f"unknown problem {name!r}", allowed=available())
 
 
+def user_code_params(name: str, module_path: str | None = None
+                     ) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """``(CODE_PARAMS, FILE_PARAMS)`` of the module of problem ``name``: the parameters
+    whose values name user code (``module:attribute``) and data files (see
+    :mod:`penaltyrun.problems.base`); empty tuples when the module declares none.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`module`; or a declaration that is not a tuple of parameter names.
+    """
+    mod = module(name, module_path)
+    declared = []
+    for member in ("CODE_PARAMS", "FILE_PARAMS"):
+        names = getattr(mod, member, ())
+        if isinstance(names, str) or not all(isinstance(n, str) for n in names):
+            raise ConfigError("problem.module", f"{mod.__name__}.{member} must be a tuple of "
+                              f"parameter names, got {names!r}")
+        declared.append(tuple(names))
+    return declared[0], declared[1]
+
+
 def make(name: str, case: str | None, params: Mapping[str, Any] | None = None,
          module_path: str | None = None) -> Problem:
     """Build problem ``name`` for ``case`` (``None`` → the module's default case).

@@ -9,6 +9,11 @@ A problem module (``penaltyrun/problems/<name>.py``) exposes
 * plot helpers (``plot_*``) that take the dictionaries returned by ``Problem.simulate``;
 * optionally ``VARIANT_IGNORE``: parameter names that do not change a run's result (e.g.
   the size of a held-out grid), so reports do not split cells by them.
+* optionally ``CODE_PARAMS``: parameter names whose value names user code as
+  ``module:attribute`` (e.g. a plant's dynamics), and ``FILE_PARAMS``: parameter names
+  whose value is the path of a data file the problem reads. The runner hashes that code
+  (with the local modules it imports) and those files into every job's identity
+  (:mod:`penaltyrun.runner.usercode`), so an edited one is a new configuration.
 * optionally, on the problem object, the held-out interface used by the runner and the
   report: ``training_scenario()`` (the scenario the matrices are tuned on),
   ``holdout_scenarios()`` (the held-out set, disjoint from it) and

@@ -191,7 +191,11 @@ def warn_edited_module(jobs: list[Job], run_dir: Path) -> int:
         if record is not None and record["problem"] == problem and old and old not in current:
             before[old] = before.get(old, 0) + 1
     if before:
-        what = describe_user_code(jobs[0].problem_module, jobs[0].problem_params)
+        from penaltyrun.problems import user_code_params
+
+        job = jobs[0]
+        what = describe_user_code(job.problem_module, job.problem_params,
+                                  *user_code_params(job.problem, job.problem_module))
         logger.warning("resume: %s was edited since %d finished job(s) in "
                        "%s ran (source hash %s then, %s now): an edited module or file is a "
                        "new configuration, so its jobs run again; the old records stay on "

@@ -165,7 +165,10 @@ class RunSpec:
         """The jobs of the cell, one per start (:func:`penaltyrun.runner.plan.plan_jobs`);
         ``case`` is the problem's resolved case, ``meta`` the run-level metadata copied
         into every record."""
+        from penaltyrun.problems import user_code_params
+
         rc = self.runner
+        code_params, file_params = user_code_params(self.problem, self.problem_module)
         return plan_jobs(
             self.problem, case, self.param, self.optimizer, n_starts=rc.n_starts,
             root_seed=int(rc.seed), problem_params=self.problem_params,
@@ -173,4 +176,5 @@ class RunSpec:
             meta=dict(meta or {}), holdout=rc.holdout,
             warm_start_share=self.warm_start_share(), problem_module=self.problem_module,
             cutoff=rc.cutoff, module_hash=user_code_hash(self.problem_module,
-                                                         self.problem_params))
+                                                         self.problem_params, code_params,
+                                                         file_params))

@@ -1,7 +1,9 @@
 """The source of user code (and of data files a problem reads) as part of a job's identity.
 
-A problem module of the user's own (and a module a problem parameter names, e.g. the LQR
-problem's ``plant`` and ``dynamics``) is hashed with the local modules it imports: the
+A problem module of the user's own (and a module a problem parameter names: the
+parameters its module declares in ``CODE_PARAMS``, e.g. the LQR problem's ``plant`` and
+``dynamics``; the files of those in ``FILE_PARAMS``, see
+:func:`penaltyrun.problems.user_code_params`) is hashed with the local modules it imports: the
 files its ``import`` statements reach inside the folder it was found in (its ``sys.path``
 entry), followed transitively. Installed packages, the standard library and penaltyrun
 itself are not hashed (their versions are recorded with every result). The imports are
@@ -14,18 +16,12 @@ from __future__ import annotations
 import ast
 import hashlib
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from penaltyrun.runner.plan import config_hash
 
-#: Problem parameters that name user code as ``module:attribute`` (the LQR problem's plant
-#: and nonlinear dynamics); their modules' sources are part of the job identity too.
-CODE_PARAMS = ("plant", "dynamics")
-#: Problem parameters that name a data file the problem reads (the LQR problem's plant
-#: file); their contents are part of the job identity too.
-FILE_PARAMS = ("plant_file",)
 #: Most local files followed from one module (a bound on the work for a huge folder).
 MAX_LOCAL_FILES = 500
 
@@ -61,12 +57,24 @@ def module_source_hash(module: str | None) -> str:
     return digest.hexdigest()[:16]
 
 
-def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
-    """:func:`module_source_hash` of the problem module and of the modules that
-    :data:`CODE_PARAMS` name (``module:attribute``) and the contents of the files that
-    :data:`FILE_PARAMS` name, combined; "" when there is none (a missing file counts as
-    none: the run itself says it is missing)."""
-    modules, files = _user_code(problem_module, problem_params)
+def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any],
+                   code_params: Sequence[str] = (), file_params: Sequence[str] = ()) -> str:
+    """:func:`module_source_hash` of the problem module and of the modules that the
+    ``code_params`` name (``module:attribute``) and the contents of the files that the
+    ``file_params`` name, combined; "" when there is none (a missing file counts as
+    none: the run itself says it is missing).
+
+    Parameters
+    ----------
+    problem_module : str or None
+        Dotted path of the problem module (None: a problem of penaltyrun or an entry point).
+    problem_params : mapping
+        The cell's problem parameters.
+    code_params, file_params : sequence of str
+        What the problem module declares (``CODE_PARAMS``, ``FILE_PARAMS``;
+        :func:`penaltyrun.problems.user_code_params`).
+    """
+    modules, files = _user_code(problem_module, problem_params, code_params, file_params)
     hashes = [h for _, name in modules if (h := module_source_hash(name))]
     hashes += [h for _, path in files if (h := file_hash(path))]
     if len(hashes) <= 1:
@@ -74,24 +82,26 @@ def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]
     return config_hash(hashes)
 
 
-def describe_user_code(problem_module: str | None, problem_params: Mapping[str, Any]) -> str:
-    """What :func:`user_code_hash` covers, for a message: e.g. "the problem module lab.fit
-    or a local module it imports; the plant_file plant.yaml"."""
-    modules, files = _user_code(problem_module, problem_params)
+def describe_user_code(problem_module: str | None, problem_params: Mapping[str, Any],
+                       code_params: Sequence[str] = (), file_params: Sequence[str] = ()) -> str:
+    """What :func:`user_code_hash` covers (same arguments), for a message: e.g. "the
+    problem module lab.fit or a local module it imports; the plant_file plant.yaml"."""
+    modules, files = _user_code(problem_module, problem_params, code_params, file_params)
     parts = [f"the {kind} module {name} or a local module it imports" for kind, name in modules]
     parts += [f"the {key} {path}" for key, path in files]
     return "; ".join(parts) or "the problem's code"
 
 
-def _user_code(problem_module: str | None, problem_params: Mapping[str, Any]
+def _user_code(problem_module: str | None, problem_params: Mapping[str, Any],
+               code_params: Sequence[str], file_params: Sequence[str]
                ) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
     """(modules, files) of user code a cell names, each as (what names it, name or path):
-    ``problem`` for the problem module, a :data:`CODE_PARAMS` key for the module of its
-    ``module:attribute`` value, a :data:`FILE_PARAMS` key for its file."""
+    ``problem`` for the problem module, a ``code_params`` key for the module of its
+    ``module:attribute`` value, a ``file_params`` key for its file."""
     modules = [("problem", problem_module)] if problem_module else []
-    modules += [(key, value.partition(":")[0]) for key in CODE_PARAMS
+    modules += [(key, value.partition(":")[0]) for key in code_params
                 if isinstance(value := problem_params.get(key), str) and ":" in value]
-    files = [(key, value) for key in FILE_PARAMS
+    files = [(key, value) for key in file_params
              if isinstance(value := problem_params.get(key), str)]
     return modules, files
 

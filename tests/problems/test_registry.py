@@ -67,6 +67,16 @@ def test_module_path_route(site):
     assert "quad" in problems.available() and problems.module("quad").CASES == ("one", "two")
 
 
+def test_user_code_params_are_what_the_module_declares(site):
+    assert problems.user_code_params("zermelo") == ((), ())
+    assert problems.user_code_params("lqr") == (("plant", "dynamics"), ("plant_file",))
+    (site / "quadprob.py").write_text(GOOD + 'CODE_PARAMS = ("law",)\nFILE_PARAMS = ("table",)\n')
+    assert problems.user_code_params("quad", "quadprob") == (("law",), ("table",))
+    (site / "halfprob.py").write_text(GOOD + 'CODE_PARAMS = "law"\n')
+    with pytest.raises(ConfigError, match="halfprob.CODE_PARAMS must be a tuple of parameter"):
+        problems.user_code_params("quad", "halfprob")
+
+
 def test_entry_point_route(site):
     (site / "quadprob.py").write_text(GOOD)
     dist = site / "mylab_quad-0.1.dist-info"

@@ -10,6 +10,7 @@ import uuid
 import pytest
 
 import penaltyrun
+from penaltyrun.problems import user_code_params
 from penaltyrun.runner import module_source_hash, plan_jobs, user_code_hash
 from penaltyrun.runner.records import read_record
 
@@ -74,10 +75,13 @@ def test_the_hash_follows_the_module_s_source(module):
 def test_modules_named_by_problem_parameters_count_too(module):
     name, _ = module
     own = module_source_hash(name)
+    declared = user_code_params("lqr")
+    assert declared == (("plant", "dynamics"), ("plant_file",))
     assert user_code_hash(name, {}) == own
-    assert user_code_hash(None, {"dynamics": f"{name}:f"}) == own
-    assert user_code_hash(None, {"plant": "cw", "dynamics": None}) == ""
-    both = user_code_hash(name, {"plant": f"{name}:P"})
+    assert user_code_hash(None, {"dynamics": f"{name}:f"}, *declared) == own
+    assert user_code_hash(None, {"dynamics": f"{name}:f"}) == ""  # not declared: not code
+    assert user_code_hash(None, {"plant": "cw", "dynamics": None}, *declared) == ""
+    both = user_code_hash(name, {"plant": f"{name}:P"}, *declared)
     assert both not in ("", own)
     assert module_source_hash("penaltyrun.problems") == ""  # recorded as the version
 

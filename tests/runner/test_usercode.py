@@ -12,6 +12,7 @@ import uuid
 import pytest
 
 import penaltyrun
+from penaltyrun.problems import user_code_params
 from penaltyrun.runner.usercode import (
     local_sources,
     module_source_hash,
@@ -145,9 +146,13 @@ def test_an_edited_plant_file_is_a_new_configuration_on_resume(tmp_path, caplog)
     plant = tmp_path / "plant.yaml"
     plant.write_text("A: [[0.0, 1.0], [0.0, 0.0]]\nB: [[0.0], [1.0]]\n")
     params = {"plant_file": str(plant)}
-    assert user_code_hash(None, params) == hashlib.sha256(plant.read_bytes()).hexdigest()[:16]
-    assert user_code_hash(None, {"plant_file": str(tmp_path / "missing.yaml")}) == ""
-    assert user_code_hash(None, {"plant_file": "/dev/zero"}) == ""  # never read
+    declared = user_code_params("lqr")
+    assert user_code_hash(None, params, *declared) == \
+        hashlib.sha256(plant.read_bytes()).hexdigest()[:16]
+    assert user_code_hash(None, params) == ""  # a file only a declared parameter names
+    assert user_code_hash(None, {"plant_file": str(tmp_path / "missing.yaml")},
+                          *declared) == ""
+    assert user_code_hash(None, {"plant_file": "/dev/zero"}, *declared) == ""  # never read
     kwargs = {"param": "diagonal", "optimizer": "baseline", "n_starts": 1, "workers": 1,
               "params": params, "run_dir": tmp_path / "run"}
     first = penaltyrun.tune("lqr", **kwargs)

@@ -24,7 +24,9 @@ from typing import Any
 from penaltyrun.problems.lqr import params as _params
 from penaltyrun.problems.lqr.params import (
     CASES,
+    CODE_PARAMS,
     DEFAULT_CASE,
+    FILE_PARAMS,
     KNOWN_ANSWER,
     VARIANT_IGNORE,
     Params,
@@ -97,6 +99,6 @@ def report_plots(sims: Mapping[str, Mapping[str, Any]], case: str,
     return {"closed-loop state and input norms, every training start": plot_histories(sims)}
 
 
-__all__ = ["CASES", "DEFAULT_CASE", "KNOWN_ANSWER", "STATUSES", "VARIANT_IGNORE",
-           "LQRProblem", "Params", "make_problem", "plot_histories", "report_info",
-           "report_plots"]
+__all__ = ["CASES", "CODE_PARAMS", "DEFAULT_CASE", "FILE_PARAMS", "KNOWN_ANSWER", "STATUSES",
+           "VARIANT_IGNORE", "LQRProblem", "Params", "make_problem", "plot_histories",
+           "report_info", "report_plots"]

@@ -27,6 +27,10 @@ from penaltyrun.typed import is_int, is_number
 
 PREFIX = "problem.params"
 PLANT_KEYS = ("A", "B", "plant_file", "plant", "dynamics")
+#: Keys whose value names user code as ``module:attribute`` and keys whose value is a data
+#: file read here (:mod:`penaltyrun.problems.base`): part of every job's identity.
+CODE_PARAMS = ("plant", "dynamics")
+FILE_PARAMS = ("plant_file",)
 CASES = ("default",)
 DEFAULT_CASE = "default"
 #: Keys that do not define the tuned objective (left out of :attr:`Params.setup`).

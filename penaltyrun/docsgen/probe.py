@@ -42,22 +42,10 @@ logger = logging.getLogger(__name__)
 
 #: Data file and provenance file of a study's probe.
 PROBE_FILE, PROBE_PROVENANCE = "probe.csv", "probe.json"
-#: Columns of :data:`PROBE_FILE` before the per-step ones.
-KEYS = ["problem", "case", "map", "optimizer", "param", "start", "job_id", "record_cost",
-        "cost", "converged", "smallest_cliff_step", "lowest_change_pct",
-        "lowest_change_step", "cpu_s"]
-
-
-def step_columns(step: float) -> list[str]:
-    """The three columns of one step of the ladder: largest |Δ| (in %), its variable, and
-    the number of steps whose run changed its convergence."""
-    return [f"change_pct@{step:g}", f"variable@{step:g}", f"status_changes@{step:g}"]
-
-
 def probe_record(record: dict[str, Any], steps: tuple[float, ...] = STEPS) -> dict[str, Any]:
-    """Probe one stored best point (a results row as a dict); the row of
-    :data:`PROBE_FILE`."""
-    from penaltyrun.report.cliffs import probe_row
+    """Probe one stored best point (a results row as a dict, with its ``family``); the row
+    of :data:`PROBE_FILE` (:func:`penaltyrun.report.cliffs.summary`)."""
+    from penaltyrun.report.cliffs import probe_row, summary
 
     t0 = time.process_time()
     probed = probe_row(record, steps)
@@ -65,22 +53,7 @@ def probe_record(record: dict[str, Any], steps: tuple[float, ...] = STEPS) -> di
         raise StudyError(f"cannot probe {record['job_id']}: problem {record['problem']!r}, "
                          f"case {record['case']!r} not rebuilt from the stored parameters")
     result, names = probed
-    lowest, lowest_step = result.lowest()
-    row = {"problem": record["problem"], "case": record["case"], "map": record["family"],
-           "optimizer": record["optimizer"], "param": record["param"],
-           "start": int(record["start"]), "job_id": record["job_id"],
-           "record_cost": float(record["best_cost"]), "cost": result.cost,
-           "converged": result.converged,
-           "smallest_cliff_step": result.smallest_cliff_step(CLIFF),
-           "lowest_change_pct": 100.0 * lowest, "lowest_change_step": lowest_step,
-           "cpu_s": round(time.process_time() - t0, 1)}
-    changes = result.status_change.reshape(len(steps), -1).sum(axis=1)
-    for k, (step, largest, worst) in enumerate(zip(steps, result.largest(),
-                                                   result.worst_variable())):
-        pct, var, flips = step_columns(step)
-        row.update({pct: 100.0 * float(largest), var: names[worst] if worst >= 0 else "",
-                    flips: int(changes[k])})
-    return row
+    return summary(record, result, names, cpu_s=round(time.process_time() - t0, 1))
 
 
 def best_points(df: Any) -> list[dict[str, Any]]:
@@ -107,6 +80,7 @@ def probe_study(root: Path, name: str, *, workers: int | str = "auto",
     import pandas as pd
 
     from penaltyrun.io.schema import read_results
+    from penaltyrun.report.cliffs import KEYS, step_columns
 
     study = load_study(root, name)
     results = study.folder / RESULTS
@@ -123,7 +97,7 @@ def probe_study(root: Path, name: str, *, workers: int | str = "auto",
             logger.info("probe %s: %d/%d (%s / %s, %s): largest change %.3g %% at %g",
                         name, len(rows), len(points), row["problem"], row["case"],
                         row["map"], row[step_columns(steps[-1])[0]], steps[-1])
-    columns = KEYS + [c for s in steps for c in step_columns(s)]
+    columns = KEYS + [c for s in steps for c in step_columns(s)]  # the CSV's fixed order
     path, tmp = study.folder / PROBE_FILE, study.folder / (PROBE_FILE + ".tmp")
     pd.DataFrame(rows, columns=columns).to_csv(tmp, index=False, float_format="%.6g")
     os.replace(tmp, path)  # a reader never sees half a file
@@ -144,32 +118,19 @@ def read_probe(root: Path, name: str) -> Any:
 
 
 def cliff_table(root: Path, name: str, spec: str = ".3g") -> str:
-    """The probe of study ``name`` as Markdown: per best point, the largest relative cost
+    """The probe of study ``name`` as Markdown (:func:`penaltyrun.report.cliffs.summary_table`,
+    the report's table of the same probe): per best point, the largest relative cost
     change (%) at each step of the ladder, the smallest step that reaches a cliff
     (:data:`~penaltyrun.optim.probe.CLIFF`) and the most negative change found; a note
     naming the command where the study has no probe."""
-    import pandas as pd
-
-    from penaltyrun.docsgen.layout import fmt, markdown_table
+    from penaltyrun.docsgen.layout import markdown_table
+    from penaltyrun.report.cliffs import summary_table
 
     frame = read_probe(root, name)
     if frame is None:
         return (f"*`{name}` has no probe of its best points (`python -m penaltyrun.docsgen "
                 f"study probe {name}`).*")
-    steps = [float(c.split("@", 1)[1]) for c in frame.columns if c.startswith("change_pct@")]
-    out = pd.DataFrame({"problem / case": frame["problem"] + " / " + frame["case"],
-                        "map": frame["map"]})
-    out["by"] = frame["optimizer"] + "/" + frame["param"]
-    out["cost"] = frame["cost"]
-    for step in steps:
-        out[f"largest change (%) at {step:g}"] = frame[step_columns(step)[0]]
-    out[f"smallest step with a change ≥ {100 * CLIFF:g} %"] = [
-        fmt(v, "g") if v == v else f"none up to {steps[-1]:g}"
-        for v in frame["smallest_cliff_step"]]
-    out["lowest change found (%)"] = [
-        f"{fmt(v, spec)} at {fmt(s, 'g')}" if v < 0 else "none"
-        for v, s in zip(frame["lowest_change_pct"], frame["lowest_change_step"])]
-    return markdown_table(out, spec)
+    return markdown_table(summary_table(frame, spec), spec)
 
 
 def cliff_counts(root: Path, name: str, within: float = 1e-4) -> dict[str, int]:

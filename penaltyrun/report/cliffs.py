@@ -23,13 +23,24 @@ from penaltyrun.io import decode_json
 from penaltyrun.optim.probe import CLIFF, STEPS, CliffProbe, probe
 from penaltyrun.report import protocol
 from penaltyrun.report.bestknown import best_rows
-from penaltyrun.report.tables import fmt, markdown, save_figure
+from penaltyrun.report.tables import markdown, save_figure
 
 logger = logging.getLogger(__name__)
 
-COLUMNS = ["map", "by", "cost", *(f"largest change at {s:g}" for s in STEPS),
-           f"smallest step with a change ≥ {100 * CLIFF:g} %", "lowest change found",
-           "jump of the map within"]
+#: Columns of a probe's summary row (:func:`summary`) before the per-step ones.
+KEYS = ["problem", "case", "map", "optimizer", "param", "start", "job_id", "record_cost",
+        "cost", "converged", "smallest_cliff_step", "lowest_change_pct",
+        "lowest_change_step", "cpu_s"]
+#: Column of the rendered table (:func:`summary_table`) with the smallest cliff step.
+CLIFF_COLUMN = f"smallest step with a change ≥ {100 * CLIFF:g} %"
+#: Column of the report's table with the distance to a jump of the map (:func:`skip_margin`).
+MARGIN_COLUMN = "jump of the map within"
+
+
+def step_columns(step: float) -> list[str]:
+    """The three summary columns of one step of the ladder: largest |Δ| (in %), its
+    variable, and the number of steps whose run changed its convergence."""
+    return [f"change_pct@{step:g}", f"variable@{step:g}", f"status_changes@{step:g}"]
 
 
 def rebuilt_layout(row: pd.Series | dict[str, Any]) -> tuple[Any, Any] | None:
@@ -88,31 +99,74 @@ def margin_text(margin: float | None) -> str:
     return "continuous map" if np.isinf(margin) else f"{margin:.2g} rad"
 
 
-def table(probes: dict[str, tuple[pd.Series, CliffProbe]]) -> pd.DataFrame:
-    """One row per probed map: where it comes from, its cost, the largest relative change
-    (%) per step, the smallest step reaching :data:`CLIFF`, the most negative change and
-    the distance to the nearest jump of the map (:func:`skip_margin`)."""
-    rows = []
-    for fam, (row, result) in probes.items():
-        low, at = result.lowest()
-        cliff = result.smallest_cliff_step()
-        rows.append({"map": fam, "by": f"{row['optimizer']}/{row['param']}",
-                     "cost": fmt(result.cost, 5),
-                     **{c: fmt(100.0 * v, 3) + " %" for c, v in
-                        zip(COLUMNS[3:3 + len(STEPS)], result.largest())},
-                     COLUMNS[-3]: f"{cliff:g}" if cliff == cliff else f"none up to {STEPS[-1]:g}",
-                     COLUMNS[-2]: f"{fmt(100.0 * low, 3)} % at {at:g}" if low < 0 else "none",
-                     COLUMNS[-1]: margin_text(skip_margin(row))})
-    return pd.DataFrame(rows, columns=COLUMNS)
+def summary(row: pd.Series | dict[str, Any], result: CliffProbe, names: list[str],
+            cpu_s: float = float("nan")) -> dict[str, Any]:
+    """One probed point as a plain row (:data:`KEYS` and :func:`step_columns` of each step):
+    where it comes from (``row``, a stored start; ``map``: its ``family`` or, without one,
+    its ``param``), the cost recomputed and recorded, the smallest step reaching
+    :data:`CLIFF`, the most negative change (%) and its step, and per step the largest
+    change (%), the variable that gave it and how many moves changed convergence."""
+    lowest, lowest_step = result.lowest()
+    out = {"problem": row["problem"], "case": row["case"],
+           "map": row.get("family", row["param"]), "optimizer": row["optimizer"],
+           "param": row["param"], "start": int(row["start"]), "job_id": row["job_id"],
+           "record_cost": float(row["best_cost"]), "cost": result.cost,
+           "converged": result.converged,
+           "smallest_cliff_step": result.smallest_cliff_step(CLIFF),
+           "lowest_change_pct": 100.0 * lowest, "lowest_change_step": lowest_step,
+           "cpu_s": cpu_s}
+    steps = tuple(result.steps)
+    changes = result.status_change.reshape(len(steps), -1).sum(axis=1)
+    for k, (step, largest, worst) in enumerate(zip(steps, result.largest(),
+                                                   result.worst_variable())):
+        pct, var, flips = step_columns(step)
+        out.update({pct: 100.0 * float(largest), var: names[worst] if worst >= 0 else "",
+                    flips: int(changes[k])})
+    return out
 
 
-def figure(probes: dict[str, tuple[pd.Series, CliffProbe]], title: str, path: Path) -> Path:
+def summary_table(frame: pd.DataFrame, spec: str = ".3g",
+                  with_case: bool = True) -> pd.DataFrame:
+    """The table shown for summary rows (:func:`summary`, or a committed ``probe.csv``):
+    per point its origin, cost, the largest relative change (%) at each step, the smallest
+    step reaching :data:`CLIFF` and the most negative change found (text formatted with
+    ``spec``); ``with_case`` adds a leading "problem / case" column."""
+    steps = [float(c.split("@", 1)[1]) for c in frame.columns if c.startswith("change_pct@")]
+    out = pd.DataFrame(index=frame.index)
+    if with_case:
+        out["problem / case"] = frame["problem"] + " / " + frame["case"]
+    out["map"] = frame["map"]
+    out["by"] = frame["optimizer"] + "/" + frame["param"]
+    out["cost"] = frame["cost"]
+    for step in steps:
+        out[f"largest change (%) at {step:g}"] = frame[step_columns(step)[0]]
+    out[CLIFF_COLUMN] = [f"{v:g}" if v == v else f"none up to {steps[-1]:g}"
+                         for v in frame["smallest_cliff_step"]]
+    out["lowest change found (%)"] = [
+        f"{v:{spec}} at {s:g}" if v < 0 else "none"
+        for v, s in zip(frame["lowest_change_pct"], frame["lowest_change_step"])]
+    return out.reset_index(drop=True)
+
+
+def table(probes: dict[str, tuple[pd.Series, CliffProbe, list[str]]]) -> pd.DataFrame:
+    """The report's table: :func:`summary_table` of one case's probed maps, with the
+    distance of each point from a jump of its map (:data:`MARGIN_COLUMN`,
+    :func:`skip_margin`)."""
+    rows = [summary({**row, "family": fam}, result, names)
+            for fam, (row, result, names) in probes.items()]
+    out = summary_table(pd.DataFrame(rows), with_case=False)
+    out[MARGIN_COLUMN] = [margin_text(skip_margin(row)) for row, _, _ in probes.values()]
+    return out
+
+
+def figure(probes: dict[str, tuple[pd.Series, CliffProbe, list[str]]], title: str,
+           path: Path) -> Path:
     """Largest relative change against the step, log-log, one line per map, with the
     slopes h and h² of a smooth cost drawn through each line's first point."""
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(5.5, 4.0))
-    for fam, (_, result) in probes.items():
+    for fam, (_, result, _) in probes.items():
         steps, largest = np.asarray(result.steps), 100.0 * result.largest()
         shown = np.isfinite(largest) & (largest > 0)
         if not shown.any():
@@ -133,12 +187,12 @@ def figure(probes: dict[str, tuple[pd.Series, CliffProbe]], title: str, path: Pa
 def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
     """Markdown lines of one problem × case × variant's probe (figure ``cliffs_<stem>.png``
     in ``out``); none when its problem cannot be rebuilt."""
-    probes: dict[str, tuple[pd.Series, CliffProbe]] = {}
+    probes: dict[str, tuple[pd.Series, CliffProbe, list[str]]] = {}
     for fam, row in best_rows(g).items():
-        result = probe_row(row)
-        if result is None:
+        probed = probe_row(row)
+        if probed is None:
             return []
-        probes[fam] = (row, result[0])
+        probes[fam] = (row, *probed)
     if not probes:
         return []
     first = g.iloc[0]
@@ -155,8 +209,10 @@ def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
             "the map itself: GEAGSP is discontinuous where its Gram–Schmidt step skips a "
             "basis vector, and a margin of m means such a jump about m radians of an angle "
             "away.", "",
-            markdown(table(probes)), "", f"![cliffs next to the best points]({path.name})", ""]
+            markdown(table(probes), digits=3), "",
+            f"![cliffs next to the best points]({path.name})", ""]
 
 
-__all__ = ["COLUMNS", "figure", "margin_text", "probe_row", "rebuilt_layout", "section",
-           "skip_margin", "table"]
+__all__ = ["CLIFF_COLUMN", "KEYS", "MARGIN_COLUMN", "figure", "margin_text", "probe_row",
+           "rebuilt_layout", "section", "skip_margin", "step_columns", "summary",
+           "summary_table", "table"]

@@ -32,10 +32,13 @@ def test_smooth_zermelo_cost_has_no_cliff_and_changes_shrink_with_the_step(tmp_p
         largest = result.largest()
         assert np.all(np.diff(np.log10(largest)) > 1.5), fam  # ≈ h² at a minimum
         assert np.isnan(result.smallest_cliff_step())
-    table = cliffs.table({fam: (row, cliffs.probe_row(row)[0])
+    table = cliffs.table({fam: (row, *cliffs.probe_row(row))
                           for fam, row in best_rows(df).items()})
-    assert list(table.columns) == cliffs.COLUMNS and len(table) == 2
-    assert (table[cliffs.COLUMNS[-3]] == f"none up to {STEPS[-1]:g}").all()
+    assert list(table.columns) == ["map", "by", "cost",
+                                   *(f"largest change (%) at {s:g}" for s in STEPS),
+                                   cliffs.CLIFF_COLUMN, "lowest change found (%)",
+                                   cliffs.MARGIN_COLUMN] and len(table) == 2
+    assert (table[cliffs.CLIFF_COLUMN] == f"none up to {STEPS[-1]:g}").all()
     # The map's own jumps: GEAGSP of a 2 x 2 K jumps where |sin φ| crosses the skip threshold.
     for fam, row in best_rows(df).items():
         margin = cliffs.skip_margin(row)
@@ -44,7 +47,7 @@ def test_smooth_zermelo_cost_has_no_cliff_and_changes_shrink_with_the_step(tmp_p
         else:
             phi = np.asarray(row["best_z"])[2]
             assert margin == pytest.approx(abs(abs(np.sin(phi)) - GS_SKIP), rel=1e-9)
-        assert cliffs.margin_text(margin) in set(table[cliffs.COLUMNS[-1]])
+        assert cliffs.margin_text(margin) in set(table[cliffs.MARGIN_COLUMN])
 
 
 def test_attitude_free_final_time_point_is_next_to_a_jump():
@@ -72,3 +75,23 @@ def test_report_no_probe_leaves_the_section_out(tmp_path):
                  "--basin-points", "0", "--no-probe"])
     assert "Cliffs next to the best points" not in (tmp_path / "a" / "report.md").read_text()
     assert not list((tmp_path / "a").glob("cliffs_*.png"))
+
+
+def test_the_report_and_the_results_pages_render_one_summary(tmp_path):
+    """A probe summarized by the report equals the same probe written to and read back from
+    a study's probe.csv, rendered by the same table."""
+    df = read_results(GOLDEN / "results.parquet")
+    rows = [cliffs.summary({**row, "family": fam}, *cliffs.probe_row(row))
+            for fam, row in best_rows(df).items()]
+    frame = pd.DataFrame(rows)
+    frame.to_csv(tmp_path / "probe.csv", index=False, float_format="%.6g")
+    assert list(frame.columns[:len(cliffs.KEYS)]) == cliffs.KEYS
+    shown = cliffs.summary_table(frame)
+    read_back = cliffs.summary_table(pd.read_csv(tmp_path / "probe.csv"))
+    assert list(shown.columns) == list(read_back.columns)
+    assert (shown["problem / case"] == "zermelo / " + frame["case"]).all()
+    for column in shown.columns:  # numbers to the CSV's 6 digits, text exactly
+        if not pd.api.types.is_numeric_dtype(shown[column]):
+            assert list(shown[column]) == list(read_back[column]), column
+        else:
+            np.testing.assert_allclose(shown[column], read_back[column], rtol=1e-5)

@@ -213,7 +213,8 @@ def _from_yaml(file: Path, key: str) -> dict[str, Any]:
 def _from_file(path: Any, key: str) -> tuple[Any, Any, float | None]:
     file = Path(str(path)).expanduser()
     if not file.is_file():
-        raise ConfigError(key, f"no such file: {file}")
+        what = "not a regular file" if file.exists() else "no such file"
+        raise ConfigError(key, f"{what}: {file} (the plant as a .mat, .npz or .yaml file)")
     suffix = file.suffix.lower()
     try:
         if suffix == ".mat":

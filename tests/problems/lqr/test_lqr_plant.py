@@ -1,6 +1,7 @@
 """Plant sources of problem=lqr (lists, .mat, .npz, python-control StateSpace, (A, B) pair,
 Jacobians of a nonlinear model) and bad input: one line naming the key, exit 2."""
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -82,6 +83,16 @@ def test_bad_input_names_its_key(plants, params, key, words):
     with pytest.raises(ConfigError) as err:
         lqr.make_problem("default", params)
     assert err.value.key == key and words in str(err.value)
+
+
+def test_a_plant_file_that_is_missing_or_not_a_regular_file_is_never_opened(tmp_path):
+    fifo = tmp_path / "plant.yaml"
+    os.mkfifo(fifo)  # opening it to read would block until a writer comes
+    for path, words in ((fifo, "not a regular file"), (tmp_path, "not a regular file"),
+                        (tmp_path / "none.yaml", "no such file")):
+        with pytest.raises(ConfigError, match=words) as err:
+            lqr.make_problem("default", {"plant_file": str(path)})
+        assert err.value.key == "problem.params.plant_file"
 
 
 def test_file_without_a_and_bad_dynamics(tmp_path, plants):

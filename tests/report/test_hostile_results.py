@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import base64
 import json
+import logging
 import re
 import sys
 import textwrap
@@ -18,6 +19,7 @@ import pytest
 
 from penaltyrun import problems
 from penaltyrun.cli import report_main
+from penaltyrun.errors import ConfigError
 from penaltyrun.io.schema import RESULTS_FILE, to_table
 from penaltyrun.report import build_report
 from penaltyrun.report.export import export_best
@@ -122,6 +124,22 @@ def test_s3_an_lqr_plant_named_by_module_is_not_imported(planted, key):
     assert (out / "report.md").is_file()
     with problems.trust.reading_results(), pytest.raises(problems.trust.NotImportedError):
         problems.make("lqr", "default", params)
+
+
+@pytest.mark.parametrize("content", ["SECRET_TOKEN: [unclosed\n",
+                                     "A: SECRET_TOKEN + 1\nB: [[1.0]]\n"])
+def test_a_plant_file_named_by_results_is_never_quoted(tmp_path, content, caplog):
+    secret = tmp_path / "private.yaml"  # a YAML file of the reader's own, named by the data
+    secret.write_text(content, encoding="utf-8")
+    folder = tmp_path / "received"
+    write(folder, rows(problem="lqr", case="default", params={"plant_file": str(secret)}))
+    with caplog.at_level(logging.WARNING):
+        out = build_report(folder, folder / "report")
+    shown = caplog.text + "".join(p.read_text(encoding="utf-8", errors="replace")
+                                  for p in out.rglob("*") if p.suffix in (".md", ".html"))
+    assert "cannot be read as a plant file" in caplog.text and "SECRET_TOKEN" not in shown
+    with pytest.raises(ConfigError, match="SECRET_TOKEN"):  # your own run: the line shown
+        problems.make("lqr", "default", {"plant_file": str(secret)})
 
 
 def test_a_module_named_on_the_command_line_runs_its_hooks(planted, capsys):

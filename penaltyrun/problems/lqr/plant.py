@@ -21,7 +21,9 @@ A discrete-time plant (key ``dt``, or a discrete ``StateSpace``) is x[k+1] = A x
 its stability region is the unit disk instead of the left half-plane.
 While results are read (:func:`penaltyrun.problems.trust.reading_results`), ``plant`` and
 ``dynamics`` are imported only from a module the user allowed
-(:func:`penaltyrun.problems.trust.allow_module`): the stored names come from the data.
+(:func:`penaltyrun.problems.trust.allow_module`): the stored names come from the data. A
+``plant_file`` the data names is read only if it is a regular file, and an error reading
+it never quotes what it holds (a YAML parser's message shows the offending line).
 
 Every malformed input is a :class:`~penaltyrun.errors.ConfigError` naming its key.
 """
@@ -215,6 +217,28 @@ def _from_file(path: Any, key: str) -> tuple[Any, Any, float | None]:
     if not file.is_file():
         what = "not a regular file" if file.exists() else "no such file"
         raise ConfigError(key, f"{what}: {file} (the plant as a .mat, .npz or .yaml file)")
+    try:
+        data = _read_plant_file(file, key)
+    except ConfigError:
+        if trust.is_reading():  # the path came from the data: say nothing of what it holds
+            raise ConfigError(key, f"{file} cannot be read as a plant file (what it holds is "
+                              "not shown: results named it, not you)") from None
+        raise
+    dt = data.get("dt")
+    if dt is not None:
+        dt = float(np.asarray(dt, dtype=float).ravel()[0])
+    return data["A"], data["B"], dt
+
+
+def _read_plant_file(file: Path, key: str) -> Mapping[str, Any]:
+    """The variables of a regular plant file, at least ``A`` and ``B``.
+
+    Raises
+    ------
+    ConfigError
+        An unsupported type, a damaged file (the reader's message, which may quote the
+        file), a file without ``A`` or ``B``.
+    """
     suffix = file.suffix.lower()
     try:
         if suffix == ".mat":
@@ -235,10 +259,7 @@ def _from_file(path: Any, key: str) -> tuple[Any, Any, float | None]:
     for name in ("A", "B"):
         if name not in data:
             raise ConfigError(key, f"{file.name} has no variable {name!r} (need A and B)")
-    dt = data.get("dt")
-    if dt is not None:
-        dt = float(np.asarray(dt, dtype=float).ravel()[0])
-    return data["A"], data["B"], dt
+    return data
 
 
 def _from_object(spec: Any, key: str) -> tuple[Any, Any, float | None]:

@@ -180,8 +180,12 @@ def find_results(path: Path) -> list[Path]:
     path = Path(path)
     if path.is_file():
         return [path]
-    return sorted(p for p in path.rglob(RESULTS_FILE)
-                  if p.is_file() and CORRUPT_DIR not in p.parts)
+    candidates = [path] if path.exists() and not path.is_dir() else \
+        [p for p in path.rglob(RESULTS_FILE) if CORRUPT_DIR not in p.parts]
+    for p in candidates:
+        if not p.is_file():  # a pipe, a device or a folder of that name is never opened
+            logger.warning("skipped %s: not a regular file", p)
+    return sorted(p for p in candidates if p.is_file())
 
 
 def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = None) -> Any:

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import logging
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -158,6 +160,18 @@ def test_several_run_folders_concatenated(tmp_path):
     # explicit list of files
     df2 = read_results(found)
     assert len(df2) == 3
+
+
+def test_a_results_file_that_is_a_pipe_or_folder_is_skipped_with_its_name(tmp_path, caplog):
+    write_run(tmp_path / "ok", [record(0)])
+    (tmp_path / "pipe").mkdir()
+    os.mkfifo(tmp_path / "pipe" / RESULTS_FILE)  # opening it to read would block
+    (tmp_path / "dir" / RESULTS_FILE).mkdir(parents=True)
+    with caplog.at_level(logging.WARNING):
+        assert find_results(tmp_path) == [tmp_path / "ok" / RESULTS_FILE]
+        assert find_results(tmp_path / "pipe" / RESULTS_FILE) == []
+    skipped = [r.getMessage() for r in caplog.records if "not a regular file" in r.getMessage()]
+    assert len(skipped) == 3 and all(RESULTS_FILE in m for m in skipped)
 
 
 def test_collect_without_jobs_writes_empty_table(tmp_path):

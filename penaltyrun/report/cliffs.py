@@ -23,7 +23,7 @@ from penaltyrun.io import decode_json
 from penaltyrun.optim.probe import CLIFF, STEPS, CliffProbe, probe
 from penaltyrun.report import protocol
 from penaltyrun.report.bestknown import best_rows
-from penaltyrun.report.tables import markdown, save_figure
+from penaltyrun.report.tables import fmt, markdown, save_figure
 
 logger = logging.getLogger(__name__)
 
@@ -155,6 +155,7 @@ def table(probes: dict[str, tuple[pd.Series, CliffProbe, list[str]]]) -> pd.Data
     rows = [summary({**row, "family": fam}, result, names)
             for fam, (row, result, names) in probes.items()]
     out = summary_table(pd.DataFrame(rows), with_case=False)
+    out["cost"] = [fmt(c, 5) for c in out["cost"]]  # the other columns to 3 digits
     out[MARGIN_COLUMN] = [margin_text(skip_margin(row)) for row, _, _ in probes.values()]
     return out
 

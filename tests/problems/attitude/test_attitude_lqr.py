@@ -52,9 +52,11 @@ def test_batched_gains_match_scipy():
                                        atol=1e-9 * np.abs(K_ref).max())
 
 
-def test_committed_gains_reproduced_bit_for_bit():
+def test_committed_gains_reproduced_to_round_off():
     """The gains of a committed study's best candidates (stored in their metrics) come out
-    of the shared Riccati solver bit for bit, so the committed costs do not move."""
+    of the shared Riccati solver again, so the committed costs do not move: bit for bit on
+    the processor that made them; elsewhere LAPACK's kernels for another processor round
+    differently, by a few units in the last place (2e-14 of a gain of 3 seen)."""
     import pandas as pd
 
     study = Path(__file__).resolve().parents[3] / "studies" / "attitude_reproduce"
@@ -69,7 +71,7 @@ def test_committed_gains_reproduced_bit_for_bit():
                               inertia)
         assert ok.all()
         stored = np.array([json.loads(m)["gain"] for m in group["metrics"]])
-        np.testing.assert_array_equal(K, stored)
+        np.testing.assert_allclose(K, stored, rtol=0, atol=1e-12 * np.abs(stored).max())
 
 
 def test_scale_invariance():

@@ -58,13 +58,12 @@ def test_recomputed_closed_loop_diagnostics_tolerate_another_lapack(tmp_path):
     """A pole recomputed from the stored matrices moves with the processor's LAPACK build
     (1.8e-8 of itself seen); a change the pages could show (1e-4) still fails."""
     a = pd.DataFrame({"slowest_real": [-0.00949525366677024], "best_cost": [0.5]})
-    folder = tmp_path
-    a.to_csv(folder / "a.csv", index=False)
+    a.to_csv(tmp_path / "a.csv", index=False)
     for value, ok in ((-0.009495253494748673, True), (-0.0094962, False)):
-        a.assign(slowest_real=[value]).to_csv(folder / "b.csv", index=False)
-        assert (tablecheck.compare_csv(folder / "a.csv", folder / "b.csv") is None) == ok
-    a.assign(best_cost=[0.5 * (1 + 1e-8)]).to_csv(folder / "b.csv", index=False)
-    assert "column 'best_cost'" in tablecheck.compare_csv(folder / "a.csv", folder / "b.csv")
+        a.assign(slowest_real=[value]).to_csv(tmp_path / "b.csv", index=False)
+        assert (tablecheck.compare_csv(tmp_path / "a.csv", tmp_path / "b.csv") is None) == ok
+    a.assign(best_cost=[0.5 * (1 + 1e-8)]).to_csv(tmp_path / "b.csv", index=False)
+    assert "column 'best_cost'" in tablecheck.compare_csv(tmp_path / "a.csv", tmp_path / "b.csv")
 
 
 @pytest.mark.slow

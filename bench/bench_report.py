@@ -30,6 +30,10 @@ jackknife in closed form) against :func:`scipy.stats.bootstrap` (its jackknife e
 the statistic on n samples of n − 1) for samples of 1 000 to 5 000 values, and checks that
 the intervals agree.
 
+``--cache`` times the report twice with one cache folder, initially empty: drawn (and kept
+in the cache), then copied from it, and compares the two reports (``--same``). Every other
+report this script times uses a fresh empty cache, so it draws every section.
+
 ``--same A B`` compares two report folders: the same file names, every table and text file
 byte for byte, every figure pixel for pixel (how "the same report" is checked when the
 code that draws it changes).
@@ -40,6 +44,7 @@ Usage::
     python bench/bench_report.py --no-base --workers 1 2
     python bench/bench_report.py --large 1000000
     python bench/bench_report.py --large 300000 --steps
+    python bench/bench_report.py --cache
     python bench/bench_report.py --bca
     python bench/bench_report.py --same REPORT_A REPORT_B
 """
@@ -114,16 +119,21 @@ print(f"| end | {time.process_time() - begin:.1f} | {rss():.0f} | {peak():.0f} |
 """
 
 
-def measure(code: str, args: list[str], pythonpath: str | None = None) -> dict[str, float]:
-    """CPU s, wall s and peak RSS MB of ``python -c code *args`` (its output discarded)."""
+def measure(code: str, args: list[str], pythonpath: str | None = None,
+            cache_dir: str | None = None) -> dict[str, float]:
+    """CPU s, wall s and peak RSS MB of ``python -c code *args`` (its output discarded),
+    its report cache ``cache_dir`` (default: a fresh empty folder, so that every section is
+    drawn)."""
     env = dict(os.environ)
     if pythonpath:
         env["PYTHONPATH"] = pythonpath
-    t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-c", code, *args], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
+    with tempfile.TemporaryDirectory() as empty:
+        env["PENALTYRUN_CACHE_DIR"] = cache_dir or empty
+        t0 = time.perf_counter()
+        proc = subprocess.Popen([sys.executable, "-c", code, *args], env=env,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
     err = proc.stderr.read().decode(errors="replace")
     proc.stderr.close()
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -161,6 +171,21 @@ def large(rows: int, steps: bool = False) -> None:
     print("| run | CPU s | wall s | peak RSS MB |\n|---|---|---|---|")
     for memory, m in runs.items():
         print(_row(f"report of {rows} rows, process memory settings {memory}", m))
+
+
+def cached(src: str) -> None:
+    """Print CPU, wall and peak RSS of the report of ``src`` drawn into an empty cache and
+    then from that cache (default workers), and whether the two are the same."""
+    print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; input {src}")
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = {"read": measure(READ, [src], str(ROOT))}
+        for name, out in (("report drawn into an empty cache", "drawn"),
+                          ("report from the cache", "cached")):
+            runs[name] = measure(REPORT, [src, f"{tmp}/{out}"], str(ROOT), f"{tmp}/cache")
+        print("| run | CPU s | wall s | peak RSS MB |\n|---|---|---|---|")
+        for name, m in runs.items():
+            print(_row(name, m))
+        same(Path(tmp) / "drawn", Path(tmp) / "cached")
 
 
 def bca() -> None:
@@ -227,6 +252,8 @@ def main() -> None:
     parser.add_argument("--bca", action="store_true", help="time the BCa intervals")
     parser.add_argument("--same", nargs=2, metavar=("A", "B"), type=Path,
                         help="compare two report folders")
+    parser.add_argument("--cache", action="store_true",
+                        help="the report drawn into an empty cache, then from it")
     parser.add_argument("--workers", nargs="+", metavar="N",
                         help="this tree's report once per worker count (--workers N)")
     args = parser.parse_args()
@@ -237,6 +264,9 @@ def main() -> None:
         raise SystemExit(0 if same(*args.same) else 1)
     if args.large:
         large(args.large, args.steps)
+        return
+    if args.cache:
+        cached(args.input)
         return
     print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; input {args.input}")
     with tempfile.TemporaryDirectory() as tmp, \

@@ -19,6 +19,9 @@ terminated an instant after its fork ran the command line's SIGTERM handler, lef
 by an in-process CLI test, and raised before multiprocessing could end it) is prevented in
 the pool itself (``tests/runner/test_pool_fork_signals.py``); the guard stays as a net,
 and every test gets the session's signal handlers back when it ends.
+
+Every test gets its own empty report cache (``PENALTYRUN_CACHE_DIR``): a report drawn by
+one test is never copied into another's, and no test writes into the user's cache.
 """
 
 import os
@@ -91,3 +94,9 @@ def _restore_signal_handlers():
     for signum, handler in saved.items():
         if signal.getsignal(signum) is not handler and handler is not None:
             signal.signal(signum, handler)
+
+
+@pytest.fixture(autouse=True)
+def _own_report_cache(tmp_path_factory, monkeypatch):
+    """An empty report cache folder for each test (and the processes it starts)."""
+    monkeypatch.setenv("PENALTYRUN_CACHE_DIR", str(tmp_path_factory.mktemp("report-cache")))

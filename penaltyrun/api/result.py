@@ -137,7 +137,7 @@ class TuneResult:
                                            "median_cost", "median_evals"])
 
     def report(self, out_dir: str | Path | None = None, paper: bool = True,
-               workers: int | str = 1) -> Path:
+               workers: int | str = 1, cache_dir: str | Path | None = None) -> Path:
         """Write the report of these results (what ``penaltyrun-report`` writes: tables,
         figures, ``report.md``, ``report.html``) and return its folder.
 
@@ -151,6 +151,10 @@ class TuneResult:
             Processes writing the sections of different problem cases (``auto``: one per
             core), as ``penaltyrun-report --workers``; results of a problem object held in
             this process are always reported in this process.
+        cache_dir : str or Path, optional
+            Cache of drawn case sections, as ``penaltyrun-report --cache-dir``: sections
+            drawn before with the same rows and code are copied from it (the same files).
+            Default: none, every section is drawn.
 
         Raises
         ------
@@ -161,7 +165,8 @@ class TuneResult:
 
         out = Path(out_dir) if out_dir is not None else self.run_dir / "report"
         with _holding([self.problem]):
-            report.build_report(self.source, out, paper=paper, workers=workers)
+            report.build_report(self.source, out, paper=paper, workers=workers,
+                                cache_dir=cache_dir)
         return out
 
 

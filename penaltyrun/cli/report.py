@@ -49,6 +49,13 @@ def report_main(argv: list[str] | None = None) -> None:
                         help="processes writing the case sections side by side: a positive "
                              "integer or auto (default: one per core); the report is the "
                              "same for any number")
+    parser.add_argument("--cache-dir", metavar="DIR", default=None,
+                        help="folder of the cache of drawn case sections: a section whose "
+                             "rows, tables, options and code are unchanged is copied, not "
+                             "drawn again (default $PENALTYRUN_CACHE_DIR, else "
+                             "$XDG_CACHE_HOME/penaltyrun or ~/.cache/penaltyrun)")
+    parser.add_argument("--no-cache", action="store_true",
+                        help="draw every section; read and write no cache")
     parser.add_argument("--progress", choices=("auto", "true", "false"), default="auto",
                         help="progress bar of the report's steps on stderr (auto: on a "
                              "terminal only; as runner.progress for runs)")
@@ -94,9 +101,15 @@ def report_main(argv: list[str] | None = None) -> None:
             raise ConfigError("--basin-points", f"must be 0 (no maps) or 2 to 200, got "
                               f"{args.basin_points}")
         workers = workers_argument(args.workers)
+        if args.no_cache and args.cache_dir is not None:
+            raise ConfigError("--no-cache", "give either --no-cache or --cache-dir, not both")
+        from penaltyrun.report.cache import default_dir
+
+        cache_dir = None if args.no_cache else Path(args.cache_dir or default_dir())
         report.build_report(src, out, paper=not args.no_paper,
                             progress=progress.wanted(args.progress),
-                            probe=not args.no_probe, workers=workers, **maps)
+                            probe=not args.no_probe, workers=workers, cache_dir=cache_dir,
+                            **maps)
         print(f"report written to {out}")
         if args.export:
             _export(src, Path(args.export))

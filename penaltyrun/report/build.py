@@ -19,6 +19,7 @@ from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (
     basins,
+    cache,
     cases,
     controllers,
     fronts,
@@ -169,7 +170,7 @@ def build_report(src: Path, out: Path, paper: bool = True,
                  source_label: str | None = None,
                  basin_points: int = basins.REPORT_POINTS, stream: bool | None = None,
                  progress: bool | None = None, probe: bool = True,
-                 workers: int | str = 1) -> Path:
+                 workers: int | str = 1, cache_dir: Path | str | None = None) -> Path:
     """Write tables (CSV + Markdown), figures (PNG), ``report.md`` and ``report.html``.
 
     Every file is first written into a temporary folder inside ``out`` and renamed into
@@ -208,6 +209,11 @@ def build_report(src: Path, out: Path, paper: bool = True,
         use); sections of different problem cases are written side by side
         (:mod:`penaltyrun.report.parallel`). The report is the same file for file for any
         number.
+    cache_dir : Path or str, optional
+        Folder of the cache of case sections (:mod:`penaltyrun.report.cache`): a section
+        whose rows, shared tables, options and drawing code are those of a cached one is
+        copied from it instead of drawn (the same files). None: every section is drawn.
+        Reports naming a user module, or read lazily, are drawn in full either way.
 
     Raises
     ------
@@ -225,22 +231,30 @@ def build_report(src: Path, out: Path, paper: bool = True,
     with trust.reading_results():
         df = add_variant(read_results(src, FRAME_COLUMNS if stream else REPORT_COLUMNS,
                                       lazy=stream))
+        sections_cache = None
+        if cache_dir is not None and not stream and trust.snapshot() == ({}, frozenset()):
+            sections_cache = cache.SectionCache.at(cache_dir)
         outdir.write_into(out, "report.output",
                           lambda tmp: _write_report(source_label or str(src), df, tmp, paper,
-                                                   basin_points, progress, probe, n_workers),
+                                                   basin_points, progress, probe, n_workers,
+                                                   sections_cache),
                           lambda folder: outdir.report_files(
                               folder, [*TABLES, "summary", "comparison"]))
+    if sections_cache is not None:
+        sections_cache.prune()
     logger.info("report: %s", out / "report.md")
     return out
 
 
 def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool,
                   basin_points: int = basins.REPORT_POINTS,
-                  progress: bool | None = None, probe: bool = True, workers: int = 1) -> None:
+                  progress: bool | None = None, probe: bool = True, workers: int = 1,
+                  sections_cache: cache.SectionCache | None = None) -> None:
     """Write every file of the report into ``out`` (see :func:`build_report`)."""
     n_cases = df.groupby(cases.CASE_KEYS, sort=True).ngroups
     with Steps(len(STEPS) + n_cases, progress, lazy(df) and release_memory) as steps:
-        _write_files(src, df, out, paper, basin_points, steps, n_cases, probe, workers)
+        _write_files(src, df, out, paper, basin_points, steps, n_cases, probe, workers,
+                     sections_cache)
 
 
 #: The report's steps besides one per case section (what its progress bar counts).
@@ -250,7 +264,8 @@ STEPS = ("cell statistics", "comparisons", "best-known optima", "held-out", "ver
 
 
 def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_points: int,
-                 steps: Steps, n_cases: int, probe: bool = True, workers: int = 1) -> None:
+                 steps: Steps, n_cases: int, probe: bool = True, workers: int = 1,
+                 sections_cache: cache.SectionCache | None = None) -> None:
     """:func:`_write_report` with its progress bar ``steps``."""
     steps.step(STEPS[0])
     summary = cell_summary(df)
@@ -273,7 +288,7 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
     verdict = verdict_rows(df, bk, comp, held)
     steps.step(STEPS[5])
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
-           "basin_points": int(basin_points), "probe": bool(probe),
+           "basin_points": int(basin_points), "probe": bool(probe), "cache": sections_cache,
            "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
     _write_csv(ctx["paper"], out, "paper")
     if paper:

@@ -18,9 +18,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from penaltyrun import problems
 from penaltyrun.problems import trust
 from penaltyrun.report import (
     basins,
+    cache,
     cliffs,
     controllers,
     figures,
@@ -154,7 +156,8 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
     return lines
 
 
-#: Tables every section reads (built once by the report, sent once to each worker).
+#: Tables and settings every section reads (built once by the report, sent once to each
+#: worker, part of the key of a cached section).
 SHARED = ("summary", "comp", "bk", "held", "imps", "paper", "basin_points", "probe")
 
 
@@ -168,7 +171,8 @@ def write_sections(df: pd.DataFrame, ctx: dict[str, Any], out: Path, paper: bool
     df : DataFrame
         The report's rows.
     ctx : dict
-        The shared tables (:data:`SHARED`).
+        The shared tables (:data:`SHARED`) and ``cache``, the
+        :class:`~penaltyrun.report.cache.SectionCache` of the sections (None: no cache).
     out : Path
         Folder of the figures.
     paper : bool
@@ -189,6 +193,7 @@ def write_sections(df: pd.DataFrame, ctx: dict[str, Any], out: Path, paper: bool
                 yield lines
         return
     shared = {key: ctx[key] for key in SHARED}
+    shared["cache"] = ctx.get("cache")
     results = parallel.ordered_map(
         _work, bundles, min(workers, n_cases), _start_worker,
         (trust.snapshot(), shared, list(protocol.WARNINGS),
@@ -229,9 +234,23 @@ def _bundles(df: pd.DataFrame, stems: StemBook, out: Path, paper: bool
 
 
 def _write(bundle: Bundle, ctx: dict[str, Any]) -> list[list[str]]:
-    """The lines of each section of a bundle."""
+    """The lines of each section of a bundle (through the report's cache of sections when
+    the bundle may be cached)."""
     out, paper, cases = bundle
-    return [case_lines(g, ctx, out, paper, stem) for g, stem in cases]
+    return cache.cached(ctx.get("cache") if _cacheable(cases) else None, cases, paper, ctx,
+                        SHARED, out, lambda folder: [case_lines(g, ctx, folder, paper, stem)
+                                                     for g, stem in cases])
+
+
+def _cacheable(cases: list[tuple[pd.DataFrame, str]]) -> bool:
+    """Whether a bundle's sections are a function of its rows and penaltyrun's code alone:
+    a built-in problem whose rows name no data file (its ``FILE_PARAMS``)."""
+    name = str(cases[0][0]["problem"].iloc[0])
+    if name not in problems.REGISTRY:
+        return False
+    files = problems.user_code_params(name)[1]
+    return not any(protocol.params_of(value).get(param) for rows, _ in cases
+                   for value in rows.get("problem_params", ()) for param in files)
 
 
 #: The shared tables in a worker process (:func:`_start_worker`).

@@ -14,6 +14,7 @@ from __future__ import annotations
 import base64
 import html
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 from penaltyrun.report.outdir import plain_name
@@ -96,8 +97,25 @@ def _image(alt: str, name: str, folder: Path) -> str:
 
 def to_html(markdown: str, folder: Path) -> str:
     """One HTML page of the report's Markdown; images are read from ``folder``."""
+    return "".join(_page(markdown, folder))
+
+
+def _page(markdown: str, folder: Path) -> Iterator[str]:
+    """:func:`to_html` piece by piece (a figure at a time: the page of a large report
+    embeds hundreds of megabytes of figures, never held at once)."""
+    yield ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+           "<title>penaltyrun report</title>"
+           f"<style>{STYLE}</style></head><body>\n")
+    for k, part in enumerate(_blocks(markdown, folder)):
+        if k:
+            yield "\n"
+        yield part
+    yield f"\n<script>{SCRIPT}</script></body></html>\n"
+
+
+def _blocks(markdown: str, folder: Path) -> Iterator[str]:
+    """The HTML of each block of ``markdown`` (heading, table, list, figure, ...)."""
     lines = markdown.splitlines()
-    parts: list[str] = []
     i = 0
     while i < len(lines):
         line = lines[i]
@@ -105,7 +123,7 @@ def to_html(markdown: str, folder: Path) -> str:
             i += 1
         elif line.startswith("#"):
             level = len(line) - len(line.lstrip("#"))
-            parts.append(f"<h{level}>{inline(line[level:].strip())}</h{level}>")
+            yield f"<h{level}>{inline(line[level:].strip())}</h{level}>"
             i += 1
         elif line.startswith("```"):
             block = []
@@ -113,10 +131,10 @@ def to_html(markdown: str, folder: Path) -> str:
             while i < len(lines) and not lines[i].startswith("```"):
                 block.append(lines[i])
                 i += 1
-            parts.append("<pre>" + html.escape("\n".join(block), quote=False) + "</pre>")
+            yield "<pre>" + html.escape("\n".join(block), quote=False) + "</pre>"
             i += 1
         elif line.startswith(FOLD_LINES):
-            parts.append(_fold(line.strip()))
+            yield _fold(line.strip())
             i += 1
         elif line.startswith("|"):
             block = []
@@ -126,16 +144,16 @@ def to_html(markdown: str, folder: Path) -> str:
             head = "".join(f"<th>{inline(c)}</th>" for c in _cells(block[0]))
             rows = "".join("<tr>" + "".join(f"<td>{inline(c)}</td>" for c in _cells(r))
                            + "</tr>" for r in block[2:])
-            parts.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
+            yield f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>"
         elif line.startswith("- "):
             items = []
             while i < len(lines) and lines[i].startswith("- "):
                 items.append(f"<li>{inline(lines[i][2:])}</li>")
                 i += 1
-            parts.append("<ul>" + "".join(items) + "</ul>")
+            yield "<ul>" + "".join(items) + "</ul>"
         elif _IMAGE.match(line.strip()):
             alt, name = _IMAGE.match(line.strip()).groups()
-            parts.append(_image(alt, name, folder))
+            yield _image(alt, name, folder)
             i += 1
         else:
             para = []
@@ -143,16 +161,15 @@ def to_html(markdown: str, folder: Path) -> str:
                     ("#", "|", "- ", "![", "```") + FOLD_LINES):
                 para.append(lines[i])
                 i += 1
-            parts.append(f"<p>{inline(' '.join(para))}</p>")
-    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            "<title>penaltyrun report</title>"
-            f"<style>{STYLE}</style></head><body>\n" + "\n".join(parts)
-            + f"\n<script>{SCRIPT}</script></body></html>\n")
+            yield f"<p>{inline(' '.join(para))}</p>"
 
 
 def write_html(markdown: str, folder: Path, path: Path) -> Path:
-    """Write :func:`to_html` of ``markdown`` (figures from ``folder``) to ``path``."""
-    path.write_text(to_html(markdown, folder), encoding="utf-8")
+    """Write :func:`to_html` of ``markdown`` (figures from ``folder``) to ``path``, one
+    piece at a time."""
+    with path.open("w", encoding="utf-8") as fh:
+        for piece in _page(markdown, folder):
+            fh.write(piece)
     return path
 
 

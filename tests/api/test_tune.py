@@ -93,6 +93,8 @@ def test_report_and_load_round_trip(quad, tmp_path):
     with pytest.raises(ConfigError, match="workers"):
         res.report(tmp_path / "other", workers=0)
     assert (out / "report.html").is_file()
+    res.report(tmp_path / "again", cache_dir=tmp_path / "cache")
+    assert not (tmp_path / "cache").exists()  # a problem object's code is outside any key
     for source in (tmp_path / "run", tmp_path / "run" / "results.parquet"):
         loaded = penaltyrun.load(source)
         assert loaded.run_dir == tmp_path / "run"

@@ -151,6 +151,21 @@ def test_report_of_missing_input_is_clear(tmp_path):
     assert "does not exist" in proc.stderr and "Traceback" not in proc.stderr
 
 
+def test_report_keeps_its_sections_in_the_cache_folder_it_is_given(tmp_path):
+    golden = Path(__file__).parents[1] / "report" / "golden" / "zermelo" / "input"
+    both = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", str(golden), "-o",
+                           str(tmp_path / "x"), "--no-cache", "--cache-dir", str(tmp_path)],
+                          capture_output=True, text=True)
+    assert both.returncode == 2 and "--no-cache" in both.stderr
+    assert len(both.stderr.strip().splitlines()) == 1
+    proc = subprocess.run([sys.executable, "-m", "penaltyrun.report_cli", str(golden), "-o",
+                           str(tmp_path / "rep"), "--cache-dir", str(tmp_path / "cache"),
+                           "--no-probe", "--basin-points", "0", "--workers", "1"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert list((tmp_path / "cache").rglob("manifest.json"))
+
+
 @pytest.mark.slow  # about 25 s; SIGTERM, handled the same way, stays in the default suite
 def test_ctrl_c_keeps_finished_jobs_and_resume_completes(tmp_path):
     """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) mid-run.

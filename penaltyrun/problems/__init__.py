@@ -19,7 +19,9 @@ line saying what it lacks (:func:`check_module`, :func:`check_problem`).
 
 While results are read (:func:`penaltyrun.problems.trust.reading_results`), route 1 is closed
 to names from the data: only penaltyrun's own problems, entry points and modules the user
-named (:func:`register`) are imported.
+named (:func:`register`) are imported; and a problem whose stored parameters name a data
+file (its module's ``FILE_PARAMS``) that fails to build says so without its error's
+message, which may quote the file (:func:`make`).
 """
 
 from __future__ import annotations
@@ -241,14 +243,22 @@ def user_code_params(name: str, module_path: str | None = None
         As :func:`module`; or a declaration that is not a tuple of parameter names.
     """
     mod = module(name, module_path)
-    declared = []
-    for member in ("CODE_PARAMS", "FILE_PARAMS"):
-        names = getattr(mod, member, ())
-        if isinstance(names, str) or not all(isinstance(n, str) for n in names):
-            raise ConfigError("problem.module", f"{mod.__name__}.{member} must be a tuple of "
-                              f"parameter names, got {names!r}")
-        declared.append(tuple(names))
-    return declared[0], declared[1]
+    return _declared(mod, "CODE_PARAMS"), _declared(mod, "FILE_PARAMS")
+
+
+def _declared(mod: ModuleType, member: str) -> tuple[str, ...]:
+    """The parameter names of ``mod.<member>`` (``CODE_PARAMS`` or ``FILE_PARAMS``).
+
+    Raises
+    ------
+    ConfigError
+        The declaration is not a tuple of names.
+    """
+    names = getattr(mod, member, ())
+    if isinstance(names, str) or not all(isinstance(n, str) for n in names):
+        raise ConfigError("problem.module", f"{mod.__name__}.{member} must be a tuple of "
+                          f"parameter names, got {names!r}")
+    return tuple(names)
 
 
 def make(name: str, case: str | None, params: Mapping[str, Any] | None = None,
@@ -267,9 +277,30 @@ def make(name: str, case: str | None, params: Mapping[str, Any] | None = None,
         :mod:`penaltyrun.problems.multiscenario`).
     module_path : str, optional
         Module implementing the problem (outside penaltyrun); see :func:`module`.
+
+    Raises
+    ------
+    ConfigError
+        Unknown case, or a module or problem that does not follow the protocol. While
+        results are read, also any error building a problem whose ``params`` name a data
+        file (the module's ``FILE_PARAMS``): keyed ``problem.params.<name>``, with the
+        error's type but not its message (a parser's message may quote the file, and the
+        results named it, not the user).
     """
     mod = module(name, module_path)
     case = mod.DEFAULT_CASE if case in (None, "", "default") else str(case)
     if case not in mod.CASES:
         raise ConfigError("case", f"unknown case {case!r} for problem {name!r}", allowed=mod.CASES)
-    return check_problem(multiscenario.build(mod, case, dict(params or {})), mod.__name__)
+    params = dict(params or {})
+    files = [key for key in _declared(mod, "FILE_PARAMS") if params.get(key)]
+    try:
+        built = multiscenario.build(mod, case, params)
+    except Exception as exc:
+        if not (files and trust.is_reading()):
+            raise
+        named = ", ".join(f"{key}={params[key]!s}" for key in files)
+        raise ConfigError(f"problem.params.{files[0]}", f"problem {name!r} cannot be built "
+                          f"from the stored parameters, which name a file ({named}): "
+                          f"{type(exc).__name__} (its message is not shown: it may quote "
+                          "the file, which the results named, not you)") from None
+    return check_problem(built, mod.__name__)

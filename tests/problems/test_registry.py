@@ -77,6 +77,36 @@ def test_user_code_params_are_what_the_module_declares(site):
         problems.user_code_params("quad", "halfprob")
 
 
+READS_ITS_TABLE = GOOD.replace("def make_problem(case, params):\n    return Quad(case)", """
+FILE_PARAMS = ("table",)
+
+
+def make_problem(case, params):
+    if params.get("table"):
+        text = open(params["table"]).read()
+        raise ValueError(f"bad table: {text}")
+    return Quad(case)
+""")
+
+
+def test_a_file_named_by_results_is_never_quoted_by_any_problem(site):
+    """A user problem that quotes its data file in an error: your own run shows the
+    message; while results are read (the file named by the data) only its type."""
+    (site / "quadprob.py").write_text(READS_ITS_TABLE)
+    secret = site / "mine.txt"
+    secret.write_text("SECRET_TOKEN")
+    params = {"table": str(secret)}
+    with pytest.raises(ValueError, match="SECRET_TOKEN"):
+        problems.make("quad", None, params, "quadprob")
+    problems.register("quad", "quadprob")
+    with problems.trust.reading_results(), pytest.raises(ConfigError) as info:
+        problems.make("quad", None, params)
+    assert info.value.key == "problem.params.table" and "SECRET_TOKEN" not in str(info.value)
+    assert "ValueError" in str(info.value) and str(secret) in str(info.value)
+    with problems.trust.reading_results():  # no file named: built as usual
+        assert problems.make("quad", None, {}).case == "one"
+
+
 def test_entry_point_route(site):
     (site / "quadprob.py").write_text(GOOD)
     dist = site / "mylab_quad-0.1.dist-info"

@@ -137,7 +137,8 @@ def test_a_plant_file_named_by_results_is_never_quoted(tmp_path, content, caplog
         out = build_report(folder, folder / "report")
     shown = caplog.text + "".join(p.read_text(encoding="utf-8", errors="replace")
                                   for p in out.rglob("*") if p.suffix in (".md", ".html"))
-    assert "cannot be read as a plant file" in caplog.text and "SECRET_TOKEN" not in shown
+    assert "cannot be built from the stored parameters, which name a file" in caplog.text
+    assert str(secret) in caplog.text and "SECRET_TOKEN" not in shown
     with pytest.raises(ConfigError, match="SECRET_TOKEN"):  # your own run: the line shown
         problems.make("lqr", "default", {"plant_file": str(secret)})
 

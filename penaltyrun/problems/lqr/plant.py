@@ -23,7 +23,9 @@ While results are read (:func:`penaltyrun.problems.trust.reading_results`), ``pl
 ``dynamics`` are imported only from a module the user allowed
 (:func:`penaltyrun.problems.trust.allow_module`): the stored names come from the data. A
 ``plant_file`` the data names is read only if it is a regular file, and an error reading
-it never quotes what it holds (a YAML parser's message shows the offending line).
+it never quotes what it holds (a YAML parser's message shows the offending line): the
+module declares it in ``FILE_PARAMS``, and :func:`penaltyrun.problems.make` then gives a
+failure without its message.
 
 Every malformed input is a :class:`~penaltyrun.errors.ConfigError` naming its key.
 """
@@ -217,13 +219,7 @@ def _from_file(path: Any, key: str) -> tuple[Any, Any, float | None]:
     if not file.is_file():
         what = "not a regular file" if file.exists() else "no such file"
         raise ConfigError(key, f"{what}: {file} (the plant as a .mat, .npz or .yaml file)")
-    try:
-        data = _read_plant_file(file, key)
-    except ConfigError:
-        if trust.is_reading():  # the path came from the data: say nothing of what it holds
-            raise ConfigError(key, f"{file} cannot be read as a plant file (what it holds is "
-                              "not shown: results named it, not you)") from None
-        raise
+    data = _read_plant_file(file, key)
     dt = data.get("dt")
     if dt is not None:
         dt = float(np.asarray(dt, dtype=float).ravel()[0])

@@ -44,6 +44,7 @@ import platform
 import shutil
 import stat
 import tempfile
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from importlib import metadata
@@ -64,6 +65,10 @@ ENV_DIR = "PENALTYRUN_CACHE_DIR"
 #: Sub-folder of the cache folder holding report sections.
 SECTIONS = "report-sections"
 MANIFEST = "manifest.json"
+#: Prefix of an entry being written; one older than :data:`STALE_S` seconds was left by a
+#: report that was killed, and is removed.
+TMP_PREFIX = ".tmp-"
+STALE_S = 86_400.0
 
 
 def default_dir() -> Path:
@@ -232,7 +237,7 @@ class SectionCache:
             return
         try:
             entry.parent.mkdir(parents=True, exist_ok=True)
-            tmp = Path(tempfile.mkdtemp(prefix=".tmp-", dir=entry.parent))
+            tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=entry.parent))
             files = {}
             for path in sorted(staging.iterdir()):
                 data = path.read_bytes()
@@ -250,7 +255,15 @@ class SectionCache:
                            "without it", self.root, exc)
 
     def prune(self, keep: int = KEEP_CODE_VERSIONS) -> None:
-        """Remove the entries of all but the ``keep`` code versions used last."""
+        """Remove the entries of all but the ``keep`` code versions used last, and the
+        half-written entries of reports killed more than :data:`STALE_S` ago."""
+        now = time.time()
+        for tmp in self.folder.glob(f"*/{TMP_PREFIX}*"):
+            try:
+                if now - tmp.lstat().st_mtime > STALE_S:
+                    shutil.rmtree(tmp, ignore_errors=True)
+            except OSError:
+                continue
         try:
             versions = sorted((p for p in (self.root / SECTIONS).iterdir()
                                if p.is_dir() and not p.is_symlink()),

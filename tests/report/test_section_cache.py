@@ -147,8 +147,14 @@ def test_old_code_versions_are_pruned(tmp_path):
         (sections / name / "x").write_text(name)
         mtime = 1_000_000 + 1000 * age
         os.utime(sections / name, (mtime, mtime))
-    cache.SectionCache(tmp_path, "e" * 64).prune(keep=2)
-    assert sorted(p.name for p in sections.iterdir()) == ["c", "d"]
+    current = cache.SectionCache(tmp_path, "e" * 64)
+    stale, fresh = (current.folder / "ab" / f"{cache.TMP_PREFIX}{n}" for n in ("1", "2"))
+    for tmp in (stale, fresh):
+        tmp.mkdir(parents=True)
+    os.utime(stale, (1_000_000, 1_000_000))
+    current.prune(keep=3)  # this code version and the two used last before it
+    assert sorted(p.name for p in sections.iterdir()) == ["c", "d", current.folder.name]
+    assert fresh.exists() and not stale.exists()  # a killed report's half-written entry
 
 
 def test_the_code_fingerprint_follows_every_file_but_compiled_caches(tmp_path):

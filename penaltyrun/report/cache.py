@@ -35,6 +35,7 @@ cache that cannot be read or written costs time, never the report.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
@@ -226,7 +227,8 @@ class SectionCache:
             return None
         for name, data in files.items():
             (out / name).write_bytes(data)
-        os.utime(self.folder, None)
+        with contextlib.suppress(OSError):  # marks this code version as used (pruning)
+            os.utime(self.folder, None)
         return lines
 
     def store(self, key: str, lines: list[list[str]], staging: Path) -> None:

@@ -213,7 +213,9 @@ def build_report(src: Path, out: Path, paper: bool = True,
         Folder of the cache of case sections (:mod:`penaltyrun.report.cache`): a section
         whose rows, shared tables, options and drawing code are those of a cached one is
         copied from it instead of drawn (the same files). None: every section is drawn.
-        Reports naming a user module, or read lazily, are drawn in full either way.
+        Reports read lazily, and problem cases whose code or data lies outside penaltyrun
+        (a user problem, a module named for it, a plant module or file named in its rows)
+        are drawn in full either way.
 
     Raises
     ------
@@ -232,7 +234,7 @@ def build_report(src: Path, out: Path, paper: bool = True,
         df = add_variant(read_results(src, FRAME_COLUMNS if stream else REPORT_COLUMNS,
                                       lazy=stream))
         sections_cache = None
-        if cache_dir is not None and not stream and trust.snapshot() == ({}, frozenset()):
+        if cache_dir is not None and not stream:
             sections_cache = cache.SectionCache.at(cache_dir)
         outdir.write_into(out, "report.output",
                           lambda tmp: _write_report(source_label or str(src), df, tmp, paper,

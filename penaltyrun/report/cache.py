@@ -20,10 +20,12 @@ What goes into a key:
   best-known values, held-out rows and ratios, paper rows) and the basin-map and probe
   settings.
 
-Not cached (drawn every time): a report that names a user module (``--problem-module``,
-``--plant-module``: its code is not part of the key), a lazily read report (its rows are
-read inside the sections), and a case whose rows name a data file (e.g. an LQR
-``plant_file``, which may change under the same rows).
+Not cached (drawn every time): a lazily read report (its rows are read inside the
+sections), and a problem case whose code or data lies outside penaltyrun: a user problem,
+a built-in problem the user named another module for (``--problem-module``, a problem
+object held in the process), and rows that name user code or a data file (the problem's
+``CODE_PARAMS`` and ``FILE_PARAMS``, e.g. an LQR ``plant`` module or ``plant_file``, which
+may change under the same rows).
 
 The cache is a folder of plain files the user owns (default ``$PENALTYRUN_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/penaltyrun``, else ``~/.cache/penaltyrun``); an entry is written in a

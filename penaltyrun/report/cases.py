@@ -244,13 +244,14 @@ def _write(bundle: Bundle, ctx: dict[str, Any]) -> list[list[str]]:
 
 def _cacheable(cases: list[tuple[pd.DataFrame, str]]) -> bool:
     """Whether a bundle's sections are a function of its rows and penaltyrun's code alone:
-    a built-in problem whose rows name no data file (its ``FILE_PARAMS``)."""
+    a built-in problem the user did not name another module for, whose rows name no user
+    code or data file (its ``CODE_PARAMS`` and ``FILE_PARAMS``)."""
     name = str(cases[0][0]["problem"].iloc[0])
-    if name not in problems.REGISTRY:
+    if name not in problems.REGISTRY or name in trust.named():
         return False
-    files = problems.user_code_params(name)[1]
+    named = sum(problems.user_code_params(name), ())
     return not any(protocol.params_of(value).get(param) for rows, _ in cases
-                   for value in rows.get("problem_params", ()) for param in files)
+                   for value in rows.get("problem_params", ()) for param in named)
 
 
 #: The shared tables in a worker process (:func:`_start_worker`).

@@ -130,14 +130,21 @@ def test_an_unwritable_cache_costs_time_not_the_report(tmp_path, drawn, caplog):
     assert len(drawn) == 1
 
 
-def test_a_report_naming_a_user_module_is_not_cached(tmp_path, drawn):
-    trust.allow_module("some_lab.plants")
+def test_a_problem_the_user_named_a_module_for_is_not_cached(tmp_path, drawn):
+    """Its code is outside the key; a module named for another problem changes nothing."""
+    src = _input(tmp_path / "in")
+    trust.name_module("zermelo", "penaltyrun.problems.zermelo")
     try:
-        build_report(_input(tmp_path / "in"), tmp_path / "out", cache_dir=tmp_path / "cache",
-                     **OPTIONS)
+        build_report(src, tmp_path / "out", cache_dir=tmp_path / "cache", **OPTIONS)
     finally:
         trust.forget_named()
-    assert len(drawn) == 1 and not (tmp_path / "cache").exists()
+    assert len(drawn) == 1 and not list((tmp_path / "cache").rglob("manifest.json"))
+    trust.name_module("cartpole", "some_lab.cartpole")
+    try:
+        build_report(src, tmp_path / "out", cache_dir=tmp_path / "cache", **OPTIONS)
+    finally:
+        trust.forget_named()
+    assert len(drawn) == 2 and list((tmp_path / "cache").rglob("manifest.json"))
 
 
 def test_old_code_versions_are_pruned(tmp_path):

@@ -13,7 +13,10 @@ A problem module (``penaltyrun/problems/<name>.py``) exposes
   ``module:attribute`` (e.g. a plant's dynamics), and ``FILE_PARAMS``: parameter names
   whose value is the path of a data file the problem reads. The runner hashes that code
   (with the local modules it imports) and those files into every job's identity
-  (:mod:`penaltyrun.runner.usercode`), so an edited one is a new configuration.
+  (:mod:`penaltyrun.runner.usercode`), so an edited one is a new configuration. While results
+  are read, a failure to build a problem whose stored parameters name a file is reported
+  with its error's type only (:func:`penaltyrun.problems.make`): the message may quote a
+  file the results named.
 * optionally, on the problem object, the held-out interface used by the runner and the
   report: ``training_scenario()`` (the scenario the matrices are tuned on),
   ``holdout_scenarios()`` (the held-out set, disjoint from it) and

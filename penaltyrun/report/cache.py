@@ -45,7 +45,6 @@ import logging
 import os
 import platform
 import shutil
-import stat
 import tempfile
 import time
 from collections.abc import Callable, Iterable
@@ -56,6 +55,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from penaltyrun.report.outdir import plain_name
+from penaltyrun.runner.records import read_regular_bytes
 
 logger = logging.getLogger(__name__)
 
@@ -209,10 +211,10 @@ class SectionCache:
         if not entry.exists():
             return None
         try:
-            manifest = json.loads(_read_regular(entry / MANIFEST))
-            if not all(_plain(name) for name in manifest["files"]):
+            manifest = json.loads(read_regular_bytes(entry / MANIFEST))
+            if not all(_entry_file(name) for name in manifest["files"]):
                 raise ValueError("a file name is not a plain name")
-            files = {name: _read_regular(entry / name) for name in manifest["files"]}
+            files = {name: read_regular_bytes(entry / name) for name in manifest["files"]}
             if any(len(data) != manifest["files"][name]["size"]
                    or hashlib.sha256(data).hexdigest() != manifest["files"][name]["sha256"]
                    for name, data in files.items()):
@@ -237,7 +239,7 @@ class SectionCache:
         """Keep ``lines`` and the files in ``staging`` as entry ``key`` (a failure is
         logged, never raised)."""
         entry = self.folder / key[:2] / key
-        if not all(_plain(path.name) and path.is_file() for path in staging.iterdir()):
+        if not all(_entry_file(path.name) and path.is_file() for path in staging.iterdir()):
             return
         try:
             entry.parent.mkdir(parents=True, exist_ok=True)
@@ -279,20 +281,10 @@ class SectionCache:
                 shutil.rmtree(old, ignore_errors=True)
 
 
-def _plain(name: object) -> bool:
-    """Whether ``name`` is a plain, visible file name (no folder part)."""
-    return (isinstance(name, str) and bool(name) and "/" not in name and "\\" not in name
-            and "\0" not in name and not name.startswith(".") and name != MANIFEST)
-
-
-def _read_regular(path: Path) -> bytes:
-    """Bytes of ``path`` if it is a regular file (never through a symbolic link)."""
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
-                 | getattr(os, "O_NONBLOCK", 0))
-    with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise ValueError(f"{path.name} is not a regular file")
-        return fh.read()
+def _entry_file(name: object) -> bool:
+    """Whether ``name`` may be a file of an entry: a plain, visible name inside its folder
+    (:func:`~penaltyrun.report.outdir.plain_name`), not the manifest."""
+    return isinstance(name, str) and plain_name(name, ("",)) and name != MANIFEST
 
 
 def cached(cache: SectionCache | None, cases: list[tuple[pd.DataFrame, str]], paper: bool,

@@ -19,12 +19,12 @@ import logging
 import os
 import re
 import shutil
-import stat
 import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from penaltyrun.errors import ConfigError, EnvironmentProblemError, describe_os_error
+from penaltyrun.runner.records import read_regular_bytes
 
 logger = logging.getLogger(__name__)
 
@@ -59,14 +59,9 @@ def prepare(out: Path, key: str) -> Path:
 def _read_own(path: Path) -> str:
     """Text of a regular file inside the folder ('' for a link, a FIFO, a missing file)."""
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0)
-                     | getattr(os, "O_NONBLOCK", 0))
+        return read_regular_bytes(path).decode("utf-8", errors="replace")
     except OSError:
         return ""
-    with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return ""
-        return fh.read().decode("utf-8", errors="replace")
 
 
 def report_files(out: Path, tables: Iterable[str]) -> set[str]:

@@ -84,8 +84,7 @@ def write_record(run_dir: Path, job: Job, record: dict[str, Any]) -> Path:
 
 
 def read_regular(path: Path) -> str:
-    """The UTF-8 text of ``path``, opened only as a regular file (never through a symbolic
-    link, never blocking on a FIFO).
+    """The UTF-8 text of ``path``, opened only as a regular file (:func:`read_regular_bytes`).
 
     Raises
     ------
@@ -93,6 +92,18 @@ def read_regular(path: Path) -> str:
         ``path`` cannot be opened, or is not a regular file (``strerror`` says so).
     ValueError
         The bytes are not UTF-8.
+    """
+    return read_regular_bytes(path).decode("utf-8")
+
+
+def read_regular_bytes(path: Path) -> bytes:
+    """The bytes of ``path``, opened only as a regular file (never through a symbolic
+    link, never blocking on a FIFO).
+
+    Raises
+    ------
+    OSError
+        ``path`` cannot be opened, or is not a regular file (``strerror`` says so).
     """
     flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
     try:
@@ -104,7 +115,7 @@ def read_regular(path: Path) -> str:
     with os.fdopen(fd, "rb") as fh:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             raise OSError(0, "not a regular file (a FIFO, device or folder)")
-        return fh.read().decode("utf-8")
+        return fh.read()
 
 
 def load_record(path: Path) -> tuple[dict[str, Any] | None, str]:

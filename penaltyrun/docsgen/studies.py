@@ -212,7 +212,7 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from penaltyrun.io.schema import read_results
+    from penaltyrun.io.schema import ROW_GROUP_ROWS, read_results
     study = load_study(root, name)
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
     dest = Path(dest) if dest else study.folder
@@ -228,7 +228,8 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
                               kind="stable").reset_index(drop=True)
     table = pa.Table.from_pandas(frame, preserve_index=False)
     tmp = dest / (RESULTS + ".tmp")
-    pq.write_table(table, tmp, compression="zstd", compression_level=19)
+    pq.write_table(table, tmp, compression="zstd", compression_level=19,
+                   row_group_size=ROW_GROUP_ROWS)
     os.replace(tmp, dest / RESULTS)
     if tables:
         write_tables(dest / RESULTS, run_dir / "report", dest / TABLES,

@@ -38,7 +38,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -84,6 +84,9 @@ LAZY_COLUMNS = ("error", "best_z", "z_names", "matrices", "scalars", "metrics", 
 #: Columns of a lazily read frame: the file (or job-record folder) each row comes from,
 #: and its position in that file.
 SOURCE, ROW = "_source", "_row"
+#: Rows of a row group decoded at a time when rows are read from it (:func:`fill_columns`):
+#: what reading a few rows costs in memory, whatever the group's size.
+READ_BATCH_ROWS = 10_000
 #: Files above which reading shows progress.
 PROGRESS_MIN_FILES = 50
 #: Seconds between two progress log lines (not on a terminal).
@@ -315,7 +318,8 @@ def _read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Dat
     """Rows ``rows`` (positions in the file) of the results file ``path``, columns
     ``columns`` (:data:`COLUMNS` order) plus :data:`KEEP_COLUMNS`, checked and upgraded as
     :func:`_read_one` reads a file; index ``0 .. len(rows) − 1``. Only the row groups that
-    hold the rows are read, one at a time, and only the rows are kept of each.
+    hold the rows are read, one at a time and :data:`READ_BATCH_ROWS` rows at a time, and
+    only the rows are kept of each.
 
     Raises
     ------
@@ -338,8 +342,15 @@ def _read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Dat
     pieces, order = [], []
     for g in np.unique(group):
         mine = np.flatnonzero(group == g)
-        table = parquet.read_row_group(int(g), columns=present)
-        pieces.append(table.take(pa.array(rows[mine] - bounds[g])))
+        mine = mine[np.argsort(rows[mine], kind="stable")]  # in file order
+        local, first = rows[mine] - bounds[g], 0
+        for batch in parquet.iter_batches(READ_BATCH_ROWS, row_groups=[int(g)],
+                                          columns=present):
+            lo, hi = np.searchsorted(local, [first, first + batch.num_rows])
+            if hi > lo:
+                pieces.append(pa.Table.from_batches([batch]).take(
+                    pa.array(local[lo:hi] - first)))
+            first += batch.num_rows
         order.append(mine)
     table = _decoded(pa.concat_tables(pieces)) if pieces else \
         _decoded(parquet.schema_arrow.empty_table().select(present))
@@ -408,6 +419,39 @@ def fill_columns(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
     extra = pd.concat(parts) if len(parts) > 1 else parts[0]
     extra = extra.reindex(df.index)
     return df.assign(**{c: extra[c] for c in missing})
+
+
+def read_batches(df: pd.DataFrame, max_rows: int) -> Iterator[np.ndarray]:
+    """Positions in ``df`` (a frame of :func:`read_results` with ``lazy=True``, or rows of
+    it) of its rows in batches that :func:`fill_columns` reads cheaply: the rows of whole
+    row groups of one results file, consecutive groups joined until a batch holds at least
+    ``max_rows`` rows (a group is decoded whole however few of its rows are asked for, so
+    no group is split between two batches); ``max_rows`` at a time from a folder of job
+    records or a file whose footer cannot be read (reading them then says why). Files in
+    the order their rows first appear in ``df``, rows in file order."""
+    for source, where in df.groupby(SOURCE, sort=False).indices.items():
+        rows = df[ROW].to_numpy()[where]
+        order = np.argsort(rows, kind="stable")
+        where, rows = where[order], rows[order]
+        path = Path(source)
+        meta = None
+        if not (path.name == JOBS_DIR and path.is_dir()):
+            try:
+                meta = pq.read_metadata(path)
+            except (OSError, pa.ArrowException):
+                meta = None
+        if meta is None:
+            for begin in range(0, len(where), max_rows):
+                yield where[begin:begin + max_rows]
+            continue
+        bounds = np.cumsum([0] + [meta.row_group(i).num_rows
+                                  for i in range(meta.num_row_groups)])
+        group = np.searchsorted(bounds, rows, side="right") - 1
+        begin = 0
+        for end in [*np.flatnonzero(np.diff(group)) + 1, len(where)]:
+            if end - begin >= max_rows or end == len(where):
+                yield where[begin:end]
+                begin = end
 
 
 def declared_rows(path: Path | Iterable[Path]) -> int:

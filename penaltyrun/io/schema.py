@@ -47,6 +47,10 @@ SCHEMA_HISTORY = {3: "anytime traces, warm start", 4: "timestamp columns",
                   9: "gradients charged in n_evals (n_gradients, grad_cost)",
                   10: "the polish's share of n_evals (polish_evals)"}
 RESULTS_FILE = "results.parquet"
+#: Rows per Parquet row group of a results file written here. A row group is the unit a
+#: reader decodes: a lazily read report (:func:`penaltyrun.io.read.fill_columns`) reads a
+#: whole group to get any of its rows, so the group, not the file, bounds its memory.
+ROW_GROUP_ROWS = 10_000
 
 #: Arrow type of each kind of :data:`penaltyrun.jobrecord.FIELDS`.
 ARROW_TYPES: dict[str, pa.DataType] = {
@@ -162,7 +166,7 @@ def write_table_atomic(table: pa.Table, path: Path) -> Path:
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        pq.write_table(table, tmp)
+        pq.write_table(table, tmp, row_group_size=ROW_GROUP_ROWS)
         os.replace(tmp, path)
     except OSError as exc:
         raise EnvironmentProblemError(describe_os_error(exc, path)) from None

@@ -17,7 +17,7 @@ import pandas as pd
 
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.bestknown import family, reference, with_problem_variant
-from penaltyrun.report.rows import TRACE_COLUMNS, has, narrow, with_columns
+from penaltyrun.report.rows import TRACE_COLUMNS, batches, has, narrow
 
 EPSILONS = (1e-2, 1e-3)
 #: Most best-so-far values (starts × grid points) :func:`anytime_band` holds at once; the
@@ -74,20 +74,21 @@ def ert(hits: np.ndarray, spent: np.ndarray) -> float:
 
 def cell_traces(g: pd.DataFrame) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """(evals, best, evaluations spent) of each non-failed start of a cell with a trace
-    (the traces of a lazily read frame read for these rows only)."""
+    (the traces of a lazily read frame read for these rows only, a batch at a time)."""
     ran = g[~g["status"].isin(NO_RESULT_STATUSES)]
     if ran.empty or not has(ran, "trace_evals"):
         return []
-    ran = with_columns(ran, TRACE_COLUMNS)
-    if "trace_evals" not in ran or "trace_best" not in ran:
-        return []
-    spent_all = ran["n_evals"] if "n_evals" in ran else [None] * len(ran)
     out = []
-    for evals, best, spent in zip(ran["trace_evals"], ran["trace_best"], spent_all):
-        tr = trace_of({"trace_evals": evals, "trace_best": best})
-        if tr is not None:
-            spent = float(spent) if spent is not None and np.isfinite(spent) else tr[0][-1]
-            out.append((tr[0], tr[1], spent))
+    for part in batches(narrow(ran, ["n_evals", *TRACE_COLUMNS]), TRACE_COLUMNS):
+        if "trace_evals" not in part or "trace_best" not in part:
+            return []
+        spent_all = part["n_evals"] if "n_evals" in part else [None] * len(part)
+        for evals, best, spent in zip(part["trace_evals"], part["trace_best"], spent_all):
+            tr = trace_of({"trace_evals": evals, "trace_best": best})
+            if tr is not None:
+                spent = float(spent) if spent is not None and np.isfinite(spent) \
+                    else tr[0][-1]
+                out.append((tr[0], tr[1], spent))
     return out
 
 

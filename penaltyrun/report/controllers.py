@@ -37,7 +37,7 @@ from penaltyrun.problems.base import ClosedLoop
 from penaltyrun.problems.hooks import hooks
 from penaltyrun.report import protocol
 from penaltyrun.report.controller_plots import channel_figure, cost_mode_scatter, pole_map
-from penaltyrun.report.rows import full_row, groups, with_columns
+from penaltyrun.report.rows import batches, full_row, groups
 from penaltyrun.report.stats import converged
 from penaltyrun.report.tables import fmt, markdown, md_text, with_unit
 
@@ -58,11 +58,6 @@ DIGITS = 4
 ROUNDOFF = 1e-12
 COLUMNS = ["map", "by", "cost", "time", "slowest Re s", "min damping", "‖K‖₂", "cond K",
            "poles from"]
-
-
-#: Rows whose closed loop :func:`start_modes` recomputes per batch (their matrices read
-#: together when the frame was read lazily).
-RECOMPUTE_ROWS = 20_000
 
 
 def best_per_map(g: pd.DataFrame) -> dict[str, pd.Series]:
@@ -308,13 +303,12 @@ def start_modes(g: pd.DataFrame) -> pd.DataFrame:
     ok = g[converged(g) & (g["optimizer"] != "baseline")]
     stored = pd.to_numeric(ok["cl_slowest_real"], errors="coerce") \
         if "cl_slowest_real" in ok else pd.Series(np.nan, index=ok.index)
-    slowest = stored.astype(float).to_numpy().copy()
+    slowest = pd.Series(stored.astype(float).to_numpy(), index=ok.index)
     built: dict[tuple[str, str, str], Any] = {}
-    todo = np.flatnonzero(~np.isfinite(slowest))
-    for first in range(0, todo.size, RECOMPUTE_ROWS):  # a batch of rows' matrices at a time
-        chunk = todo[first:first + RECOMPUTE_ROWS]
-        batch = with_columns(ok.iloc[chunk], ("matrices", "scalars", "closed_loop"))
-        for i, (_, row) in zip(chunk, batch.iterrows()):
+    todo = ok[~np.isfinite(slowest.to_numpy())]
+    columns = ("matrices", "scalars", "closed_loop")
+    for batch in batches(todo, columns):  # a batch of rows' matrices at a time
+        for label, row in batch.iterrows():
             key = (str(row["problem"]), str(row["case"]), str(row.get("problem_params")))
             try:
                 if key not in built:
@@ -322,10 +316,10 @@ def start_modes(g: pd.DataFrame) -> pd.DataFrame:
                 loop, _ = loop_of(row, built[key])
             except Exception:  # counted as no closed loop; controller_rows logs the reason
                 loop = None
-            slowest[i] = dg.diagnose(loop).slowest_real if loop is not None else np.nan
+            slowest[label] = dg.diagnose(loop).slowest_real if loop is not None else np.nan
     return pd.DataFrame({"param": ok["param"].astype(str).to_numpy(),
                          "cost": ok["best_cost"].astype(float).to_numpy(),
-                         "slowest": slowest.astype(float)},
+                         "slowest": slowest.to_numpy(float)},
                         columns=["param", "cost", "slowest"])
 
 

@@ -42,7 +42,7 @@ from penaltyrun.io import decode_json  # noqa: E402
 from penaltyrun.jobrecord import NO_RESULT_STATUSES  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
-from penaltyrun.report.rows import full_row, has, with_columns  # noqa: E402
+from penaltyrun.report.rows import batches, full_row, has, narrow, present  # noqa: E402
 from penaltyrun.report.stats import holm, signed_rank_p  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
     alt_text,
@@ -100,9 +100,10 @@ def scenario_table(holdout: Any, drop_kinds: tuple[str, ...] = ()) -> pd.DataFra
 
 
 def best_start(g: pd.DataFrame) -> pd.Series | None:
-    """Best non-failed start with a held-out result (converged starts first)."""
-    g = with_columns(g, ("holdout",))
-    ok = g[~g["status"].isin(NO_RESULT_STATUSES) & g["holdout"].notna()]
+    """Best non-failed start with a held-out result (converged starts first; of equal
+    costs the first row); a lazily read frame's held-out data read a batch at a time."""
+    ok = g[~g["status"].isin(NO_RESULT_STATUSES)]
+    ok = ok[present(ok, "holdout")]
     if ok.empty:
         return None
     conv = ok[ok["best_converged"].astype(bool)]
@@ -113,11 +114,12 @@ def best_start(g: pd.DataFrame) -> pd.Series | None:
 def _rate_all(g: pd.DataFrame, drop: tuple[str, ...] = ()) -> float:
     """Share of (start, scenario) pairs that converge, over all starts of ``g``."""
     hits = total = 0
-    for h in with_columns(g, ("holdout",))["holdout"].dropna():
-        t = scenario_table(h, drop)
-        if t is not None:
-            hits += int(t["converged"].sum())
-            total += len(t)
+    for part in batches(narrow(g, ("holdout",)), ("holdout",)):
+        for h in part["holdout"].dropna():
+            t = scenario_table(h, drop)
+            if t is not None:
+                hits += int(t["converged"].sum())
+                total += len(t)
     return hits / total if total else np.nan
 
 
@@ -246,7 +248,7 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
     for (problem, case, pvar, variant, optimizer), g in df.groupby(
             ["problem", "case", "problem_variant", "variant", "optimizer"], sort=True):
         drop = protocol.info_of(g).discretization_kinds
-        g = with_columns(g, ("holdout",))
+        g = g[present(g, "holdout")]  # the rows with held-out data, read once here
         dg = g[g["param"] == "diagonal"]
         drow = best_start(dg)
         if drow is None:
@@ -261,8 +263,7 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
                              "full_conv_all_starts": _rate_all(fg, drop)})
     for (problem, case, pvar), g in df.groupby(["problem", "case", "problem_variant"],
                                                sort=True):
-        g = with_columns(g, ("holdout",))
-        best = best_rows(g[g["holdout"].notna()])
+        best = best_rows(g[present(g, "holdout")])
         if set(best) >= {"diagonal", "full"}:
             drop = protocol.info_of(g).discretization_kinds
             res = _row(problem, case, pvar, BEST_KNOWN, best["full"]["param"],
@@ -333,8 +334,8 @@ def discretization_rows(df: pd.DataFrame) -> pd.DataFrame:
     for (problem, case, variant, optimizer), g in df.groupby(
             ["problem", "case", "variant", "optimizer"], sort=True):
         kinds = protocol.info_of(g).discretization_kinds
-        drow = best_start(g[g["param"] == "diagonal"])
-        if not kinds or drow is None:
+        drow = best_start(g[g["param"] == "diagonal"]) if kinds else None
+        if drow is None:
             continue
         for param, fg in g[g["param"] != "diagonal"].groupby("param", sort=True):
             res = discretization_check(drow, best_start(fg), kinds)

@@ -26,7 +26,7 @@ from penaltyrun.io.schema import decode_json
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.anytime import CELL
 from penaltyrun.report.bestknown import with_problem_variant
-from penaltyrun.report.rows import TRACE_COLUMNS, full_row, has, with_columns
+from penaltyrun.report.rows import TRACE_COLUMNS, batches, full_row, has
 
 #: Relative tolerance of "reached the known optimum".
 RTOL = 1e-6
@@ -109,6 +109,27 @@ def _median_all(hit: np.ndarray, spent: np.ndarray, name: str) -> dict[str, Any]
             f"{name}_all_bound": not exact}
 
 
+def _read_cell(g: pd.DataFrame, ref: float, target: float
+               ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per start of the cell ``g``, in its row order, (evaluations, CPU seconds) to reach
+    ``target`` (rows of :func:`first_reach`) and the CPU seconds it spent; None when the
+    cell's starts do not share one known optimum (the first start's is ``ref``). A lazily
+    read frame's per-row columns are read a batch of rows at a time
+    (:func:`~penaltyrun.report.rows.batches`)."""
+    hits, low, high = {}, ref, ref
+    for part in batches(g, ROW_COLUMNS_USED):
+        for label, row in part.iterrows():
+            optimum = known_optimum(row)
+            if not np.isfinite(optimum):
+                return None
+            low, high = min(low, optimum), max(high, optimum)
+            hits[label] = (*first_reach(row, target), spent_cpu(row))
+    if high - low > 1e-12 * abs(ref):
+        return None
+    table = np.array([hits[label] for label in g.index], float).reshape(-1, 3)
+    return table[:, :2], table[:, 2]
+
+
 def reach_table(df: pd.DataFrame, rtol: float = RTOL) -> pd.DataFrame:
     """One row per cell whose records carry a known optimum.
 
@@ -130,20 +151,21 @@ def reach_table(df: pd.DataFrame, rtol: float = RTOL) -> pd.DataFrame:
     df = df[(df["optimizer"] != "baseline") & ~df["status"].isin(NO_RESULT_STATUSES)]
     rows = []
     for key, g in df.groupby(CELL, sort=True):
-        g = with_columns(g, ROW_COLUMNS_USED)  # a lazily read frame: this cell's rows only
-        optimum = np.array([known_optimum(r) for _, r in g.iterrows()])
-        if not np.all(np.isfinite(optimum)) or np.ptp(optimum) > 1e-12 * abs(optimum[0]):
+        first = full_row(g, g.index[0])  # one row: a cell without J* reads no more
+        ref = known_optimum(first)
+        if not np.isfinite(ref):
             continue
-        ref = float(optimum[0])
         target = ref + rtol * abs(ref)
-        hits = np.array([first_reach(r, target) for _, r in g.iterrows()])
+        read = _read_cell(g, ref, target)
+        if read is None:
+            continue
+        hits, spent_s = read
         reached = np.isfinite(hits[:, 0])
-        spent_s = np.array([spent_cpu(r) for _, r in g.iterrows()])
         gaps = g["best_cost"].astype(float).to_numpy() / ref - 1.0
         budget = g["max_evals"].dropna() if "max_evals" in g else pd.Series(dtype=float)
         rows.append({
-            **dict(zip(CELL, key)), "size": _size(full_row(g, g.index[0])),
-            "dim": len(g.iloc[0]["best_z"]), "optimum": ref, "rtol": rtol, "target": target,
+            **dict(zip(CELL, key)), "size": _size(first),
+            "dim": len(first["best_z"]), "optimum": ref, "rtol": rtol, "target": target,
             "n_starts": len(g), "n_reached": int(reached.sum()),
             **_stats(hits[reached, 0], "evals_to_reach"),
             **_stats(hits[reached, 1], "cpu_s_to_reach"),

@@ -15,7 +15,7 @@ from collections.abc import Hashable, Iterable, Iterator
 import numpy as np
 import pandas as pd
 
-from penaltyrun.io.read import LAZY_COLUMNS, ROW, SOURCE, fill_columns
+from penaltyrun.io.read import LAZY_COLUMNS, ROW, SOURCE, fill_columns, read_batches
 from penaltyrun.io.schema import COLUMNS
 
 #: Columns the report never uses: not read (the per-iteration cost history, the resolved
@@ -55,6 +55,35 @@ def with_columns(df: pd.DataFrame, columns: Iterable[str] = ROW_COLUMNS) -> pd.D
     return fill_columns(df, [c for c in columns if c in ROW_COLUMNS])
 
 
+#: Rows whose per-row columns a lazily read frame reads at a time (:func:`batches`; whole
+#: row groups of a file joined until a batch holds at least this many).
+BATCH_ROWS = 10_000
+
+
+def batches(df: pd.DataFrame, columns: Iterable[str]) -> Iterator[pd.DataFrame]:
+    """Rows of ``df`` in batches with the report columns ``columns`` read for their rows
+    (:func:`with_columns`): a loop over them holds one batch's text and lists at a time,
+    not the whole frame's. A lazily read frame's batches are rows of whole row groups of
+    one file (:func:`penaltyrun.io.read.read_batches`: each group read once), in file
+    order, so callers align by index label, not position; a frame read whole is one batch.
+    """
+    if not lazy(df):
+        yield df
+        return
+    columns = tuple(columns)
+    for where in read_batches(df, BATCH_ROWS):
+        yield with_columns(df.take(where), columns)
+
+
+def present(df: pd.DataFrame, column: str) -> pd.Series:
+    """Whether each row of ``df`` holds a value of the report column ``column`` (boolean,
+    ``df``'s index), read a batch of rows at a time (:func:`batches`)."""
+    parts = [part[column].notna() for part in batches(narrow(df, (column,)), (column,))]
+    if not parts:
+        return pd.Series(False, index=df.index, dtype=bool)
+    return pd.concat(parts).reindex(df.index) if len(parts) > 1 else parts[0]
+
+
 def narrow(df: pd.DataFrame, columns: Iterable[str]) -> pd.DataFrame:
     """``df`` with only the columns ``columns`` that it has (and where its rows come
     from): what a section selects rows of, so that selecting them copies no more."""
@@ -88,6 +117,6 @@ def groups(df: pd.DataFrame, keys: list[str]) -> Iterator[tuple[tuple, pd.DataFr
         yield tuple(rows[c].iloc[0] for c in keys), rows
 
 
-__all__ = ["FRAME_COLUMNS", "REPORT_COLUMNS", "ROW_COLUMNS", "SINGLE_ROW_COLUMNS",
-           "TRACE_COLUMNS", "UNUSED_COLUMNS", "full_row", "groups", "has", "lazy", "narrow",
-           "with_columns"]
+__all__ = ["BATCH_ROWS", "FRAME_COLUMNS", "REPORT_COLUMNS", "ROW_COLUMNS", "SINGLE_ROW_COLUMNS",
+           "TRACE_COLUMNS", "UNUSED_COLUMNS", "batches", "full_row", "groups", "has", "lazy",
+           "narrow", "present", "with_columns"]

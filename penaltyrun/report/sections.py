@@ -17,7 +17,7 @@ from penaltyrun.problems import report_hooks  # noqa: E402
 from penaltyrun.problems.base import ReportSection  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, family  # noqa: E402
-from penaltyrun.report.rows import full_row, groups, narrow, with_columns  # noqa: E402
+from penaltyrun.report.rows import batches, full_row, groups, narrow  # noqa: E402
 from penaltyrun.report.stats import converged, holm, paper_value  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
     alt_text,
@@ -38,10 +38,6 @@ MATCH_TOL = 0.005
 BOUND_RTOL = 1e-6
 #: Holm family of the median tests against published medians.
 PAPER_FAMILY = "every median test against a published median of this report"
-
-
-#: Rows whose matrices the paper-matrix table reads per batch (a lazily read frame).
-MATRIX_ROWS = 50_000
 
 
 def matrices_of(row: pd.Series | dict) -> dict[str, np.ndarray]:
@@ -120,8 +116,7 @@ def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
             continue
         best = full_row(cell, cell["best_cost"].astype(float).idxmin())
         devs = []
-        for first in range(0, len(cell), MATRIX_ROWS):  # a batch of rows' matrices at a time
-            batch = with_columns(cell.iloc[first:first + MATRIX_ROWS], ("matrices",))
+        for batch in batches(narrow(cell, ("matrices",)), ("matrices",)):
             devs += [max(relative_deviation(matrices_of({"matrices": m})[k],
                                             np.asarray(v, float)) for k, v in ref.items())
                      for m in batch["matrices"]]

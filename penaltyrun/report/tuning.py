@@ -92,27 +92,58 @@ def _setting(row: dict[str, Any]) -> tuple[str, str]:
     return _canonical(params) + "|" + opt + "|" + warm, shown
 
 
+def _setup_codes(df: pd.DataFrame, columns: tuple[str, ...]) -> tuple[np.ndarray, list[tuple]]:
+    """Per row of ``df`` the number of its distinct set-up (its values of ``columns``, a
+    missing column read as None), and each set-up's values, first rows first.
+
+    Grouping holds one integer a row; values that cannot be grouped (dicts or lists,
+    e.g. a frame built in Python) are keyed as canonical JSON, one tuple a row.
+    """
+    present = [c for c in columns if c in df]
+    if not present or df.empty:
+        return np.zeros(len(df), np.int64), [(None,) * len(columns)] * bool(len(df))
+    try:
+        codes = df.groupby(present, sort=False, dropna=False, observed=True).ngroup()
+        codes = codes.to_numpy(np.int64)
+    except TypeError:  # unhashable values
+        keys = list(zip(*(df[c].map(_key) for c in present)))
+        codes = pd.factorize(pd.Series(keys, dtype=object))[0].astype(np.int64)
+    first = np.unique(codes, return_index=True)[1]
+    values = [tuple(df[c].iat[i] if c in df else None for c in columns) for i in first]
+    return codes, values
+
+
+def _column(codes: np.ndarray, per_setup: list[str]) -> pd.Categorical:
+    """A categorical column: row i holds ``per_setup[codes[i]]``."""
+    setup_codes, labels = pd.factorize(pd.Series(per_setup, dtype=object), sort=True)
+    return pd.Categorical.from_codes(setup_codes[codes], categories=list(labels))
+
+
 def with_modes(df: pd.DataFrame) -> pd.DataFrame:
     """``df`` with columns ``tuning`` (mode label), ``tuning_key`` (the training settings as
-    JSON), ``setting_key`` and ``setting`` (the rest of the set-up)."""
+    JSON), ``setting_key`` and ``setting`` (the rest of the set-up), categorical.
+
+    Each distinct set-up (``problem_params``, ``optimizer_settings``, ``warm_start``) is
+    decoded once and the rows hold codes of it, so a large results set costs a few bytes a
+    row here, not text a row.
+    """
     out = df.copy(deep=False)  # new columns only: the frame itself is not copied
     columns = ("problem_params", *SETTING_COLUMNS)
-    values = list(zip(*(out[c] if c in out else [None] * len(out) for c in columns)))
-    keys = [tuple(_key(v) for v in row) for row in values]
-    first = dict(zip(keys, values))  # each distinct set-up computed once
-    training = {k: training_of(v[0]) for k, v in first.items()}
-    settings = {k: _setting(dict(zip(columns, v))) for k, v in first.items()}
-    out["tuning_key"] = [_canonical(training[k]) for k in keys]
-    out["tuning"] = [mode_label(training[k]) for k in keys]
-    out["setting_key"] = [settings[k][0] for k in keys]
-    out["setting"] = [settings[k][1] for k in keys]
+    codes, setups = _setup_codes(out, columns)
+    training = [training_of(v[0]) for v in setups]
+    settings = [_setting(dict(zip(columns, v))) for v in setups]
+    keys = [_canonical(t) for t in training]
+    labels = [mode_label(t) for t in training]
     # two different training sets with the same label get a short hash of their own
-    for _, g in out[out["tuning_key"] != "{}"].groupby("tuning"):
-        if g["tuning_key"].nunique() > 1:
-            for key in g["tuning_key"].unique():
-                tag = hashlib.sha1(key.encode()).hexdigest()[:6]
-                sel = out["tuning_key"] == key
-                out.loc[sel, "tuning"] = out.loc[sel, "tuning"] + f" #{tag}"
+    for label in {lab for lab, key in zip(labels, keys) if key != "{}"}:
+        same = {key for lab, key in zip(labels, keys) if lab == label}
+        if len(same) > 1:
+            labels = [f"{lab} #{hashlib.sha1(key.encode()).hexdigest()[:6]}"
+                      if lab == label else lab for lab, key in zip(labels, keys)]
+    out["tuning_key"] = _column(codes, keys)
+    out["tuning"] = _column(codes, labels)
+    out["setting_key"] = _column(codes, [s[0] for s in settings])
+    out["setting"] = _column(codes, [s[1] for s in settings])
     return out
 
 
@@ -136,7 +167,7 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
     m = with_modes(df)
     rows = []
     keys = ["problem", "case", "setting_key", "optimizer"]
-    for (problem, case, _, optimizer), g in m.groupby(keys, sort=True):
+    for (problem, case, _, optimizer), g in m.groupby(keys, sort=True, observed=True):
         modes = sorted(g["tuning"].unique(), key=lambda t: (t != SINGLE, t))
         if SINGLE not in modes or len(modes) < 2:
             continue

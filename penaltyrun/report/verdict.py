@@ -27,7 +27,7 @@ from penaltyrun.report import protocol
 from penaltyrun.report.bestknown import CERTIFY_RTOL, best_rows
 from penaltyrun.report.compare import NO_TEST
 from penaltyrun.report.holdout import BEST_KNOWN, discretization_check
-from penaltyrun.report.rows import has, with_columns
+from penaltyrun.report.rows import has, present
 from penaltyrun.report.tables import fmt, with_unit
 
 #: Significance level of the words in the sentences (the p-values are always printed).
@@ -150,9 +150,7 @@ def verdict_rows(df: pd.DataFrame, bk: pd.DataFrame, comp: pd.DataFrame,
         h = _held(held, problem, case, pvar)
         disc = None
         if info.discretization_kinds and d is not None and f is not None:
-            held_jobs = with_columns(jobs, ("holdout",)) if has(jobs, "holdout") else None
-            best = {} if held_jobs is None else \
-                best_rows(held_jobs[held_jobs["holdout"].notna()])
+            best = best_rows(jobs[present(jobs, "holdout")]) if has(jobs, "holdout") else {}
             if set(best) >= {"diagonal", "full"}:
                 disc = discretization_check(best["diagonal"], best["full"],
                                             info.discretization_kinds)

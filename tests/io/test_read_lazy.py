@@ -111,3 +111,25 @@ def test_a_file_that_lost_rows_since_it_was_read_is_an_error(folder):
     write_file(folder / "b", [record(0)], 4)
     with pytest.raises(ValueError, match="fewer rows"):
         fill_columns(lazy, ["matrices"])
+
+
+def test_results_files_are_written_in_row_groups_a_lazy_reader_reads_one_at_a_time(
+        tmp_path, monkeypatch):
+    """write_table_atomic cuts a results file into row groups of ROW_GROUP_ROWS rows; a
+    lazily read frame's batches are whole groups, and reading them gives every value."""
+    from penaltyrun.io import schema
+
+    monkeypatch.setattr(schema, "ROW_GROUP_ROWS", 3)
+    records = [record(s) for s in range(8)]
+    table = pa.Table.from_pylist([normalize(r, "run") for r in records], schema=SCHEMA)
+    path = schema.write_table_atomic(table, tmp_path / RESULTS_FILE)
+    meta = pq.read_metadata(path)
+    assert [meta.row_group(i).num_rows for i in range(meta.num_row_groups)] == [3, 3, 2]
+    frame = read.read_results(path, ("job_id", "status", "best_cost"), lazy=True)
+    shuffled = frame.iloc[[7, 0, 4, 2, 5]]
+    batches = list(read.read_batches(shuffled, 1))
+    assert [sorted(shuffled[ROW].to_numpy()[b]) for b in batches] == [[0, 2], [4, 5], [7]]
+    joined = list(read.read_batches(shuffled, 3))  # whole groups, until 3 rows or more
+    assert [sorted(shuffled[ROW].to_numpy()[b]) for b in joined] == [[0, 2, 4, 5], [7]]
+    filled = fill_columns(shuffled.iloc[batches[1]], ("matrices",))
+    assert [json.loads(m)["K"][0][0] for m in filled["matrices"]] == [5.0, 6.0]

@@ -15,14 +15,14 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from penaltyrun.io.schema import RESULTS_FILE, SCHEMA
+from penaltyrun.io.schema import RESULTS_FILE, ROW_GROUP_ROWS, SCHEMA
 from penaltyrun.jobrecord import SCHEMA_VERSION
 
 #: Cells of a synthetic set: (optimizer, map, max_evals).
 CELLS = tuple((opt, param, budget) for opt in ("pso", "de") for param in ("diagonal", "full")
               for budget in (200, 400, 800))
-#: Rows per row group written.
-GROUP_ROWS = 50_000
+#: Rows per row group written: as penaltyrun writes results files.
+GROUP_ROWS = ROW_GROUP_ROWS
 #: Anytime trace points of every start.
 TRACE_POINTS = 4
 

@@ -51,8 +51,13 @@ def test_a_lazily_read_report_equals_the_report_read_whole(tmp_path, monkeypatch
 
 
 @pytest.mark.slow
-def test_a_lazily_read_report_of_two_studies_equals_the_report_read_whole(tmp_path):
-    """Held-out data (re-judged files), problem sections, tuning modes, controllers."""
+def test_a_lazily_read_report_of_two_studies_equals_the_report_read_whole(tmp_path,
+                                                                        monkeypatch):
+    """Held-out data (re-judged files), problem sections, tuning modes, controllers; the
+    lazily read rows in batches of 3 (the held-out data of many batches)."""
+    from penaltyrun.report import rows
+
+    monkeypatch.setattr(rows, "BATCH_ROWS", 3)
     _assert_same(*_both(GOLDEN / "two_studies" / "input", tmp_path, basin_points=4))
 
 

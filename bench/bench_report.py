@@ -34,6 +34,12 @@ the intervals agree.
 in the cache), then copied from it, and compares the two reports (``--same``). Every other
 report this script times uses a fresh empty cache, so it draws every section.
 
+``--row-groups N`` writes N synthetic rows twice, in penaltyrun's row groups
+(:data:`penaltyrun.io.schema.ROW_GROUP_ROWS` rows) and as one group (pyarrow's default for
+up to a million rows), and times reading the report's per-row columns of one row in the
+middle of each (:func:`penaltyrun.io.read.fill_columns`, as a lazily read report reads a
+best start), each in a fresh process.
+
 ``--same A B`` compares two report folders: the same file names, every table and text file
 byte for byte, every figure pixel for pixel (how "the same report" is checked when the
 code that draws it changes).
@@ -46,6 +52,7 @@ Usage::
     python bench/bench_report.py --large 300000 --steps
     python bench/bench_report.py --cache
     python bench/bench_report.py --bca
+    python bench/bench_report.py --row-groups 1000000
     python bench/bench_report.py --same REPORT_A REPORT_B
 """
 
@@ -173,6 +180,49 @@ def large(rows: int, steps: bool = False) -> None:
         print(_row(f"report of {rows} rows, process memory settings {memory}", m))
 
 
+#: Read the report's per-row columns of row ``sys.argv[2]`` of the file ``sys.argv[1]``.
+ONE_ROW = ("import sys\nimport numpy as np\nfrom pathlib import Path\n"
+           "from penaltyrun.io.read import _read_rows\n"
+           "from penaltyrun.report.rows import ROW_COLUMNS\n"
+           "_read_rows(Path(sys.argv[1]), np.array([int(sys.argv[2])]), ROW_COLUMNS)\n")
+
+
+#: Write ``sys.argv[2]`` synthetic rows into the folder ``sys.argv[1]`` twice: in
+#: penaltyrun's row groups (``grouped/``) and as one row group (``one/``).
+WRITE_TWO = ("import sys\nfrom pathlib import Path\nimport pyarrow.parquet as pq\n"
+             "from large_results import write_large_results\n"
+             "rows = int(sys.argv[2])\n"
+             "grouped = write_large_results(Path(sys.argv[1]) / 'grouped', rows)\n"
+             "one = Path(sys.argv[1]) / 'one' / grouped.name\n"
+             "one.parent.mkdir()\n"
+             "pq.write_table(pq.read_table(grouped), one, row_group_size=rows)\n")
+
+
+def row_groups(rows: int) -> None:
+    """Print CPU, wall and peak RSS of reading one row of ``rows`` synthetic rows written
+    in penaltyrun's row groups and as one row group, and of a process that only imports
+    what the reading does (the files are written by another process, so that the
+    measured processes are not forks of a large one)."""
+    import pyarrow.parquet as pq
+
+    from penaltyrun.io.schema import RESULTS_FILE, ROW_GROUP_ROWS
+
+    print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; {rows} synthetic rows")
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([sys.executable, "-c", WRITE_TWO, tmp, str(rows)], check=True,
+                       env={**os.environ, "PYTHONPATH": os.pathsep.join(
+                           [str(ROOT), str(ROOT / "tests" / "report")])})
+        print("| file | row groups | CPU s | wall s | peak RSS MB |\n|---|---|---|---|---|")
+        imports = ONE_ROW.rsplit("\n", 2)[0] + "\n"
+        m = measure(imports, [], str(ROOT))
+        print(f"| (imports only) | | {m['cpu']:.2f} | {m['wall']:.2f} | {m['rss']:.0f} |")
+        for name, folder in ((f"groups of {ROW_GROUP_ROWS}", "grouped"), ("one group", "one")):
+            path = Path(tmp) / folder / RESULTS_FILE
+            m = measure(ONE_ROW, [str(path), str(rows // 2)], str(ROOT))
+            groups = pq.read_metadata(path).num_row_groups
+            print(f"| {name} | {groups} | {m['cpu']:.2f} | {m['wall']:.2f} | {m['rss']:.0f} |")
+
+
 def cached(src: str) -> None:
     """Print CPU, wall and peak RSS of the report of ``src`` drawn into an empty cache and
     then from that cache (default workers), and whether the two are the same."""
@@ -254,6 +304,8 @@ def main() -> None:
                         help="compare two report folders")
     parser.add_argument("--cache", action="store_true",
                         help="the report drawn into an empty cache, then from it")
+    parser.add_argument("--row-groups", type=int, metavar="N",
+                        help="read one row of N synthetic rows, grouped and as one group")
     parser.add_argument("--workers", nargs="+", metavar="N",
                         help="this tree's report once per worker count (--workers N)")
     args = parser.parse_args()
@@ -264,6 +316,9 @@ def main() -> None:
         raise SystemExit(0 if same(*args.same) else 1)
     if args.large:
         large(args.large, args.steps)
+        return
+    if args.row_groups:
+        row_groups(args.row_groups)
         return
     if args.cache:
         cached(args.input)

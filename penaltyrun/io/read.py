@@ -84,9 +84,6 @@ LAZY_COLUMNS = ("error", "best_z", "z_names", "matrices", "scalars", "metrics", 
 #: Columns of a lazily read frame: the file (or job-record folder) each row comes from,
 #: and its position in that file.
 SOURCE, ROW = "_source", "_row"
-#: Rows of a row group decoded at a time when rows are read from it (:func:`fill_columns`):
-#: what reading a few rows costs in memory, whatever the group's size.
-READ_BATCH_ROWS = 10_000
 #: Files above which reading shows progress.
 PROGRESS_MIN_FILES = 50
 #: Seconds between two progress log lines (not on a terminal).
@@ -318,8 +315,7 @@ def _read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Dat
     """Rows ``rows`` (positions in the file) of the results file ``path``, columns
     ``columns`` (:data:`COLUMNS` order) plus :data:`KEEP_COLUMNS`, checked and upgraded as
     :func:`_read_one` reads a file; index ``0 .. len(rows) − 1``. Only the row groups that
-    hold the rows are read, one at a time and :data:`READ_BATCH_ROWS` rows at a time, and
-    only the rows are kept of each.
+    hold the rows are read, one at a time, and only the rows are kept of each.
 
     Raises
     ------
@@ -342,15 +338,8 @@ def _read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Dat
     pieces, order = [], []
     for g in np.unique(group):
         mine = np.flatnonzero(group == g)
-        mine = mine[np.argsort(rows[mine], kind="stable")]  # in file order
-        local, first = rows[mine] - bounds[g], 0
-        for batch in parquet.iter_batches(READ_BATCH_ROWS, row_groups=[int(g)],
-                                          columns=present):
-            lo, hi = np.searchsorted(local, [first, first + batch.num_rows])
-            if hi > lo:
-                pieces.append(pa.Table.from_batches([batch]).take(
-                    pa.array(local[lo:hi] - first)))
-            first += batch.num_rows
+        table = parquet.read_row_group(int(g), columns=present)
+        pieces.append(table.take(pa.array(rows[mine] - bounds[g])))
         order.append(mine)
     table = _decoded(pa.concat_tables(pieces)) if pieces else \
         _decoded(parquet.schema_arrow.empty_table().select(present))

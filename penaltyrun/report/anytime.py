@@ -76,12 +76,10 @@ def cell_traces(g: pd.DataFrame) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """(evals, best, evaluations spent) of each non-failed start of a cell with a trace
     (the traces of a lazily read frame read for these rows only, a batch at a time)."""
     ran = g[~g["status"].isin(NO_RESULT_STATUSES)]
-    if ran.empty or not has(ran, "trace_evals"):
+    if ran.empty or not all(has(ran, c) for c in TRACE_COLUMNS):
         return []
     out = []
     for part in batches(narrow(ran, ["n_evals", *TRACE_COLUMNS]), TRACE_COLUMNS):
-        if "trace_evals" not in part or "trace_best" not in part:
-            return []
         spent_all = part["n_evals"] if "n_evals" in part else [None] * len(part)
         for evals, best, spent in zip(part["trace_evals"], part["trace_best"], spent_all):
             tr = trace_of({"trace_evals": evals, "trace_best": best})

@@ -119,6 +119,8 @@ class StudyData:
 LABEL_COLUMNS = ("variant", "problem_variant", "note", "ci_note", "label")
 #: Columns of the verdict table shown outside its fold (one result per cell).
 VERDICT_MAIN = ("question", "diagonal best-known", "full best-known", "gain")
+#: What names one cell of a study for its late gain: a cell run at two budgets is two cells.
+CELL_KEYS = ("problem", "case", "param", "optimizer", "max_evals")
 #: Grid points per axis of the basin tables on the results pages (:meth:`Context.basins`).
 BASIN_POINTS = 12
 #: Columns of ``holdout.csv`` the results pages show.
@@ -445,14 +447,44 @@ class Context:
         return float(np.median(gains)) if gains else float("nan")
 
     def largest_late_gain(self, name: str, best_known: bool = False) -> float:
-        """The largest :meth:`late_gain` of the study's cells (problem × case × map ×
-        optimizer), or of the cells holding a best-known value (``best_known``, from the
-        ``best_known`` table); 0 where no cell has one."""
-        keys = ["problem", "case", "param", "optimizer"]
-        frame = self.study(name).table("best_known") if best_known else self.study(name).df
-        gains = [self.late_gain(name, cell)
-                 for cell in frame[keys].drop_duplicates().to_dict("records")]
+        """The largest :meth:`late_gain` of the study's cells (:data:`CELL_KEYS`: problem ×
+        case × map × optimizer × budget), each at its largest budget (a cell run again at a
+        larger budget is judged there), or of the cells holding a best-known value
+        (``best_known``: the cells of the ``best_known`` table's jobs); 0 where no cell has
+        one."""
+        frame = self.study(name).df
+        if best_known:
+            frame = frame[frame["job_id"].isin(self.study(name).table("best_known")["job_id"])]
+        elif "max_evals" in frame:
+            largest = frame.groupby(list(CELL_KEYS[:-1]))["max_evals"].transform("max")
+            frame = frame[(frame["max_evals"] == largest) | largest.isna()]
+        gains = [self.late_gain(name, cell) for cell in self.cells(name, frame)]
         return max([0.0, *(g for g in gains if g == g)])  # NaN: a cell without finished starts
+
+    def cells(self, name: str, frame: Any = None) -> list[dict[str, Any]]:
+        """The distinct cells (:data:`CELL_KEYS`) of the study's records (or of ``frame``,
+        some of them), sorted: the ``where`` of :meth:`late_gain` for each. A cell run at
+        two budgets is two cells."""
+        frame = self.study(name).df if frame is None else frame
+        keys = [key for key in CELL_KEYS if key in frame]
+        return frame[keys].drop_duplicates().sort_values(keys).to_dict("records")
+
+    def budgets(self, name: str, spec: str = ".0f") -> str:
+        """The evaluations per start of the study's cells (:meth:`cells`) as text: the
+        budget of most cells, then each other budget with its count of cells, e.g.
+        "50000 (200000 in 6 of 22 cells)"; "—" without a ``max_evals``."""
+        counts: dict[float, int] = {}
+        cells = self.cells(name)
+        for cell in cells:
+            budget = float(cell.get("max_evals", float("nan")))
+            if budget == budget:
+                counts[budget] = counts.get(budget, 0) + 1
+        if not counts:
+            return "—"
+        main = max(sorted(counts), key=lambda budget: counts[budget])
+        others = [f"{fmt(budget, spec)} in {counts[budget]} of {len(cells)} cells"
+                  for budget in sorted(counts) if budget != main]
+        return fmt(main, spec) + (f" ({'; '.join(others)})" if others else "")
 
     def polished(self, names: list[str]) -> list[str]:
         """The studies among ``names`` that are committed and whose searches were refined by
@@ -564,6 +596,7 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                        verdict=ctx.verdict, answers=ctx.answers,
                        held_out_words=ctx.held_out_words, basins=ctx.basins,
                        late_gain=ctx.late_gain, largest_late_gain=ctx.largest_late_gain,
+                       cells=ctx.cells, budgets=ctx.budgets,
                        problem_params=ctx.problem_params,
                        optimizer_setting=ctx.optimizer_setting,
                        polished=ctx.polished, polish_endings=ctx.polish_endings,

@@ -71,13 +71,35 @@ def test_late_gain_leaves_out_what_the_polish_gained(tmp_path):
 
 
 def test_largest_late_gain_over_every_cell_or_the_best_known_cells(tmp_path):
-    frame = _frame().assign(case="c", optimizer="cmaes")
+    frame = _frame().assign(case="c", optimizer="cmaes", job_id=["d1", "d2", "g1", "g2"],
+                            max_evals=100)
     ctx = _context(tmp_path, frame)
     assert ctx.largest_late_gain("s") == pytest.approx(100.0)  # diagonal 100 %, geagsp 0 %
     best = pd.DataFrame({"problem": ["p"], "case": ["c"], "param": ["geagsp"],
-                         "optimizer": ["cmaes"]})
+                         "optimizer": ["cmaes"], "job_id": ["g1"]})
     ctx.study("s").table = lambda stem: best  # the best-known table names geagsp alone
     assert ctx.largest_late_gain("s", best_known=True) == 0.0
+
+
+def test_a_cell_run_again_at_a_larger_budget_is_a_cell_of_its_own(tmp_path):
+    """The diagonal cell ran at 100 evaluations (late gain 100 %) and again at 400, where
+    its search had stopped improving: two cells, the largest late gain of any cell judged
+    at its largest budget, the best-known cell by its job, the budgets said per cell."""
+    small = _frame().assign(case="c", optimizer="cmaes", job_id=["d1", "d2", "g1", "g2"],
+                            max_evals=100)
+    again = small.iloc[:2].assign(job_id=["D1", "D2"], max_evals=400, n_evals=400,
+                                  trace_evals=[np.array([10, 40])] * 2,
+                                  trace_best=[np.array([2.0, 0.5])] * 2)
+    ctx = _context(tmp_path, pd.concat([small, again], ignore_index=True))
+    assert [(c["param"], c["max_evals"]) for c in ctx.cells("s")] == [
+        ("diagonal", 100), ("diagonal", 400), ("geagsp", 100)]
+    assert ctx.late_gain("s", ctx.cells("s")[0]) == pytest.approx(100.0)
+    assert ctx.late_gain("s", ctx.cells("s")[1]) == 0.0
+    assert ctx.largest_late_gain("s") == 0.0  # the 100-evaluation diagonal cell ran again
+    ctx.study("s").table = lambda stem: pd.DataFrame({"job_id": ["d2"]})
+    assert ctx.largest_late_gain("s", best_known=True) == pytest.approx(100.0)
+    assert ctx.budgets("s") == "100 (400 in 1 of 3 cells)"
+    assert _context(tmp_path / "one", small).budgets("s") == "100"
 
 
 def test_problem_params_agree_or_say_that_they_differ(tmp_path):

@@ -25,7 +25,7 @@ from typing import Any
 
 import jinja2
 
-from penaltyrun.docsgen import experiments, explanation, probe
+from penaltyrun.docsgen import convergence, experiments, explanation, probe
 from penaltyrun.docsgen.layout import (
     MAX_COLUMNS,
     fmt,
@@ -119,8 +119,6 @@ class StudyData:
 LABEL_COLUMNS = ("variant", "problem_variant", "note", "ci_note", "label")
 #: Columns of the verdict table shown outside its fold (one result per cell).
 VERDICT_MAIN = ("question", "diagonal best-known", "full best-known", "gain")
-#: What names one cell of a study for its late gain: a cell run at two budgets is two cells.
-CELL_KEYS = ("problem", "case", "param", "optimizer", "max_evals")
 #: Grid points per axis of the basin tables on the results pages (:meth:`Context.basins`).
 BASIN_POINTS = 12
 #: Columns of ``holdout.csv`` the results pages show.
@@ -420,71 +418,33 @@ class Context:
         return " / ".join(values)
 
     def late_gain(self, name: str, where: dict | None = None, share: float = 0.5) -> float:
-        """How far the searches were from converged: the median over the finished starts
-        matching ``where`` of the relative fall of the best-so-far cost over the last
-        ``1 - share`` of each start's search, (best at ``share`` · S − best at S) / |best at
-        S| in %, S the search's evaluations (``n_evals`` less the polish's
-        ``polish_evals``: a polish ends on its own criteria, and what it gains is not a
-        search still improving). From the anytime trace; 0 where nothing improved; NaN
-        without finished starts."""
-        import numpy as np
-        frame = self.study(name).rows(where)
-        frame = frame[frame["status"] == OK]
-        polish = frame["polish_evals"] if "polish_evals" in frame else [0] * len(frame)
-        gains = []
-        for evals, best, spent, polished in zip(frame["trace_evals"], frame["trace_best"],
-                                                frame["n_evals"], polish):
-            evals, best = np.asarray(evals, float), np.asarray(best, float)
-            search = float(spent) - (float(polished) if np.isfinite(polished) else 0.0)
-            at_end = evals <= search
-            before = evals <= share * search
-            if not before.any():
-                continue
-            final = float(best[at_end][-1])
-            if not np.isfinite(final) or final == 0.0:
-                continue
-            gains.append(100.0 * (float(best[before][-1]) - final) / abs(final))
-        return float(np.median(gains)) if gains else float("nan")
+        """:func:`.convergence.late_gain` of the study's records matching ``where``."""
+        return convergence.late_gain(self.study(name).rows(where), share)
 
     def largest_late_gain(self, name: str, best_known: bool = False) -> float:
-        """The largest :meth:`late_gain` of the study's cells (:data:`CELL_KEYS`: problem ×
-        case × map × optimizer × budget), each at its largest budget (a cell run again at a
-        larger budget is judged there), or of the cells holding a best-known value
-        (``best_known``: the cells of the ``best_known`` table's jobs); 0 where no cell has
-        one."""
-        frame = self.study(name).df
-        if best_known:
-            frame = frame[frame["job_id"].isin(self.study(name).table("best_known")["job_id"])]
-        elif "max_evals" in frame:
-            largest = frame.groupby(list(CELL_KEYS[:-1]))["max_evals"].transform("max")
-            frame = frame[(frame["max_evals"] == largest) | largest.isna()]
-        gains = [self.late_gain(name, cell) for cell in self.cells(name, frame)]
-        return max([0.0, *(g for g in gains if g == g)])  # NaN: a cell without finished starts
+        """:func:`.convergence.largest_late_gain` of the study's cells, or of the cells
+        holding a best-known value (``best_known``: the jobs of the ``best_known`` table)."""
+        best = self.study(name).table("best_known")["job_id"] if best_known else None
+        return convergence.largest_late_gain(self.study(name).df, best)
 
-    def cells(self, name: str, frame: Any = None) -> list[dict[str, Any]]:
-        """The distinct cells (:data:`CELL_KEYS`) of the study's records (or of ``frame``,
-        some of them), sorted: the ``where`` of :meth:`late_gain` for each. A cell run at
-        two budgets is two cells."""
-        frame = self.study(name).df if frame is None else frame
-        keys = [key for key in CELL_KEYS if key in frame]
-        return frame[keys].drop_duplicates().sort_values(keys).to_dict("records")
+    def cells(self, name: str) -> list[dict[str, Any]]:
+        """The study's cells (:func:`.convergence.cells`; a cell run at two budgets is two
+        cells), each the ``where`` of :meth:`late_gain`."""
+        return convergence.cells(self.study(name).df)
 
     def budgets(self, name: str, spec: str = ".0f") -> str:
-        """The evaluations per start of the study's cells (:meth:`cells`) as text: the
-        budget of most cells, then each other budget with its count of cells, e.g.
-        "50000 (200000 in 6 of 22 cells)"; "—" without a ``max_evals``."""
-        counts: dict[float, int] = {}
-        cells = self.cells(name)
-        for cell in cells:
-            budget = float(cell.get("max_evals", float("nan")))
-            if budget == budget:
-                counts[budget] = counts.get(budget, 0) + 1
-        if not counts:
-            return "—"
-        main = max(sorted(counts), key=lambda budget: counts[budget])
-        others = [f"{fmt(budget, spec)} in {counts[budget]} of {len(cells)} cells"
-                  for budget in sorted(counts) if budget != main]
-        return fmt(main, spec) + (f" ({'; '.join(others)})" if others else "")
+        """The study's evaluations per start as text (:func:`.convergence.budgets`)."""
+        return convergence.budgets(self.study(name).df, spec)
+
+    def budget_check(self, name: str) -> str:
+        """The cells of the study run at more than one budget
+        (:func:`.convergence.budget_check`) as Markdown; empty when there are none."""
+        frame = convergence.budget_check(self.study(name).df)
+        return markdown_table(frame, ".4g") if not frame.empty else ""
+
+    def budget_effect(self, name: str) -> float:
+        """:func:`.convergence.budget_effect` of the study's records."""
+        return convergence.budget_effect(self.study(name).df)
 
     def polished(self, names: list[str]) -> list[str]:
         """The studies among ``names`` that are committed and whose searches were refined by
@@ -597,6 +557,7 @@ def environment(root: Path, figures: explanation.Figures | None = None,
                        held_out_words=ctx.held_out_words, basins=ctx.basins,
                        late_gain=ctx.late_gain, largest_late_gain=ctx.largest_late_gain,
                        cells=ctx.cells, budgets=ctx.budgets,
+                       budget_check=ctx.budget_check, budget_effect=ctx.budget_effect,
                        problem_params=ctx.problem_params,
                        optimizer_setting=ctx.optimizer_setting,
                        polished=ctx.polished, polish_endings=ctx.polish_endings,

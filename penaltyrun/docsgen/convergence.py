@@ -1,0 +1,151 @@
+"""How close a study's searches came to converged, from its records: the late gain of each
+cell, and what running a cell again with more evaluations per start changed.
+
+A *cell* is one problem × case × map × optimizer × budget (:data:`CELL_KEYS`): a cell run
+again at a larger ``max_evals`` is a cell of its own, never pooled with the first. The
+results pages call these through :class:`penaltyrun.docsgen.results.Context`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from penaltyrun.docsgen.layout import fmt
+from penaltyrun.jobrecord import OK
+
+#: What names one cell of a study: a cell run at two budgets is two cells.
+CELL_KEYS = ("problem", "case", "param", "optimizer", "max_evals")
+#: Columns of :func:`budget_check`.
+BUDGET_CHECK_COLUMNS = ["problem", "case", "param", "optimizer", "evaluations per start",
+                        "starts", "best", "median", "best: change (%)",
+                        "median: change (%)", "late gain (%)"]
+
+
+def late_gain(frame: pd.DataFrame, share: float = 0.5) -> float:
+    """How far the searches of ``frame``'s records were from converged: the median over
+    the finished starts of the relative fall of the best-so-far cost over the last
+    ``1 - share`` of each start's search, (best at ``share`` · S − best at S) / |best at S|
+    in %, S the search's evaluations (``n_evals`` less the polish's ``polish_evals``: a
+    polish ends on its own criteria, and what it gains is not a search still improving).
+    From the anytime trace; 0 where nothing improved; NaN without finished starts."""
+    frame = frame[frame["status"] == OK]
+    polish = frame["polish_evals"] if "polish_evals" in frame else [0] * len(frame)
+    gains = []
+    for evals, best, spent, polished in zip(frame["trace_evals"], frame["trace_best"],
+                                            frame["n_evals"], polish):
+        evals, best = np.asarray(evals, float), np.asarray(best, float)
+        search = float(spent) - (float(polished) if np.isfinite(polished) else 0.0)
+        at_end = evals <= search
+        before = evals <= share * search
+        if not before.any():
+            continue
+        final = float(best[at_end][-1])
+        if not np.isfinite(final) or final == 0.0:
+            continue
+        gains.append(100.0 * (float(best[before][-1]) - final) / abs(final))
+    return float(np.median(gains)) if gains else float("nan")
+
+
+def cells(frame: pd.DataFrame) -> list[dict[str, Any]]:
+    """The distinct cells (:data:`CELL_KEYS`, those ``frame`` has) of the records
+    ``frame``, sorted, each as ``{column: value}``."""
+    keys = [key for key in CELL_KEYS if key in frame]
+    return frame[keys].drop_duplicates().sort_values(keys).to_dict("records")
+
+
+def rows_of(frame: pd.DataFrame, cell: dict[str, Any]) -> pd.DataFrame:
+    """The records of ``frame`` in ``cell`` (a missing budget matches a missing one)."""
+    keep = np.ones(len(frame), dtype=bool)
+    for key, value in cell.items():
+        keep &= frame[key].isin([value]).to_numpy()
+    return frame[keep]
+
+
+def at_largest_budget(frame: pd.DataFrame) -> pd.DataFrame:
+    """The records of each problem × case × map × optimizer at its largest budget (all of
+    them where it has none)."""
+    if "max_evals" not in frame:
+        return frame
+    largest = frame.groupby(list(CELL_KEYS[:-1]))["max_evals"].transform("max")
+    return frame[(frame["max_evals"] == largest) | largest.isna()]
+
+
+def largest_late_gain(frame: pd.DataFrame, best_jobs: pd.Series | None = None) -> float:
+    """The largest :func:`late_gain` of the cells of ``frame``, each problem × case × map
+    × optimizer at its largest budget (a cell run again with more evaluations is judged
+    there), or, given ``best_jobs`` (the job ids of the best-known values), of the cells
+    holding them; 0 where no cell has one."""
+    frame = frame[frame["job_id"].isin(best_jobs)] if best_jobs is not None \
+        else at_largest_budget(frame)
+    gains = [late_gain(rows_of(frame, cell)) for cell in cells(frame)]
+    return max([0.0, *(g for g in gains if g == g)])  # NaN: a cell without finished starts
+
+
+def budgets(frame: pd.DataFrame, spec: str = ".0f") -> str:
+    """The evaluations per start of the cells of ``frame`` as text: the budget of most
+    cells, then each other budget with its count of cells, e.g. "50000 (200000 in 6 of
+    22 cells)"; "—" without a ``max_evals``."""
+    every = cells(frame)
+    counts: dict[float, int] = {}
+    for cell in every:
+        budget = float(cell.get("max_evals", float("nan")))
+        if budget == budget:
+            counts[budget] = counts.get(budget, 0) + 1
+    if not counts:
+        return "—"
+    main = max(sorted(counts), key=lambda budget: counts[budget])
+    others = [f"{fmt(budget, spec)} in {counts[budget]} of {len(every)} cells"
+              for budget in sorted(counts) if budget != main]
+    return fmt(main, spec) + (f" ({'; '.join(others)})" if others else "")
+
+
+def budget_check(frame: pd.DataFrame) -> pd.DataFrame:
+    """Each problem × case × map × optimizer run at more than one budget, one row per
+    budget (smallest first): its starts, the best and median of the converged starts'
+    ``best_cost``, their change against the smallest budget's in % (negative: the larger
+    budget found lower costs) and the late gain (:func:`late_gain`); empty
+    (:data:`BUDGET_CHECK_COLUMNS`) when every cell ran at one budget."""
+    rows = []
+    if "max_evals" in frame:
+        for key, group in frame.groupby(list(CELL_KEYS[:-1]), sort=True):
+            if group["max_evals"].nunique() < 2:
+                continue
+            first = None
+            for budget, runs in group.groupby("max_evals", sort=True):
+                good = runs.loc[(runs["status"] == OK)
+                                & runs["best_converged"].astype(bool), "best_cost"]
+                best, median = float(good.min()), float(good.median())
+                first = first or (best, median)
+                rows.append({**dict(zip(CELL_KEYS, key)), "evaluations per start": budget,
+                             "starts": f"{len(good)} of {len(runs)}", "best": best,
+                             "median": median,
+                             "best: change (%)": 100.0 * (best - first[0]) / abs(first[0]),
+                             "median: change (%)":
+                                 100.0 * (median - first[1]) / abs(first[1]),
+                             "late gain (%)": late_gain(runs)})
+    return pd.DataFrame(rows, columns=BUDGET_CHECK_COLUMNS)
+
+
+def budget_effect(frame: pd.DataFrame) -> float:
+    """What the larger budgets changed in the best-known values: the largest relative fall,
+    in %, of a problem × case's best diagonal or best full converged cost (full: any map
+    but ``diagonal``) from the records at each cell's smallest budget alone to all of them;
+    NaN when every cell ran at one budget."""
+    if "max_evals" not in frame or budget_check(frame).empty:
+        return float("nan")
+    good = frame[(frame["status"] == OK) & frame["best_converged"].astype(bool)]
+    smallest = good.groupby(list(CELL_KEYS[:-1]))["max_evals"].transform("min")
+    family = np.where(good["param"] == "diagonal", "diagonal", "full")
+    every = good.groupby([good["problem"], good["case"], family])["best_cost"].min()
+    first = good[good["max_evals"] == smallest]
+    first = first.groupby([first["problem"], first["case"],
+                           family[(good["max_evals"] == smallest).to_numpy()]]
+                          )["best_cost"].min()
+    return float((100.0 * (first - every) / every.abs()).max())
+
+
+__all__ = ["BUDGET_CHECK_COLUMNS", "CELL_KEYS", "at_largest_budget", "budget_check",
+           "budget_effect", "budgets", "cells", "largest_late_gain", "late_gain", "rows_of"]

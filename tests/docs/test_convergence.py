@@ -1,0 +1,61 @@
+"""What a larger budget changed: the budget check and the budget effect of
+:mod:`penaltyrun.docsgen.convergence` on small hand-made records."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from penaltyrun.docsgen import convergence
+
+
+def _records(param: str, budget: int, costs: list[float], case: str = "c") -> pd.DataFrame:
+    """Finished, converged starts of one cell with best costs ``costs`` (flat traces)."""
+    n = len(costs)
+    return pd.DataFrame({
+        "problem": "p", "case": case, "param": param, "optimizer": "cmaes",
+        "max_evals": budget, "status": "ok", "best_converged": True, "best_cost": costs,
+        "job_id": [f"{param}-{budget}-{case}-{i}" for i in range(n)],
+        "n_evals": budget, "trace_evals": [np.array([1.0])] * n,
+        "trace_best": [np.array([c]) for c in costs]})
+
+
+def test_budget_check_compares_each_budget_with_the_smallest():
+    frame = pd.concat([_records("diagonal", 100, [2.0, 3.0]),
+                       _records("givens", 100, [1.0, 1.2, 1.6]),
+                       _records("givens", 400, [0.9, 1.0])], ignore_index=True)
+    table = convergence.budget_check(frame)
+    assert list(table.columns) == convergence.BUDGET_CHECK_COLUMNS
+    # only the Givens cell ran at two budgets: one row per budget, the smallest first
+    assert table["param"].tolist() == ["givens", "givens"]
+    assert table["evaluations per start"].tolist() == [100, 400]
+    assert table["starts"].tolist() == ["3 of 3", "2 of 2"]
+    assert table["best: change (%)"].tolist() == pytest.approx([0.0, -10.0])
+    assert table["median: change (%)"].tolist() == pytest.approx([0.0, 100 * (0.95 - 1.2) / 1.2])
+    assert table["late gain (%)"].tolist() == [0.0, 0.0]
+
+
+def test_budget_effect_is_the_largest_fall_of_a_best_known_value():
+    # the full best fell from 1.0 to 0.9 with the larger budget: 10 % of the new best
+    # (11.1 %); the diagonal best is unchanged; another case ran at one budget only
+    frame = pd.concat([_records("diagonal", 100, [2.0, 3.0]),
+                       _records("givens", 100, [1.0, 1.2]),
+                       _records("givens", 400, [0.9]),
+                       _records("givens", 100, [5.0], case="d")], ignore_index=True)
+    assert convergence.budget_effect(frame) == pytest.approx(100 * 0.1 / 0.9)
+    # a larger budget that found nothing lower changed nothing
+    worse = frame.assign(best_cost=np.where(frame["max_evals"] == 400, 1.5,
+                                            frame["best_cost"]))
+    assert convergence.budget_effect(worse) == pytest.approx(0.0)
+
+
+def test_one_budget_everywhere_has_no_budget_check():
+    frame = pd.concat([_records("diagonal", 100, [2.0]), _records("givens", 100, [1.0])],
+                      ignore_index=True)
+    assert convergence.budget_check(frame).empty
+    assert math.isnan(convergence.budget_effect(frame))
+    assert convergence.budgets(frame) == "100"
+    assert convergence.budgets(frame.drop(columns="max_evals")) == "—"

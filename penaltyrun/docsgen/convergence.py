@@ -19,7 +19,7 @@ from penaltyrun.jobrecord import OK
 #: What names one cell of a study: a cell run at two budgets is two cells.
 CELL_KEYS = ("problem", "case", "param", "optimizer", "max_evals")
 #: Columns of :func:`budget_check`.
-BUDGET_CHECK_COLUMNS = ["problem", "case", "param", "optimizer", "evaluations per start",
+BUDGET_CHECK_COLUMNS = ["problem", "case", "map", "optimizer", "evaluations per start",
                         "starts", "best", "median", "best: change (%)",
                         "median: change (%)", "late gain (%)"]
 
@@ -78,9 +78,9 @@ def largest_late_gain(frame: pd.DataFrame, best_jobs: pd.Series | None = None) -
     × optimizer at its largest budget (a cell run again with more evaluations is judged
     there), or, given ``best_jobs`` (the job ids of the best-known values), of the cells
     holding them; 0 where no cell has one."""
-    frame = frame[frame["job_id"].isin(best_jobs)] if best_jobs is not None \
-        else at_largest_budget(frame)
-    gains = [late_gain(rows_of(frame, cell)) for cell in cells(frame)]
+    judged = cells(frame[frame["job_id"].isin(best_jobs)]) if best_jobs is not None \
+        else cells(at_largest_budget(frame))
+    gains = [late_gain(rows_of(frame, cell)) for cell in judged]
     return max([0.0, *(g for g in gains if g == g)])  # NaN: a cell without finished starts
 
 
@@ -119,7 +119,8 @@ def budget_check(frame: pd.DataFrame) -> pd.DataFrame:
                                 & runs["best_converged"].astype(bool), "best_cost"]
                 best, median = float(good.min()), float(good.median())
                 first = first or (best, median)
-                rows.append({**dict(zip(CELL_KEYS, key)), "evaluations per start": budget,
+                rows.append({"problem": key[0], "case": key[1], "map": key[2],
+                             "optimizer": key[3], "evaluations per start": f"{budget:.0f}",
                              "starts": f"{len(good)} of {len(runs)}", "best": best,
                              "median": median,
                              "best: change (%)": 100.0 * (best - first[0]) / abs(first[0]),

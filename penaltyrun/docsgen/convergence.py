@@ -22,6 +22,8 @@ CELL_KEYS = ("problem", "case", "param", "optimizer", "max_evals")
 BUDGET_CHECK_COLUMNS = ["problem", "case", "map", "optimizer", "evaluations per start",
                         "starts", "best", "median", "best: change (%)",
                         "median: change (%)", "late gain (%)"]
+#: Columns of :func:`budget_check` shown outside a fold on the results pages.
+BUDGET_CHECK_MAIN = tuple(c for c in BUDGET_CHECK_COLUMNS if c != "starts")
 
 
 def late_gain(frame: pd.DataFrame, share: float = 0.5) -> float:
@@ -148,5 +150,6 @@ def budget_effect(frame: pd.DataFrame) -> float:
     return float((100.0 * (first - every) / every.abs()).max())
 
 
-__all__ = ["BUDGET_CHECK_COLUMNS", "CELL_KEYS", "at_largest_budget", "budget_check",
-           "budget_effect", "budgets", "cells", "largest_late_gain", "late_gain", "rows_of"]
+__all__ = ["BUDGET_CHECK_COLUMNS", "BUDGET_CHECK_MAIN", "CELL_KEYS", "at_largest_budget",
+           "budget_check", "budget_effect", "budgets", "cells", "largest_late_gain",
+           "late_gain", "rows_of"]

@@ -438,9 +438,12 @@ class Context:
 
     def budget_check(self, name: str) -> str:
         """The cells of the study run at more than one budget
-        (:func:`.convergence.budget_check`) as Markdown; empty when there are none."""
+        (:func:`.convergence.budget_check`) as Markdown, the count of starts behind a
+        fold (:data:`.convergence.BUDGET_CHECK_MAIN`); empty when there are none."""
         frame = convergence.budget_check(self.study(name).df)
-        return markdown_table(frame, ".4g") if not frame.empty else ""
+        return "" if frame.empty else narrow_table(
+            frame, ".4g", main=list(convergence.BUDGET_CHECK_MAIN),
+            keys=list(convergence.BUDGET_CHECK_COLUMNS[:5]))
 
     def budget_effect(self, name: str) -> float:
         """:func:`.convergence.budget_effect` of the study's records."""

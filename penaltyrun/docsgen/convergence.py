@@ -117,8 +117,7 @@ def budget_check(frame: pd.DataFrame) -> pd.DataFrame:
                 continue
             first = None
             for budget, runs in group.groupby("max_evals", sort=True):
-                good = runs.loc[(runs["status"] == OK)
-                                & runs["best_converged"].astype(bool), "best_cost"]
+                good = _converged(runs)["best_cost"]
                 best, median = float(good.min()), float(good.median())
                 first = first or (best, median)
                 rows.append({"problem": key[0], "case": key[1], "map": key[2],
@@ -137,17 +136,21 @@ def budget_effect(frame: pd.DataFrame) -> float:
     in %, of a problem × case's best diagonal or best full converged cost (full: any map
     but ``diagonal``) from the records at each cell's smallest budget alone to all of them;
     NaN when every cell ran at one budget."""
-    if "max_evals" not in frame or budget_check(frame).empty:
+    if "max_evals" not in frame or \
+            not frame.groupby(list(CELL_KEYS[:-1]))["max_evals"].nunique().gt(1).any():
         return float("nan")
-    good = frame[(frame["status"] == OK) & frame["best_converged"].astype(bool)]
+    good = _converged(frame)
+    good = good.assign(family=np.where(good["param"] == "diagonal", "diagonal", "full"))
     smallest = good.groupby(list(CELL_KEYS[:-1]))["max_evals"].transform("min")
-    family = np.where(good["param"] == "diagonal", "diagonal", "full")
-    every = good.groupby([good["problem"], good["case"], family])["best_cost"].min()
-    first = good[good["max_evals"] == smallest]
-    first = first.groupby([first["problem"], first["case"],
-                           family[(good["max_evals"] == smallest).to_numpy()]]
-                          )["best_cost"].min()
+    keys = ["problem", "case", "family"]
+    every = good.groupby(keys)["best_cost"].min()
+    first = good[good["max_evals"] == smallest].groupby(keys)["best_cost"].min()
     return float((100.0 * (first - every) / every.abs()).max())
+
+
+def _converged(frame: pd.DataFrame) -> pd.DataFrame:
+    """The finished starts of ``frame`` that converged."""
+    return frame[(frame["status"] == OK) & frame["best_converged"].astype(bool)]
 
 
 __all__ = ["BUDGET_CHECK_COLUMNS", "BUDGET_CHECK_MAIN", "CELL_KEYS", "at_largest_budget",

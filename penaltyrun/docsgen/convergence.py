@@ -58,12 +58,16 @@ def cells(frame: pd.DataFrame) -> list[dict[str, Any]]:
     return frame[keys].drop_duplicates().sort_values(keys).to_dict("records")
 
 
-def rows_of(frame: pd.DataFrame, cell: dict[str, Any]) -> pd.DataFrame:
-    """The records of ``frame`` in ``cell`` (a missing budget matches a missing one)."""
+def rows_of(frame: pd.DataFrame, where: dict[str, Any] | None = None,
+            converged: bool = False) -> pd.DataFrame:
+    """The records of ``frame`` matching ``where`` (column → value or list of values; a
+    missing value matches a missing one), only the finished starts that converged if
+    ``converged``."""
     keep = np.ones(len(frame), dtype=bool)
-    for key, value in cell.items():
-        keep &= frame[key].isin([value]).to_numpy()
-    return frame[keep]
+    for key, value in (where or {}).items():
+        keep &= frame[key].isin(value if isinstance(value, list) else [value]).to_numpy()
+    frame = frame[keep]
+    return _converged(frame) if converged else frame
 
 
 def at_largest_budget(frame: pd.DataFrame) -> pd.DataFrame:

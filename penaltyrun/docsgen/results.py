@@ -89,13 +89,9 @@ class StudyData:
         return read_results(self.folder / RESULTS)
 
     def rows(self, where: dict[str, Any] | None = None, converged: bool = False) -> Any:
-        """Records matching ``where`` (column → value or list of values)."""
-        frame = self.df
-        for key, value in (where or {}).items():
-            frame = frame[frame[key].isin(value if isinstance(value, list) else [value])]
-        if converged:
-            frame = frame[(frame["status"] == OK) & frame["best_converged"].astype(bool)]
-        return frame
+        """Records matching ``where`` (column → value or list of values), only the
+        converged finished starts if ``converged`` (:func:`convergence.rows_of`)."""
+        return convergence.rows_of(self.df, where, converged)
 
     def table(self, stem: str) -> Any:
         """A report table of the study (``tables/<stem>.csv``) as a DataFrame."""

@@ -23,7 +23,7 @@ report of them alone (read lazily above 100 000 rows), with its progress bar off
 ``--steps`` it prints instead the resident memory as each step of the report begins and
 the bytes per row of the frame the report holds. Both run the report twice: with the
 allocators' defaults and with the process settings of ``penaltyrun-report``
-(:func:`penaltyrun.io.read.lean_process_memory`).
+(:func:`penaltyrun.io.memory.lean_process_memory`).
 
 ``--bca`` times the BCa interval of one cell (:func:`penaltyrun.report.stats.bca_ci`, its
 jackknife in closed form) against :func:`scipy.stats.bootstrap` (its jackknife evaluates
@@ -37,7 +37,7 @@ report this script times uses a fresh empty cache, so it draws every section.
 ``--row-groups N`` writes N synthetic rows twice, in penaltyrun's row groups
 (:data:`penaltyrun.io.schema.ROW_GROUP_ROWS` rows) and as one group (pyarrow's default for
 up to a million rows), and times reading the report's per-row columns of one row in the
-middle of each (:func:`penaltyrun.io.read.fill_columns`, as a lazily read report reads a
+middle of each (:func:`penaltyrun.io.lazy.fill_columns`, as a lazily read report reads a
 best start), each in a fresh process.
 
 ``--same A B`` compares two report folders: the same file names, every table and text file
@@ -85,9 +85,9 @@ REPORT = ("import sys\nfrom multiprocessing import forkserver\n"
 #: turn, its CPU time (its workers' included) reaches the report process's children and so
 #: the ``os.wait4`` of the benchmark. Peak RSS stays that of the largest single process.
 #: :data:`REPORT` with the allocators' defaults (the command line sets them up to give
-#: freed memory back: :func:`penaltyrun.io.read.lean_process_memory`).
+#: freed memory back: :func:`penaltyrun.io.memory.lean_process_memory`).
 REPORT_DEFAULT_MEMORY = REPORT.replace(
-    "import sys\n", "import sys\nimport penaltyrun.io.read as r\n"
+    "import sys\n", "import sys\nimport penaltyrun.io.memory as r\n"
     "r.lean_process_memory = lambda: None\n", 1)
 #: The report of ``sys.argv[1]`` with the resident memory (now and peak) printed as each
 #: step of its progress bar begins, and the bytes per row of the frame it holds.
@@ -104,7 +104,7 @@ def peak():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 if sys.argv[3] == "lean":  # the command line's process settings (penaltyrun-report)
-    from penaltyrun.io.read import lean_process_memory
+    from penaltyrun.io.memory import lean_process_memory
     lean_process_memory()
 begin, step = time.process_time(), Steps.step
 def logged(self, name):
@@ -182,9 +182,9 @@ def large(rows: int, steps: bool = False) -> None:
 
 #: Read the report's per-row columns of row ``sys.argv[2]`` of the file ``sys.argv[1]``.
 ONE_ROW = ("import sys\nimport numpy as np\nfrom pathlib import Path\n"
-           "from penaltyrun.io.read import _read_rows\n"
+           "from penaltyrun.io.lazy import read_rows\n"
            "from penaltyrun.report.rows import ROW_COLUMNS\n"
-           "_read_rows(Path(sys.argv[1]), np.array([int(sys.argv[2])]), ROW_COLUMNS)\n")
+           "read_rows(Path(sys.argv[1]), np.array([int(sys.argv[2])]), ROW_COLUMNS)\n")
 
 
 #: Write ``sys.argv[2]`` synthetic rows into the folder ``sys.argv[1]`` twice: in

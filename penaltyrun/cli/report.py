@@ -71,7 +71,7 @@ def report_main(argv: list[str] | None = None) -> None:
         raise
     from penaltyrun import problems, report
     from penaltyrun.cli import progress
-    from penaltyrun.io.read import lean_process_memory
+    from penaltyrun.io.memory import lean_process_memory
 
     lean_process_memory()
 

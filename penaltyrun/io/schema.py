@@ -48,7 +48,7 @@ SCHEMA_HISTORY = {3: "anytime traces, warm start", 4: "timestamp columns",
                   10: "the polish's share of n_evals (polish_evals)"}
 RESULTS_FILE = "results.parquet"
 #: Rows per Parquet row group of a results file written here. A row group is the unit a
-#: reader decodes: a lazily read report (:func:`penaltyrun.io.read.fill_columns`) reads a
+#: reader decodes: a lazily read report (:func:`penaltyrun.io.lazy.fill_columns`) reads a
 #: whole group to get any of its rows, so the group, not the file, bounds its memory.
 ROW_GROUP_ROWS = 10_000
 

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from penaltyrun.io.read import declared_rows, read_results, release_memory
+from penaltyrun.io.memory import release_memory
+from penaltyrun.io.read import declared_rows, read_results
 from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (

@@ -44,7 +44,7 @@ import pandas as pd
 from scipy import stats
 
 from penaltyrun.io import decode_json
-from penaltyrun.io.read import fill_columns
+from penaltyrun.io.lazy import fill_columns
 from penaltyrun.jobrecord import NO_RESULT_STATUSES, OK
 from penaltyrun.problems import criteria
 from penaltyrun.report.compare import MAP_ORDER, NO_TEST, budget, equal_budget, map_order

@@ -15,7 +15,8 @@ from collections.abc import Hashable, Iterable, Iterator
 import numpy as np
 import pandas as pd
 
-from penaltyrun.io.read import LAZY_COLUMNS, ROW, SOURCE, fill_columns, read_batches
+from penaltyrun.io.filecheck import ROW, SOURCE
+from penaltyrun.io.lazy import LAZY_COLUMNS, fill_columns, read_batches
 from penaltyrun.io.schema import COLUMNS
 
 #: Columns the report never uses: not read (the per-iteration cost history, the resolved
@@ -64,7 +65,7 @@ def batches(df: pd.DataFrame, columns: Iterable[str]) -> Iterator[pd.DataFrame]:
     """Rows of ``df`` in batches with the report columns ``columns`` read for their rows
     (:func:`with_columns`): a loop over them holds one batch's text and lists at a time,
     not the whole frame's. A lazily read frame's batches are rows of whole row groups of
-    one file (:func:`penaltyrun.io.read.read_batches`: each group read once), in file
+    one file (:func:`penaltyrun.io.lazy.read_batches`: each group read once), in file
     order, so callers align by index label, not position; a frame read whole is one batch.
     """
     if not lazy(df):

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from penaltyrun import yamlsafe
 from penaltyrun.cli import overrides, userconf
-from penaltyrun.io import read
+from penaltyrun.io import filecheck
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "security.md"
 
@@ -16,8 +16,8 @@ def test_the_page_states_the_limits_of_the_code():
     assert f"| {yamlsafe.MAX_ALIAS_VALUES} values added when expanded |" in text
     assert (f"| {overrides.MAX_CHARS} characters, {overrides.MAX_VALUES} comma-separated "
             f"values, {yamlsafe.MAX_DEPTH} levels of brackets |") in text
-    assert f"| {read.MAX_FILE_ROWS} rows, 4 GiB ({read.MAX_FILE_BYTES} bytes) |" in text
-    assert read.MAX_FILE_BYTES == 4 << 30
+    assert f"| {filecheck.MAX_FILE_ROWS} rows, 4 GiB ({filecheck.MAX_FILE_BYTES} bytes) |" in text
+    assert filecheck.MAX_FILE_BYTES == 4 << 30
     assert userconf.SCAN_DEPTH == 3 and "`DIR/a/b/x.yaml`" in text
 
 

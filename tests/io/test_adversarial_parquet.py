@@ -9,11 +9,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from penaltyrun.io import read
+from penaltyrun.io import filecheck, read
 from penaltyrun.io.longholdout import LONG_FILE
 from penaltyrun.io.schema import RESULTS_FILE, to_table
 
-IDENTITY = read.IDENTITY_COLUMNS
+IDENTITY = filecheck.IDENTITY_COLUMNS
 
 
 def _record(start: int) -> dict:
@@ -31,7 +31,7 @@ def _good(folder):
 
 def _huge_rows(path):
     """A 1 MB file declaring more rows than the limit (all-null identity columns)."""
-    n = read.MAX_FILE_ROWS + 1
+    n = filecheck.MAX_FILE_ROWS + 1
     pq.write_table(pa.table({c: pa.nulls(n) for c in IDENTITY}), path)
 
 
@@ -99,7 +99,7 @@ HOSTILE = {"null problem": (_null_problem, "column problem has 1 empty values"),
            "deep problem parameters": (_deep_params, "column problem_params holds text "
                                                      "that is not usable JSON (JSON nested"),
            "damaged parameterization options": (_bad_options, "column param_options"),
-           "huge declared row count": (_huge_rows, f"declares {read.MAX_FILE_ROWS + 1} rows"),
+           "huge declared row count": (_huge_rows, f"declares {filecheck.MAX_FILE_ROWS + 1} rows"),
            "dictionary bomb": (_dictionary_bomb, "bytes when read (the limit is"),
            "truncated": (_truncated, ""),
            "random bytes": (_random_bytes, ""),
@@ -132,14 +132,14 @@ def test_a_declared_uncompressed_size_over_the_limit_is_refused_from_the_footer(
     pq.write_table(table.set_column(table.column_names.index("error"), "error",
                                     pa.array(["e" * 3_000_000])), bad, compression="zstd")
     assert os.path.getsize(bad) < 100_000  # compressed: small on disk
-    monkeypatch.setattr(read, "MAX_FILE_BYTES", 2_000_000)
-    original = read._read_bounded
+    monkeypatch.setattr(filecheck, "MAX_FILE_BYTES", 2_000_000)
+    original = read.read_bounded
 
     def never_the_bad_file(path, columns=None):
         assert path != bad, "read beyond its footer"
         return original(path, columns)
 
-    monkeypatch.setattr(read, "_read_bounded", never_the_bad_file)
+    monkeypatch.setattr(read, "read_bounded", never_the_bad_file)
     df = read.read_results(tmp_path)
     assert list(df["start"]) == [0]
     assert "uncompressed (the limit is 2000000 per file)" in df.attrs["skipped_files"][str(bad)]
@@ -147,7 +147,7 @@ def test_a_declared_uncompressed_size_over_the_limit_is_refused_from_the_footer(
 
 def test_text_within_the_limit_is_read_as_plain_text(tmp_path):
     path = _good(tmp_path)
-    table = read._read_bounded(path)
+    table = filecheck.read_bounded(path)
     assert table.equals(pq.read_table(path))
     assert not any(pa.types.is_dictionary(f.type) for f in table.schema)
 

@@ -11,7 +11,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import tomllib
 
-from penaltyrun.io import read
+from penaltyrun.io import filecheck, read
 from penaltyrun.io.schema import RESULTS_FILE, to_table
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -61,7 +61,7 @@ def test_a_pickled_extension_type_is_refused_and_the_rest_is_read(tmp_path, capl
 
 def test_penaltyrun_output_declares_no_extension_type(tmp_path):
     pq.write_table(to_table([_record(0)], "run"), tmp_path / RESULTS_FILE)
-    assert read.check_footer(tmp_path / RESULTS_FILE) is None
+    assert filecheck.check_footer(tmp_path / RESULTS_FILE) is None
 
 
 def test_the_pyarrow_floor_excludes_the_unpickling_versions():

@@ -9,8 +9,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from penaltyrun.io import read
-from penaltyrun.io.read import LAZY_COLUMNS, ROW, SOURCE, declared_rows, fill_columns
+from penaltyrun.io import lazy, read
+from penaltyrun.io.filecheck import ROW, SOURCE
+from penaltyrun.io.lazy import LAZY_COLUMNS, fill_columns
+from penaltyrun.io.read import declared_rows
 from penaltyrun.io.schema import RESULTS_FILE, SCHEMA, normalize
 from penaltyrun.runner.records import write_text_atomic
 
@@ -127,9 +129,9 @@ def test_results_files_are_written_in_row_groups_a_lazy_reader_reads_one_at_a_ti
     assert [meta.row_group(i).num_rows for i in range(meta.num_row_groups)] == [3, 3, 2]
     frame = read.read_results(path, ("job_id", "status", "best_cost"), lazy=True)
     shuffled = frame.iloc[[7, 0, 4, 2, 5]]
-    batches = list(read.read_batches(shuffled, 1))
+    batches = list(lazy.read_batches(shuffled, 1))
     assert [sorted(shuffled[ROW].to_numpy()[b]) for b in batches] == [[0, 2], [4, 5], [7]]
-    joined = list(read.read_batches(shuffled, 3))  # whole groups, until 3 rows or more
+    joined = list(lazy.read_batches(shuffled, 3))  # whole groups, until 3 rows or more
     assert [sorted(shuffled[ROW].to_numpy()[b]) for b in joined] == [[0, 2, 4, 5], [7]]
     filled = fill_columns(shuffled.iloc[batches[1]], ("matrices",))
     assert [json.loads(m)["K"][0][0] for m in filled["matrices"]] == [5.0, 6.0]

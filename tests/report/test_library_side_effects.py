@@ -22,7 +22,7 @@ def test_report_modules_keep_the_callers_backend():
 def test_the_library_report_keeps_arrows_memory_pool_the_command_line_makes_it_lean(tmp_path):
     """Reporting through the library leaves Arrow's memory pool as the caller had it; the
     command line (a process of its own) gives freed memory back to the system
-    (:func:`penaltyrun.io.read.lean_process_memory`)."""
+    (:func:`penaltyrun.io.memory.lean_process_memory`)."""
     from large_results import write_large_results
 
     src = write_large_results(tmp_path / "results", 24)

@@ -60,7 +60,7 @@ def test_batches_of_a_lazy_frame_are_its_files_row_groups(tmp_path):
     """One batch per row group of each file, each group's rows in file order with the
     columns read; together every row with the values of a frame read whole; a frame read
     whole is one batch."""
-    from penaltyrun.io.read import ROW, SOURCE
+    from penaltyrun.io.filecheck import ROW, SOURCE
 
     whole, lazy = _read_both()
     parts = list(rows.batches(lazy, ("holdout", "matrices")))

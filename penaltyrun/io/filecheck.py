@@ -1,0 +1,227 @@
+"""What a results file must be before and while it is read, and its table as a frame.
+
+A file is refused from its footer alone (:func:`check_footer`: declared rows and bytes, an
+Arrow extension type), read with its text dictionary-encoded and decoded only within a byte
+limit (:func:`read_bounded`), and its table checked (:func:`check_table`), cast to the
+schema (:func:`conform`) and made a frame (:func:`table_frame`). Every refusal is a
+``ValueError`` whose message says why; :mod:`penaltyrun.io.read` turns it into one warning
+naming the file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from penaltyrun.io import longholdout
+from penaltyrun.io.schema import (
+    COLUMNS,
+    SCHEMA_VERSION,
+    TIMESTAMP_COLUMNS,
+    _upgrade_settings,
+    decode_json,
+    to_timestamp,
+)
+
+#: Columns without which a Parquet file is not penaltyrun results.
+IDENTITY_COLUMNS = ("job_id", "problem", "case", "param", "optimizer", "status")
+#: JSON columns that name a job's cell (its variant, its parameterization): checked on
+#: reading, so a file holding damaged ones is skipped rather than breaking a report.
+KEY_JSON_COLUMNS = ("problem_params", "param_options")
+#: Columns read whatever the caller asks for: those that identify a job, check its file
+#: and count it once.
+KEEP_COLUMNS = (*IDENTITY_COLUMNS, "config_hash", "schema_version")
+#: Columns of a lazily read frame: the file (or job-record folder) each row comes from,
+#: and its position in that file.
+SOURCE, ROW = "_source", "_row"
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of ``exc``'s message (its type's name if it has none)."""
+    text = str(exc)
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def check_table(table: pa.Table) -> str | None:
+    """Why ``table`` cannot be read as penaltyrun results (None: it can)."""
+    missing = [c for c in IDENTITY_COLUMNS if c not in table.column_names]
+    if missing:
+        return f"not penaltyrun results (no column {', '.join(missing)})"
+    empty = [c for c in IDENTITY_COLUMNS if table.column(c).null_count]
+    if empty:
+        return (f"column {empty[0]} has {table.column(empty[0]).null_count} empty values "
+                f"(every job names its {', '.join(IDENTITY_COLUMNS)})")
+    if "schema_version" in table.column_names:
+        versions = [v for v in table.column("schema_version").to_pylist() if v is not None]
+        newer = sorted({v for v in versions if not isinstance(v, int) or v > SCHEMA_VERSION})
+        if newer:
+            return (f"unknown schema version {newer[0]} (this penaltyrun reads up to "
+                    f"{SCHEMA_VERSION}; upgrade penaltyrun)")
+    return None
+
+
+def conform(table: pa.Table) -> pa.Table:
+    """``table`` with each schema column cast to the schema's type where it differs.
+
+    Raises
+    ------
+    ValueError
+        A column cannot be cast without loss (e.g. ``n_evals`` with fractional values).
+    """
+    for name, (typ, _) in COLUMNS.items():
+        if name not in table.column_names or name in TIMESTAMP_COLUMNS:
+            continue  # missing columns are filled later; old text times are parsed later
+        column = table.column(name)
+        if column.type == typ or column.null_count == len(column):
+            continue
+        try:
+            cast = column.cast(typ, safe=True)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as exc:
+            raise ValueError(f"column {name} holds {column.type} values that are not "
+                             f"{typ} ({first_line(exc)[:80]})") from None
+        table = table.set_column(table.column_names.index(name), name, cast)
+    return table
+
+
+#: Marker of an Arrow extension type in a Parquet footer's serialized Arrow schema.
+EXTENSION_KEY = b"ARROW:extension:name"
+#: Most rows one results file may hold (declared in its footer; checked before reading).
+MAX_FILE_ROWS = 10_000_000
+#: Most bytes one results file may expand to when read: its declared uncompressed size,
+#: and the decoded size of its dictionary-encoded text (4 GiB).
+MAX_FILE_BYTES = 4 << 30
+
+
+def check_footer(path: Path) -> str | None:
+    """Why the Parquet file ``path`` is refused before its table is read (None: it is
+    not): more rows than :data:`MAX_FILE_ROWS` or more uncompressed bytes than
+    :data:`MAX_FILE_BYTES` declared, or an Arrow extension type in the footer's serialized
+    ``ARROW:schema`` (searched as bytes, not deserialized)."""
+    import base64
+
+    footer = pq.read_metadata(path)
+    groups = [footer.row_group(i) for i in range(footer.num_row_groups)]
+    rows = max(footer.num_rows, sum(g.num_rows for g in groups))
+    if rows > MAX_FILE_ROWS:
+        return f"declares {rows} rows (the limit is {MAX_FILE_ROWS} per file): not read"
+    size = sum(g.total_byte_size for g in groups)
+    if size > MAX_FILE_BYTES:
+        return (f"declares {size} bytes uncompressed (the limit is {MAX_FILE_BYTES} per "
+                f"file): not read")
+    meta = footer.metadata or {}
+    raw = meta.get(b"ARROW:schema", b"")
+    try:
+        raw = base64.b64decode(raw, validate=False)
+    except ValueError:
+        pass
+    if EXTENSION_KEY in raw or any(EXTENSION_KEY in v for v in meta.values()):
+        return ("declares an Arrow extension type (penaltyrun never writes one; a pickled "
+                "one can run code): not read")
+    return None
+
+
+def read_bounded(path: Path, columns: tuple[str, ...] | None = None) -> pa.Table:
+    """The table of ``path``, its text columns read dictionary-encoded and decoded only
+    when they fit :data:`MAX_FILE_BYTES` (a small file can hold one long text referred to
+    by every row: gigabytes once decoded, invisible in the footer). Columns the file
+    itself declares dictionary-encoded are measured and decoded the same way.
+
+    Raises
+    ------
+    ValueError
+        The decoded size is over the limit.
+    """
+    schema = pq.read_schema(path)
+    wanted = None if columns is None else [n for n in schema.names if n in columns]
+    table = pq.read_table(path, columns=wanted, read_dictionary=text_columns(schema, wanted))
+    return decoded(table)
+
+
+def text_columns(schema: pa.Schema, wanted: list[str] | None) -> list[str]:
+    """The text columns of ``schema`` among ``wanted`` (None: all), read
+    dictionary-encoded by :func:`read_bounded`."""
+    return [f.name for f in schema if (wanted is None or f.name in wanted)
+            and (pa.types.is_string(f.type) or pa.types.is_binary(f.type))]
+
+
+def decoded(table: pa.Table, used: int = 0) -> pa.Table:
+    """``table`` (text read dictionary-encoded) decoded, when its decoded size (plus
+    ``used`` bytes already read from its file) fits :data:`MAX_FILE_BYTES` (see
+    :func:`read_bounded`).
+
+    Raises
+    ------
+    ValueError
+        The decoded size is over the limit.
+    """
+    if decoded_size(table) + used > MAX_FILE_BYTES:
+        raise ValueError(f"expands to more than {MAX_FILE_BYTES} bytes when read (the "
+                         f"limit is {MAX_FILE_BYTES} per file): not read")
+    fields = [f.with_type(f.type.value_type) if pa.types.is_dictionary(f.type) else f
+              for f in table.schema]
+    return table.cast(pa.schema(fields, metadata=table.schema.metadata))
+
+
+def decoded_size(table: pa.Table) -> int:
+    """Bytes of ``table`` with its dictionary-encoded columns decoded."""
+    import pyarrow.compute as pc
+
+    size = 0
+    for column in table.columns:
+        for chunk in column.chunks:
+            if not isinstance(chunk, pa.DictionaryArray) or not len(chunk):
+                size += chunk.nbytes
+            elif pa.types.is_string(chunk.type.value_type) or \
+                    pa.types.is_binary(chunk.type.value_type):
+                lengths = pc.fill_null(pc.binary_length(chunk.dictionary), 0)
+                size += int(pc.sum(pc.take(lengths, chunk.indices)).as_py() or 0)
+            else:  # fixed-width or nested values: each row the dictionary's mean entry
+                size += len(chunk) * chunk.dictionary.nbytes // max(1, len(chunk.dictionary))
+    return size
+
+
+def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = None
+           ) -> pd.DataFrame:
+    """A table read from the results file (or job-record folder) ``path`` as a frame of the
+    schema's columns (or of ``columns``): checked, upgraded from older schema versions, its
+    re-judged held-out data applied, and each row's :data:`SOURCE` and :data:`ROW`.
+
+    Raises
+    ------
+    ValueError
+        The table cannot be used (see :func:`check_table`, :func:`conform`)."""
+    names = [n for n in COLUMNS if columns is None or n in columns]
+    problem = check_table(table)
+    if problem:
+        raise ValueError(problem)
+    frame = conform(table).to_pandas()
+    for name in names:  # files of older schema versions lack newer columns
+        if name not in frame:
+            frame[name] = None
+    for name in (n for n in TIMESTAMP_COLUMNS if n in names):  # schema <= 3: ISO text
+        if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
+            frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
+    for name in (n for n in KEY_JSON_COLUMNS if n in names):  # each distinct value once
+        for value in frame[name].dropna().unique():
+            try:
+                decode_json(value)
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"column {name} holds text that is not usable JSON "
+                                 f"({first_line(exc)[:80]})") from None
+    try:
+        if "optimizer_settings" in names:  # each distinct (optimizer, settings) once
+            pairs = list(zip(frame["optimizer"], frame["optimizer_settings"]))
+            upgraded = {pair: _upgrade_settings(*pair) for pair in dict.fromkeys(pairs)}
+            frame["optimizer_settings"] = [upgraded[pair] for pair in pairs]
+    except (ValueError, TypeError, RecursionError) as exc:  # damaged or hostile JSON
+        raise ValueError(f"column optimizer_settings holds text that is not usable JSON "
+                         f"({first_line(exc)[:80]})") from None
+    frame = longholdout.apply(frame[names], path)
+    frame.attrs = {}
+    frame[SOURCE] = str(path)
+    frame[ROW] = np.arange(len(frame), dtype=np.int64)
+    return frame

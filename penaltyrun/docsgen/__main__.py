@@ -30,7 +30,7 @@ import logging
 import sys
 from pathlib import Path
 
-from penaltyrun.docsgen import probe, rejudge, results, studies
+from penaltyrun.docsgen import probe, rejudge, resultpages, studies
 from penaltyrun.errors import ConfigError
 from penaltyrun.runner.options import workers_argument
 
@@ -81,13 +81,13 @@ def main(argv: list[str] | None = None) -> int:
             path.write_text(text)
         return 0
     if args.command == "results":
-        for rel in results.render_all(root, reference=not args.no_reference,
-                                      only=args.only):
+        for rel in resultpages.render_all(root, reference=not args.no_reference,
+                                            only=args.only):
             print(f"wrote {rel}")
         return 0
     if args.command == "check":
-        problems = results.check(root, reference=not args.no_reference,
-                                 tables=not args.only, only=args.only)
+        problems = resultpages.check(root, reference=not args.no_reference,
+                                       tables=not args.only, only=args.only)
         for problem in problems:
             print(problem, file=sys.stderr)
         if problems:

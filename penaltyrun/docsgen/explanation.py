@@ -1,7 +1,7 @@
 """Explanation pages rendered from committed data, with their figures.
 
 Templates under ``studies/templates/explanation/*.md`` (Jinja, the same environment as the
-results pages, :func:`penaltyrun.docsgen.results.environment`) render to
+results pages, :func:`penaltyrun.docsgen.resultpages.environment`) render to
 ``docs/explanation/<name>.md``. A template gets a study's mechanism data through
 ``full_matrix(study, example=(problem, case))`` (a :class:`penaltyrun.docsgen.fullmatrix.Page`)
 and names its figures with ``page.figure(key)``.

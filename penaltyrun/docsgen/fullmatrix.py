@@ -294,7 +294,7 @@ class Page:
 
     def cell(self, problem: str, case: str, column: str, spec: str = ".3g") -> str:
         """One column of a cell's row, formatted with ``spec``."""
-        from penaltyrun.docsgen.results import fmt
+        from penaltyrun.docsgen.layout import fmt
 
         row = self.m.cells[(self.m.cells["problem"] == problem)
                            & (self.m.cells["case"] == case)]
@@ -305,7 +305,7 @@ class Page:
 
     def value(self, column: str, agg: str = "min", spec: str = ".3g") -> str:
         """``agg`` (min, max, median, count) of a column over the cells."""
-        from penaltyrun.docsgen.results import fmt
+        from penaltyrun.docsgen.layout import fmt
 
         values = self.m.cells[column].astype(float)
         return str(len(values)) if agg == "count" else fmt(getattr(values, agg)(), spec)
@@ -325,14 +325,14 @@ class Page:
     def example(self, field: str, spec: str = ".3g") -> str:
         """One field of the example scenario (:func:`example_scenario`), formatted with
         ``spec``."""
-        from penaltyrun.docsgen.results import fmt
+        from penaltyrun.docsgen.layout import fmt
 
         value = self.ex[field]
         return value if isinstance(value, str) else fmt(value, spec)
 
     def table(self) -> str:
         """The cells as a Markdown table (training, closed loop, held-out)."""
-        from penaltyrun.docsgen.results import fmt
+        from penaltyrun.docsgen.layout import fmt
 
         head = ["cell", "best full map", "training J diag → full", "saving",
                 "slowest Re s diag / full (1/s)", "min ζ diag / full", "ρ (full starts)",

@@ -9,7 +9,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from penaltyrun.docsgen import results
+from penaltyrun.docsgen import resultpages, results
 
 ROOT = Path(__file__).resolve().parents[2]
 #: Rows that answer a question about an optimizer's fidelity, not diagonal against full.
@@ -18,14 +18,14 @@ FIDELITY = ("reproduce the authors'", "differ from the authors'")
 
 def answer_rows(path: Path) -> list[tuple[str, str]]:
     text = path.read_text(encoding="utf-8")
-    block = text[text.index(results.README_START):text.index(results.README_END)]
+    block = text[text.index(resultpages.README_START):text.index(resultpages.README_END)]
     rows = [line for line in block.splitlines() if line.startswith("| ")][1:]  # no header
     cells = [[c.strip() for c in re.split(r"(?<!\\)\|", row)[1:-1]] for row in rows]
     assert all(len(c) == 3 for c in cells), "a row of the answer table lost a cell"
     return [(c[0], c[1]) for c in cells]
 
 
-@pytest.mark.parametrize("page", [ROOT / "README.md", ROOT / results.DOCS_HOME],
+@pytest.mark.parametrize("page", [ROOT / "README.md", ROOT / resultpages.DOCS_HOME],
                          ids=["README", "docs-home"])
 def test_every_answer_states_its_held_out_result(page):
     rows = answer_rows(page)

@@ -13,7 +13,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from penaltyrun.docsgen import results, tablecheck
+from penaltyrun.docsgen import resultpages, tablecheck
 from penaltyrun.io.longholdout import LONG_FILE
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -27,7 +27,7 @@ def copy(tmp_path: Path) -> Path:
     shutil.copytree(ROOT / "studies" / STUDY, tmp_path / "studies" / STUDY)
     (tmp_path / "studies" / "templates").mkdir()
     (tmp_path / "studies" / "templates" / "demo.md").write_text(TEMPLATE)
-    results.render_all(tmp_path, reference=False)
+    resultpages.render_all(tmp_path, reference=False)
     return tmp_path
 
 
@@ -68,7 +68,7 @@ def test_recomputed_closed_loop_diagnostics_tolerate_another_lapack(tmp_path):
 
 @pytest.mark.slow
 def test_committed_study_passes_and_each_mutation_fails(copy):
-    assert results.check(copy, reference=False) == []
+    assert resultpages.check(copy, reference=False) == []
     folder = copy / "studies" / STUDY
     job = _best_full(copy)
 
@@ -84,7 +84,7 @@ def test_committed_study_passes_and_each_mutation_fails(copy):
         frame.at[k, "holdout"] = json.dumps(held)
 
     _rewrite(source, scale)
-    problems = results.check(copy, reference=False)
+    problems = resultpages.check(copy, reference=False)
     assert any("holdout.csv" in p for p in problems), problems
     source.write_bytes(saved)
 
@@ -96,7 +96,7 @@ def test_committed_study_passes_and_each_mutation_fails(copy):
         frame.loc[frame["job_id"] == job, "best_cost"] *= 0.5
 
     _rewrite(data, cheaper)
-    assert results.check(copy, reference=False)
+    assert resultpages.check(copy, reference=False)
     data.write_bytes(saved)
 
     # (c) a stored p-value and, separately, a stored share
@@ -106,7 +106,7 @@ def test_committed_study_passes_and_each_mutation_fails(copy):
         frame = pd.read_csv(table)
         frame.loc[0, column] = 0.0123 if frame.loc[0, column] != 0.0123 else 0.5
         frame.to_csv(table, index=False)
-        problems = results.check(copy, reference=False)
+        problems = resultpages.check(copy, reference=False)
         assert any("holdout.csv" in p and column in p for p in problems), problems
         table.write_bytes(saved)
-    assert results.check(copy, reference=False) == []
+    assert resultpages.check(copy, reference=False) == []

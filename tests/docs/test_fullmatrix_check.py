@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from penaltyrun.docsgen import explanation, fullmatrix, results
+from penaltyrun.docsgen import explanation, fullmatrix, resultpages
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDY = "attitude_convergence"
@@ -36,7 +36,7 @@ def repo(tmp_path: Path) -> Path:
 
 
 def check(root: Path) -> list[str]:
-    return results.check(root, reference=False, tables=False, only=ONLY)
+    return resultpages.check(root, reference=False, tables=False, only=ONLY)
 
 
 def test_an_edited_number_fails_the_check(repo):

@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from penaltyrun.docsgen import comparefig, layout, results
+from penaltyrun.docsgen import comparefig, layout, resultpages, results
 from penaltyrun.report.compare import a12_interval, pairwise
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -133,11 +133,11 @@ def test_check_wants_each_figure_png_and_no_stray_figure(tmp_path):
     folder.mkdir(parents=True)
     numbers = comparefig.FIGURES / "a_a12.csv"
     (tmp_path / numbers).write_text("x\n")
-    assert results._check_figures(tmp_path, {numbers}) == [
+    assert resultpages._check_figures(tmp_path, {numbers}) == [
         f"{numbers.with_suffix('.png')}: missing (run `make docs-results`)"]
     (tmp_path / numbers.with_suffix(".png")).write_bytes(b"png")
     (folder / "old_a12.png").write_bytes(b"png")
-    assert results._check_figures(tmp_path, {numbers}) == [
+    assert resultpages._check_figures(tmp_path, {numbers}) == [
         f"{comparefig.FIGURES / 'old_a12.png'}: no results page draws it (delete it)"]
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from penaltyrun.docsgen import results
+from penaltyrun.docsgen import resultpages, results
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -139,10 +139,10 @@ def test_robust_page_and_answer_row_are_pending_without_their_data(tmp_path):
     for name in ("robust_attitude", "robust_mpc"):
         if (ROOT / "studies" / name / "results.parquet").is_file():
             pytest.skip("the robust studies are committed: the page is filled from them")
-    env = results.environment(ROOT)
+    env = resultpages.environment(ROOT)
     page = env.get_template("robust.md").render()
     assert "make study-robust_attitude" in page and "make study-robust_mpc" in page
     assert "Basins of attraction," not in page
-    answers = env.get_template(results.ANSWERS_TEMPLATE).render()
+    answers = env.get_template(resultpages.ANSWERS_TEMPLATE).render()
     row = next(line for line in answers.splitlines() if "tuned to work everywhere" in line)
     assert "make study-robust_attitude" in row

@@ -11,7 +11,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from penaltyrun.docsgen import results, studies
+from penaltyrun.docsgen import resultpages, studies, studydata
 
 ROOT = Path(__file__).resolve().parents[2]
 CONF = ROOT / "penaltyrun" / "conf"
@@ -97,7 +97,7 @@ def render_pages_with(name: str | list[str], dest: Path, root: Path) -> str:
     shutil.copy2(ROOT / "README.md", root)
     (root / "docs").mkdir(exist_ok=True)
     shutil.copy2(ROOT / "docs" / "index.md", root / "docs")
-    text = "\n".join(results.render(root, reference=False).values())
+    text = "\n".join(resultpages.render(root, reference=False).values())
     for other in names:
         assert f"study-{other}`" not in text.replace(f"regenerate it with `make study-{other}`", "")
         assert f"`{other}` | " in text
@@ -159,7 +159,7 @@ def test_templates_use_only_tables_the_report_writes(zermelo_study, tmp_path):
 
 def test_a_template_naming_a_table_the_report_never_writes_fails(zermelo_study):
     with pytest.raises(ValueError, match="not a table of the report"):
-        results.report_table("holdout_zermelo")
+        studydata.report_table("holdout_zermelo")
 
 
 @pytest.mark.slow  # about 45 s on 2 cores (the slow suite regenerates every study)

@@ -28,7 +28,7 @@ from penaltyrun.io.schema import (
 )
 
 #: Columns without which a Parquet file is not penaltyrun results.
-IDENTITY_COLUMNS = ("job_id", "problem", "case", "param", "optimizer", "status")
+IDENTITY_COLUMNS = ("job_id", "problem", "case", "param", "optimizer", "start", "status")
 #: JSON columns that name a job's cell (its variant, its parameterization): checked on
 #: reading, so a file holding damaged ones is skipped rather than breaking a report.
 KEY_JSON_COLUMNS = ("problem_params", "param_options")
@@ -185,7 +185,7 @@ def decoded_size(table: pa.Table) -> int:
 
 
 def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = None
-           ) -> pd.DataFrame:
+                ) -> pd.DataFrame:
     """A table read from the results file (or job-record folder) ``path`` as a frame of the
     schema's columns (or of ``columns``): checked, upgraded from older schema versions, its
     re-judged held-out data applied, and each row's :data:`SOURCE` and :data:`ROW`.
@@ -193,7 +193,8 @@ def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = N
     Raises
     ------
     ValueError
-        The table cannot be used (see :func:`check_table`, :func:`conform`)."""
+        The table cannot be used (see :func:`check_table`, :func:`conform`,
+        :func:`check_content`)."""
     names = [n for n in COLUMNS if columns is None or n in columns]
     problem = check_table(table)
     if problem:
@@ -220,8 +221,73 @@ def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = N
     except (ValueError, TypeError, RecursionError) as exc:  # damaged or hostile JSON
         raise ValueError(f"column optimizer_settings holds text that is not usable JSON "
                          f"({first_line(exc)[:80]})") from None
+    problem = check_content(frame)
+    if problem:
+        raise ValueError(problem)
     frame = longholdout.apply(frame[names], path)
     frame.attrs = {}
     frame[SOURCE] = str(path)
     frame[ROW] = np.arange(len(frame), dtype=np.int64)
     return frame
+
+
+#: JSON columns whose every value is an object ({name: value}) when present.
+OBJECT_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop",
+                  "optimizer_settings", "problem_params", "param_options")
+
+
+def check_content(frame: pd.DataFrame) -> str | None:
+    """Why the values of ``frame`` (a results table as read) cannot be reported (None: they
+    can): a best cost of −∞ (no cost is), a JSON column of :data:`OBJECT_COLUMNS` whose value
+    is not an object or is nested too deep to parse, a matrix that is not a rectangular
+    array of numbers, or held-out lists of different lengths. Each distinct value is decoded
+    once; columns absent from ``frame`` (a lazily read frame's) are not checked here but
+    when their rows are read."""
+    if "best_cost" in frame:
+        cost = pd.to_numeric(frame["best_cost"], errors="coerce").to_numpy(float)
+        if np.isneginf(cost).any():
+            return "column best_cost holds -inf (no cost is)"
+    for name in (n for n in OBJECT_COLUMNS if n in frame):
+        for value in frame[name].dropna().unique():
+            try:
+                decoded = decode_json(value)
+            except (ValueError, TypeError) as exc:
+                return f"column {name} holds text that is not usable JSON ({first_line(exc)[:80]})"
+            why = _object_problem(name, decoded)
+            if why:
+                return f"column {name} holds {why}"
+    return None
+
+
+def _object_problem(name: str, value: object) -> str | None:
+    """Why the decoded value of JSON column ``name`` is unusable (None: it is usable)."""
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        return f"a JSON {type(value).__name__} where an object is expected"
+    if name == "matrices":
+        for key, matrix in value.items():
+            if not _rectangular(matrix):
+                return f"matrix {str(key)[:40]!r}, which is not a rectangular array of numbers"
+    if name == "holdout":
+        lengths = {len(v) for v in value.values() if isinstance(v, list)}
+        if len(lengths) > 1:
+            return "held-out lists of different lengths"
+        cost = value.get("cost", [])
+        if not isinstance(cost, list) or not all(_number(c) for c in cost):
+            return "held-out costs that are not a list of numbers"
+    return None
+
+
+def _number(value: object) -> bool:
+    """A JSON number (or null, a missing one); not a boolean."""
+    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
+
+
+def _rectangular(matrix: object) -> bool:
+    """Whether ``matrix`` is a non-empty list of equally long, non-empty lists of numbers."""
+    if not isinstance(matrix, list) or not matrix or not all(isinstance(r, list) for r in matrix):
+        return False
+    width = len(matrix[0])
+    return width > 0 and all(len(r) == width and all(_number(v) for v in r) for r in matrix)
+

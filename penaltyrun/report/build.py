@@ -36,6 +36,7 @@ from penaltyrun.report import (
 from penaltyrun.report.anytime import target_table
 from penaltyrun.report.bestknown import CERTIFY_RTOL, FIRST_ORDER_RTOL, best_known, shortfall
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
+from penaltyrun.report.fitting import fitting_rows
 from penaltyrun.report.progress import Steps
 from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS, lazy, with_columns
 from penaltyrun.report.stats import BCA_MAX_N, MIN_N_TEST, add_variant, cell_summary
@@ -145,8 +146,8 @@ def checks(df: pd.DataFrame) -> list[str]:
     lines = [f"- {md_line(w)}" for w in protocol.WARNINGS]
     unknown = df[~df["status"].isin(JOB_STATUSES)]
     for status, g in unknown.groupby("status"):
-        lines.append(f"- {len(g)} job(s) with status {status!r}, unknown to this report: "
-                     "listed, never counted as converged.")
+        lines.append(f"- {len(g)} job(s) with status '{md_text(status)}', unknown to this "
+                     "report: listed, never counted as converged.")
     if "n_nonfinite" in df:
         nf = pd.to_numeric(df["n_nonfinite"], errors="coerce").fillna(0)
         for (problem, case, variant, opt, param), g in df[nf > 0].groupby(
@@ -232,8 +233,8 @@ def build_report(src: Path, out: Path, paper: bool = True,
     if stream is None:
         stream = declared_rows(src) > STREAM_MIN_ROWS
     with trust.reading_results():
-        df = add_variant(read_results(src, FRAME_COLUMNS if stream else REPORT_COLUMNS,
-                                      lazy=stream))
+        df = fitting_rows(add_variant(read_results(
+            src, FRAME_COLUMNS if stream else REPORT_COLUMNS, lazy=stream)))
         sections_cache = None
         if cache_dir is not None and not stream:
             sections_cache = cache.SectionCache.at(cache_dir)

@@ -45,8 +45,11 @@ def matrices_of(row: pd.Series | dict) -> dict[str, np.ndarray]:
     return {k: np.asarray(v, float) for k, v in (decode_json(row["matrices"]) or {}).items()}
 
 
-def relative_deviation(K: np.ndarray, ref: np.ndarray) -> float:
-    """max |K − ref| / max |ref| (entrywise, relative to the largest entry)."""
+def relative_deviation(K: np.ndarray | None, ref: np.ndarray) -> float:
+    """max |K − ref| / max |ref| (entrywise, relative to the largest entry); ∞ for a
+    missing matrix (a start that stores none) or one of another shape."""
+    if K is None or np.shape(K) != np.shape(ref):
+        return float("inf")
     return float(np.max(np.abs(K - ref)) / np.max(np.abs(ref)))
 
 
@@ -117,10 +120,10 @@ def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
         best = full_row(cell, cell["best_cost"].astype(float).idxmin())
         devs = []
         for batch in batches(narrow(cell, ("matrices",)), ("matrices",)):
-            devs += [max(relative_deviation(matrices_of({"matrices": m})[k],
+            devs += [max(relative_deviation(matrices_of({"matrices": m}).get(k),
                                             np.asarray(v, float)) for k, v in ref.items())
                      for m in batch["matrices"]]
-        best_dev = max(relative_deviation(matrices_of(best)[k], np.asarray(v, float))
+        best_dev = max(relative_deviation(matrices_of(best).get(k), np.asarray(v, float))
                        for k, v in ref.items())
         rows.append({"map": name, "our best": float(best["best_cost"]),
                      "by": f"{best['optimizer']}/{best['param']}",

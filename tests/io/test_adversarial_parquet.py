@@ -94,7 +94,40 @@ def _null_problem(path):
     pq.write_table(to_table([{**_record(1), "problem": None}], "null"), path)
 
 
-HOSTILE = {"null problem": (_null_problem, "column problem has 1 empty values"),
+def _with(**values):
+    """A writer of one record of :func:`_record` with ``values`` stored in its columns."""
+    def make(path):
+        pq.write_table(to_table([{**_record(1), **values}], "bad"), path)
+    return make
+
+
+def _no_start(path):
+    pq.write_table(to_table([_record(1)], "bad").drop(["start"]), path)
+
+
+DEEP = "[" * 100_000 + "]" * 100_000
+CONTENT = {"minus infinite cost": (_with(best_cost=-np.inf), "column best_cost holds -inf"),
+           "matrices not an object": (_with(matrices=[1, 2]), "column matrices holds a JSON "
+                                                              "list where an object"),
+           "ragged matrix": (_with(matrices={"K": [[1.0, 2.0], [3.0]]}),
+                             "matrix 'K', which is not a rectangular array"),
+           "matrix of text": (_with(matrices={"K": [["a", "b"], ["c", "d"]]}),
+                              "not a rectangular array of numbers"),
+           "scalar matrix": (_with(matrices={"K": 5.0}), "not a rectangular array"),
+           "deep matrices": (_with(matrices=DEEP), "column matrices holds text that is not "
+                                                   "usable JSON (JSON nested"),
+           "deep metrics": (_with(metrics=DEEP), "column metrics holds text"),
+           "matrices not JSON": (_with(matrices="{oops"), "column matrices holds text"),
+           "held-out costs not numbers": (_with(holdout={"cost": "cheap", "converged": [1]}),
+                                          "held-out costs that are not a list of numbers"),
+           "held-out lists of two lengths": (_with(holdout={"cost": [1.0], "x0": [1, 2]}),
+                                             "held-out lists of different lengths"),
+           "optimizer settings a list": (_with(optimizer_settings=[1, 2]),
+                                         "column optimizer_settings holds a JSON list"),
+           "no start column": (_no_start, "not penaltyrun results (no column start)")}
+
+HOSTILE = {**CONTENT,
+           "null problem": (_null_problem, "column problem has 1 empty values"),
            "deep JSON": (_deep_json, "column optimizer_settings holds text that is not"),
            "deep problem parameters": (_deep_params, "column problem_params holds text "
                                                      "that is not usable JSON (JSON nested"),

@@ -42,3 +42,14 @@ def test_no_bound_flag_inside_the_box():
     df = pd.DataFrame([job("diagonal", [[2.0, 0.0], [0.0, 0.5]]),
                        job("full", [[2.0, 0.3], [0.3, 1.0]])])
     assert not any("box may be too small" in line for line in checks(df))
+
+
+def test_an_unknown_status_reaches_the_markdown_inert():
+    """S5: a status carrying Markdown or HTML is escaped, never an image, link or tag."""
+    protocol.reset()
+    df = pd.DataFrame([job("full", [[1.0, 0.0], [0.0, 1.0]], status=s) for s in
+                       ("![k](/etc/passwd)", "<script>x</script>", "[x](javascript:y)")])
+    text = "\n".join(checks(df))
+    assert "status '!\\[k\\](/etc/passwd)'" in text
+    assert "status '\\<script\\>x\\</script\\>'" in text
+    assert "](" not in text.replace("\\](", "")

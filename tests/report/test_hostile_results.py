@@ -296,7 +296,8 @@ def test_a_plant_module_allowed_on_the_command_line_is_imported(planted):
     folder, marker = planted
     params = {"A": [[0.0, 1.0], [0.0, 0.0]], "B": [[0.0], [1.0]],
               "dynamics": "planted_plant:f"}
-    write(folder, rows(problem="lqr", case="default", params=params))
+    write(folder, rows(problem="lqr", case="default", params=params,
+                       matrices={"Q": [[1.0, 0.0], [0.0, 1.0]], "R": [[1.0]]}))
     report_main([str(folder), "--plant-module", "planted_plant"])
     assert marker.read_text() == "imported"  # allowed: imported (and f checked at 0)
     assert "planted_mod" not in sys.modules

@@ -1,0 +1,65 @@
+"""Rows whose stored matrices do not fit their problem are left out of the report once,
+with one warning, instead of breaking the sections that decode them."""
+
+import json
+import logging
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from penaltyrun.errors import ResultsUnreadableError
+from penaltyrun.io import RESULTS_FILE
+from penaltyrun.report import protocol
+from penaltyrun.report.fitting import fitting_rows
+
+GOLDEN = Path(__file__).parent / "golden" / "zermelo" / "input" / RESULTS_FILE
+
+
+def _frame(matrices: list) -> pd.DataFrame:
+    return pd.DataFrame({"problem": "zermelo", "case": "default", "problem_params": "{}",
+                         "run_id": [f"r{i}" for i in range(len(matrices))],
+                         "status": "ok", "matrices": [None if m is None else json.dumps(m)
+                                                      for m in matrices]})
+
+
+def test_matrices_of_another_problem_or_size_are_left_out_with_one_warning(caplog):
+    protocol.reset()
+    good = {"K": [[1.0, 0.0], [0.0, 1.0]]}
+    df = _frame([good, {"Q": [[1.0, 0.0], [0.0, 1.0]]}, {"K": [[1.0, 2.0, 3.0]]},
+                 {"K": [[1.0, 0.0], [0.0]]}, None, good])
+    with caplog.at_level(logging.WARNING):
+        kept = fitting_rows(df)
+    assert list(kept.index) == [0, 4, 5]  # a job storing no matrices (e.g. failed) stays
+    lines = [r.getMessage() for r in caplog.records if "do not fit" in r.getMessage()]
+    assert len(lines) == 1 and "left out 3 job(s) of zermelo / default" in lines[0]
+    assert "(K 2×2)" in lines[0] and "r1, r2, r3" in lines[0]
+
+
+def test_no_fitting_row_is_one_error_not_an_empty_report():
+    protocol.reset()
+    with pytest.raises(ResultsUnreadableError, match="no usable results"):
+        fitting_rows(_frame([{"Q": [[1.0]]}]))
+
+
+def test_a_report_beside_a_file_of_misfit_matrices_reports_the_rest(tmp_path, caplog):
+    from penaltyrun.cli import report_main
+
+    (tmp_path / "good").mkdir()
+    shutil.copy(GOLDEN, tmp_path / "good" / RESULTS_FILE)
+    table = pq.read_table(GOLDEN)
+    table = table.set_column(table.column_names.index("matrices"), "matrices",
+                             pa.array([json.dumps({"K": [[1.0, 2.0, 3.0]]})] * len(table)))
+    table = table.set_column(table.column_names.index("config_hash"), "config_hash",
+                             pa.array(["other"] * len(table)))
+    (tmp_path / "bad").mkdir()
+    pq.write_table(table, tmp_path / "bad" / RESULTS_FILE)
+    with caplog.at_level(logging.WARNING):
+        report_main([str(tmp_path), "-o", str(tmp_path / "report"), "--no-probe",
+                     "--basin-points", "0"])
+    text = (tmp_path / "report" / "report.md").read_text(encoding="utf-8")
+    assert f"left out {len(table)} job(s) of zermelo / default" in text
+    assert any("do not fit the problem" in r.getMessage() for r in caplog.records)

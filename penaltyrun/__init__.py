@@ -13,7 +13,11 @@ starts fast:
 
 from __future__ import annotations
 
-from penaltyrun import lazy
+from penaltyrun import safepath
+
+safepath.guard_report_cli()  # before any import a received folder could shadow
+
+from penaltyrun import lazy  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -312,7 +312,7 @@ def test_s1_python_m_report_cli_in_a_received_folder_imports_nothing_from_it(tmp
 
     folder = tmp_path / "received"
     write(folder, rows(problem="zz_user", config="problem:\n  module: planted_mod\n"))
-    for name in ("yaml", "matplotlib", "scipy", "tqdm", "planted_mod"):
+    for name in ("typing", "yaml", "matplotlib", "scipy", "tqdm", "planted_mod"):
         (folder / f"{name}.py").write_text(
             f"open({str(tmp_path / ('HIJACKED_' + name))!r}, 'w').write('x')\n", "utf-8")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
@@ -324,17 +324,31 @@ def test_s1_python_m_report_cli_in_a_received_folder_imports_nothing_from_it(tmp
 
 
 def test_report_cli_takes_the_current_folder_off_sys_path(tmp_path, monkeypatch):
-    from penaltyrun import report_cli
+    from penaltyrun import safepath
 
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("PYTHONPATH", raising=False)
     monkeypatch.setattr(sys, "path", [str(tmp_path), "/lib"])
-    report_cli._drop_current_folder()
+    safepath.drop_current_folder()
     assert sys.path == ["/lib"]
     monkeypatch.setattr(sys, "path", [str(tmp_path), "/lib"])
     monkeypatch.setenv("PYTHONPATH", ".")  # the user put it there: kept
-    report_cli._drop_current_folder()
+    safepath.drop_current_folder()
     assert sys.path == [str(tmp_path), "/lib"]
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["python", "-m", "penaltyrun.report_cli", "."], True),
+    (["python", "-mpenaltyrun.report_cli"], True),
+    (["python", "-X", "dev", "-B", "-m", "penaltyrun.report_cli"], True),
+    (["python", "-m", "penaltyrun.cli", "problem=zermelo"], False),
+    (["python", "script.py", "-m", "penaltyrun.report_cli"], False),
+    (["penaltyrun-report", "."], False),
+    (["python", "-c", "import penaltyrun"], False)])
+def test_the_package_knows_when_it_runs_as_the_report_module(argv, expected):
+    from penaltyrun import safepath
+
+    assert safepath.run_as(safepath.REPORT_MODULE, argv) is expected
 
 
 def test_an_unknown_case_is_reported_from_its_stored_columns(tmp_path):

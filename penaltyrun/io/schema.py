@@ -22,7 +22,12 @@ from penaltyrun import jobrecord
 from penaltyrun.errors import EnvironmentProblemError, describe_os_error
 from penaltyrun.jobrecord import SCHEMA_VERSION
 from penaltyrun.runner import lock
-from penaltyrun.runner.records import CORRUPT_DIR, load_record, quarantine_with_warning
+from penaltyrun.runner.records import (
+    CORRUPT_DIR,
+    load_record,
+    open_new,
+    quarantine_with_warning,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -166,7 +171,8 @@ def write_table_atomic(table: pa.Table, path: Path) -> Path:
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        pq.write_table(table, tmp, row_group_size=ROW_GROUP_ROWS)
+        with open_new(tmp) as fh:
+            pq.write_table(table, fh, row_group_size=ROW_GROUP_ROWS)
         os.replace(tmp, path)
     except OSError as exc:
         raise EnvironmentProblemError(describe_os_error(exc, path)) from None

@@ -21,7 +21,7 @@ import sys
 import time
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from penaltyrun.errors import EnvironmentProblemError, describe_os_error
 from penaltyrun.jobrecord import NO_RESULT_STATUSES, SCHEMA_VERSION
@@ -43,6 +43,24 @@ def job_path(run_dir: Path, job: Job) -> Path:
     return Path(run_dir) / JOBS_DIR / f"{job.job_id}.json"
 
 
+def open_new(path: Path) -> BinaryIO:
+    """``path`` opened for writing as a new regular file: whatever is at that name (a
+    stale temporary file, or a symbolic link planted there) is removed first, and the file
+    is created exclusively without following a link, so a write never lands outside the
+    folder. For the temporary files of atomic writes, whose names are predictable.
+
+    Raises
+    ------
+    OSError
+        The name could not be cleared or the file created (e.g. something was put there
+        again between the two).
+    """
+    path = Path(path)
+    path.unlink(missing_ok=True)  # removes a link itself, never its target
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
+    return os.fdopen(os.open(path, flags, 0o644), "wb")
+
+
 def write_text_atomic(path: Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` through a temporary file and a rename.
 
@@ -55,8 +73,8 @@ def write_text_atomic(path: Path, text: str) -> Path:
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}{TMP_SUFFIX}")
     try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        with open_new(tmp) as fh:
+            fh.write(text.encode("utf-8"))
         os.replace(tmp, path)
     except OSError as exc:
         raise EnvironmentProblemError(describe_os_error(exc, path)) from None
@@ -140,9 +158,19 @@ def read_record(path: Path) -> dict[str, Any] | None:
 
 
 def quarantine(path: Path) -> Path:
-    """Move an unusable record to ``jobs/corrupt/`` (time-stamped); returns the new path."""
+    """Move an unusable record to ``jobs/corrupt/`` (time-stamped); returns the new path.
+
+    Raises
+    ------
+    EnvironmentProblemError
+        ``jobs/corrupt`` is a symbolic link or not a folder: a record is never moved
+        through a link out of the run directory.
+    """
     path = Path(path)
     dest_dir = path.parent / CORRUPT_DIR
+    if dest_dir.is_symlink() or (dest_dir.exists() and not dest_dir.is_dir()):
+        raise EnvironmentProblemError(f"{dest_dir} is a symbolic link or not a folder, not "
+                                      "this run's own: remove it, then run again")
     dest_dir.mkdir(exist_ok=True)
     dest = dest_dir / f"{path.name}.{time.strftime('%Y%m%dT%H%M%S')}.{time.time_ns() % 10**9}"
     os.replace(path, dest)

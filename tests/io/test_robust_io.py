@@ -28,8 +28,7 @@ def test_collect_replaces_results_atomically(tmp_path, monkeypatch):
     assert sorted(p.name for p in run.iterdir()) == ["jobs", "results.parquet"]
 
     def broken(table, where, **kw):
-        with open(where, "wb") as fh:
-            fh.write(b"PAR1 half")
+        where.write(b"PAR1 half")  # the temporary file, as an open binary file
         raise OSError("disk full")
 
     monkeypatch.setattr(schema.pq, "write_table", broken)

@@ -4,6 +4,8 @@ blocks a resume and is never followed."""
 import os
 import threading
 
+import pytest
+
 from penaltyrun.runner import pending_jobs, plan_jobs
 from penaltyrun.runner.records import CORRUPT_DIR, job_path, load_record, write_record
 
@@ -45,3 +47,39 @@ def test_a_record_that_is_a_link_is_not_followed(tmp_path):
     assert record is None and "symbolic link" in reason
     assert [j.job_id for j in pending_jobs([job], tmp_path, resume=True)] == [job.job_id]
     assert elsewhere.read_text(encoding="utf-8") == '{"secret": 1}'
+
+
+def test_s7_an_atomic_write_never_follows_a_link_planted_at_its_temporary_name(tmp_path):
+    """The temporary name of an atomic write is predictable (``.<name>.<pid>.tmp``): a link
+    planted there is removed, never written through."""
+    import pyarrow as pa
+
+    from penaltyrun.io.schema import write_table_atomic
+    from penaltyrun.runner.records import write_text_atomic
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in ("results.parquet", "record.json"):
+        (run / f".{name}.{os.getpid()}.tmp").symlink_to(victim)
+    write_table_atomic(pa.table({"x": [1]}), run / "results.parquet")
+    write_text_atomic(run / "record.json", "{}")
+    assert victim.read_text() == "precious"
+    assert (run / "record.json").read_text() == "{}" and not list(run.glob(".*.tmp"))
+
+
+def test_s7_an_unusable_record_is_never_moved_through_a_linked_corrupt_folder(tmp_path):
+    from penaltyrun.errors import EnvironmentProblemError
+    from penaltyrun.runner.records import CORRUPT_DIR, quarantine
+
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    jobs = tmp_path / "run" / "jobs"
+    jobs.mkdir(parents=True)
+    (jobs / CORRUPT_DIR).symlink_to(elsewhere, target_is_directory=True)
+    record = jobs / "a.json"
+    record.write_text("{")
+    with pytest.raises(EnvironmentProblemError, match="symbolic link or not a folder"):
+        quarantine(record)
+    assert record.exists() and not list(elsewhere.iterdir())

@@ -249,14 +249,21 @@ def check_content(frame: pd.DataFrame) -> str | None:
             return "column best_cost holds -inf (no cost is)"
     for name in (n for n in OBJECT_COLUMNS if n in frame):
         for value in frame[name].dropna().unique():
-            try:
-                decoded = decode_json(value)
-            except (ValueError, TypeError) as exc:
-                return f"column {name} holds text that is not usable JSON ({first_line(exc)[:80]})"
-            why = _object_problem(name, decoded)
+            why = json_object_problem(name, value)
             if why:
-                return f"column {name} holds {why}"
+                return why
     return None
+
+
+def json_object_problem(name: str, text: object) -> str | None:
+    """Why the JSON text ``text`` of column ``name`` (one of :data:`OBJECT_COLUMNS`) cannot
+    be reported (None: it can), see :func:`check_content`."""
+    try:
+        decoded = decode_json(text)
+    except (ValueError, TypeError) as exc:
+        return f"column {name} holds text that is not usable JSON ({first_line(exc)[:80]})"
+    why = _object_problem(name, decoded)
+    return f"column {name} holds {why}" if why else None
 
 
 def _object_problem(name: str, value: object) -> str | None:

@@ -36,6 +36,35 @@ def _key(config_hash: object) -> str:
     return "" if config_hash is None or config_hash != config_hash else str(config_hash)
 
 
+def _read_checked(path: Path) -> pd.DataFrame:
+    """The columns of :data:`LONG_FILE` at ``path`` that :func:`apply` uses, read within the
+    limits of a results file and checked as one is (the held-out JSON of every row).
+
+    Raises
+    ------
+    ValueError, KeyError
+        The file is refused (footer, size, a column missing, unusable held-out JSON).
+    OSError, pyarrow.ArrowException
+        It cannot be read as Parquet.
+    """
+    # filecheck applies this module to every results frame it makes: imported here, once
+    # a re-judged file is found, not at this module's import.
+    from penaltyrun.io.filecheck import check_footer, json_object_problem, read_bounded
+
+    refused = check_footer(path)
+    if refused:
+        raise ValueError(refused)
+    long = read_bounded(path, ("job_id", "config_hash", "holdout")).to_pandas()
+    for name in ("job_id", "config_hash", "holdout"):
+        if name not in long:
+            raise KeyError(f"no column {name}")
+    for value in long["holdout"].dropna().unique():
+        why = json_object_problem("holdout", value)
+        if why:
+            raise ValueError(why)
+    return long
+
+
 def apply(frame: pd.DataFrame, results: Path) -> pd.DataFrame:
     """``frame`` (read from ``results``) with the ``holdout`` column of the re-judged file
     beside it, matched by ``job_id`` and ``config_hash``; ``frame`` unchanged without one.
@@ -44,7 +73,7 @@ def apply(frame: pd.DataFrame, results: Path) -> pd.DataFrame:
     if not path.is_file() or "holdout" not in frame:
         return frame
     try:
-        long = pd.read_parquet(path, columns=["job_id", "config_hash", "holdout"])
+        long = _read_checked(path)
     except (OSError, pa.ArrowException, ValueError, KeyError, MemoryError) as exc:
         text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         logger.warning("skipped re-judged held-out file %s: %s (the held-out data stored "

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import logging
 
 import pandas as pd
 import pyarrow.parquet as pq
+import pytest
 
 from penaltyrun.io.longholdout import LONG_FILE
 from penaltyrun.io.schema import read_results, to_table
@@ -32,3 +34,23 @@ def test_long_file_is_read_in_preference_and_left_out_jobs_carry_none(tmp_path):
     assert json.loads(df.loc["j2", "holdout"])["horizon"] == 10.0
     assert pd.isna(df.loc["j1", "holdout"])
     assert (df["best_cost"].to_numpy() == [1.0, 2.0, 3.0]).all()
+
+
+@pytest.mark.parametrize("holdout, words", [
+    ("{nope", "not usable JSON"),
+    ("[" * 100_000 + "]" * 100_000, "nested too deep"),
+    (json.dumps({"cost": "cheap", "converged": [1, 2]}), "held-out costs that are not")])
+def test_b8_a_damaged_long_file_is_skipped_and_the_stored_held_out_data_reported(
+        tmp_path, caplog, holdout, words):
+    path = tmp_path / "results.parquet"
+    pq.write_table(to_table(_records(), run_id="r"), path)
+    stored = read_results(path)
+    pd.DataFrame({"job_id": ["j0"], "config_hash": [stored["config_hash"].iloc[0]],
+                  "holdout": [holdout], "status": ["ok"],
+                  "wall_time_s": [0.1]}).to_parquet(tmp_path / LONG_FILE)
+    with caplog.at_level(logging.WARNING):
+        df = read_results(path)
+    assert df["holdout"].tolist() == stored["holdout"].tolist()
+    lines = [r.getMessage() for r in caplog.records if LONG_FILE in r.getMessage()]
+    assert len(lines) == 1 and "skipped re-judged held-out file" in lines[0]
+    assert words in lines[0]

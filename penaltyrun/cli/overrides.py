@@ -7,6 +7,7 @@ The command-line checks (:mod:`penaltyrun.cli.args`) and the preflight
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -113,8 +114,6 @@ def check_sweep_size(override: Any) -> None:
     ConfigError
         Naming the key, the number of values and the limit.
     """
-    import math
-
     from hydra.core.override_parser.types import RangeSweep
 
     value = override.value() if override.is_sweep_override() else None
@@ -124,6 +123,45 @@ def check_sweep_size(override: Any) -> None:
     if count > MAX_VALUES:
         raise ConfigError(override.key_or_group, f"sweep of {count} values (the limit is "
                           f"{MAX_VALUES} per override): split it over several commands")
+
+
+#: Most runs one ``-m`` command may sweep: the product of its sweeps' sizes.
+MAX_RUNS = 10_000
+
+
+def sweep_values(override: Any) -> int:
+    """Values of a parsed override: the length of a ``a,b,c`` or ``range(...)`` sweep, 1
+    for a single value (a glob of config choices counts 1: it is bounded by the files)."""
+    from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
+
+    if not override.is_sweep_override():
+        return 1
+    value = override.value()
+    if isinstance(value, ChoiceSweep):
+        return len(value.list)
+    if isinstance(value, RangeSweep) and value.step:
+        return max(0, math.ceil((value.stop - value.start) / value.step))
+    return 1
+
+
+def check_sweep_product(overrides: Iterable[Any]) -> None:
+    """Refuse a ``-m`` command whose sweeps together make more than :data:`MAX_RUNS` runs
+    (each sweep within its own limit, their product not: ``a=range(0,1000)
+    b=range(0,1000)`` is a million runs).
+
+    Raises
+    ------
+    ConfigError
+        Naming the sweeps' sizes, the product and the limit.
+    """
+    sizes = [(o.key_or_group, sweep_values(o)) for o in overrides]
+    sizes = [(key, n) for key, n in sizes if n != 1]
+    total = math.prod(n for _, n in sizes)
+    if total > MAX_RUNS:
+        shown = " × ".join(f"{n} ({key})" for key, n in sizes)
+        raise ConfigError("-m", f"the sweeps make {total} runs ({shown}; the limit is "
+                          f"{MAX_RUNS} runs per command): split the sweep over several "
+                          "commands")
 
 
 def parse_each(args: Iterable[str], describe: Callable[[BaseException], str],

@@ -13,7 +13,13 @@ from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun.cli import checks, userconf
 from penaltyrun.cli import spec as cells
-from penaltyrun.cli.overrides import check_size, check_sweep_size, parse_each, split_argv
+from penaltyrun.cli.overrides import (
+    check_size,
+    check_sweep_product,
+    check_sweep_size,
+    parse_each,
+    split_argv,
+)
 from penaltyrun.errors import ConfigError
 
 GROUPS = ("problem", "param", "optimizer", "experiment")
@@ -70,6 +76,8 @@ def preflight(argv: list[str]) -> str:
         _check_choices(parsed, source, hydra_overrides, searchpath)
         profile = _profile_sweeps(_compose_groups(parsed, source, hydra_overrides), parsed,
                                   parser) if multirun else []
+        if multirun:
+            check_sweep_product(parsed + profile)
         from_profile = {o.key_or_group for o in profile}
         try:
             _check_choices(parsed + profile, source, hydra_overrides, searchpath)

@@ -119,6 +119,27 @@ def test_an_experiment_profile_sweep_beyond_the_size_limit_is_one_error(tmp_path
         preflight(["--config-dir", str(tmp_path), "+experiment=big", "-m", "mode=plan"])
 
 
+def test_b4_sweeps_whose_product_is_too_large_are_refused_at_once(tmp_path):
+    """Each sweep within its own limit, together a million runs: one line before Hydra
+    expands anything; an experiment profile's sweeps count too."""
+    from penaltyrun.cli.overrides import MAX_RUNS
+    from penaltyrun.cli.preflight import preflight
+
+    with pytest.raises(ConfigError, match=f"the sweeps make 1000000 runs .*the limit is "
+                                          f"{MAX_RUNS} runs per command"):
+        preflight(["-m", "mode=plan", "runner.seed=range(0,1000)",
+                   "optimizer.max_evals=range(100,1100)"])
+    (tmp_path / "experiment").mkdir()
+    (tmp_path / "experiment" / "wide.yaml").write_text(
+        "# @package _global_\nhydra:\n  sweeper:\n    params:\n"
+        "      runner.seed: range(0,1000)\n")
+    with pytest.raises(ConfigError, match="the sweeps make 20000 runs"):
+        preflight(["--config-dir", str(tmp_path), "+experiment=wide", "-m", "mode=plan",
+                   "runner.n_starts=range(1,21)"])
+    assert preflight(["-m", "mode=plan", "runner.seed=range(0,10)",
+                      "optimizer.max_evals=range(100,110)"]) == "plan"
+
+
 def test_a_sweep_cell_whose_grid_is_too_large_fails_in_the_preflight():
     """The preflight builds each cell as the runner does (with the optimizer's dimension
     check): a later cell of a sweep that the runner would refuse is refused before any

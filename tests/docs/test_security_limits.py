@@ -18,6 +18,7 @@ def test_the_page_states_the_limits_of_the_code():
             f"values, {yamlsafe.MAX_DEPTH} levels of brackets |") in text
     assert f"| {filecheck.MAX_FILE_ROWS} rows, 4 GiB ({filecheck.MAX_FILE_BYTES} bytes) |" in text
     assert filecheck.MAX_FILE_BYTES == 4 << 30
+    assert f"| one `-m` command | {overrides.MAX_RUNS} runs |" in text
     assert userconf.SCAN_DEPTH == 3 and "`DIR/a/b/x.yaml`" in text
 
 
@@ -25,4 +26,5 @@ def test_the_sweeps_page_states_the_override_limits():
     text = (PAGE.parents[1] / "how-to" / "sweeps.md").read_text(encoding="utf-8")
     assert f"at most {overrides.MAX_VALUES} comma-separated values" in text
     assert f"and {overrides.MAX_CHARS} characters" in text
+    assert f"together make at most {overrides.MAX_RUNS} runs" in text
     assert "(../explanation/security.md#limits-on-what-is-read)" in text

@@ -132,15 +132,22 @@ def local_sources(module: str, origin: Path) -> list[Path]:
     """Source files of the local modules that ``module`` (file ``origin``) imports,
     transitively, sorted, ``origin`` itself excluded.
 
-    Local: found under :func:`source_root` by the import's dotted name (a module file, or a
-    package's ``__init__.py`` and the packages on the way), outside the interpreter's
-    prefixes (an installed module's imports are not followed) and not penaltyrun. Each
-    import is resolved statically, ``from . import x`` relative to the importing file's
-    package.
+    Local: the ``__init__.py`` of ``module``'s parent packages (they run whenever it is
+    imported), and what is found under :func:`source_root` by an import's dotted name (a
+    module file, or a package's ``__init__.py`` and the packages on the way), outside the
+    interpreter's prefixes (an installed module's imports are not followed) and not
+    penaltyrun. Each import is resolved statically, ``from . import x`` relative to the
+    importing file's package.
     """
     root = source_root(module, origin)
     prefixes = {Path(p).resolve() for p in (sys.prefix, sys.base_prefix, sys.exec_prefix)}
     todo, seen = [(origin, _dotted(origin, root))], {origin}
+    parts = module.split(".")[:-1]  # its parent packages: their __init__.py run on import
+    for depth in range(1, len(parts) + 1):
+        init = root.joinpath(*parts[:depth], "__init__.py")
+        if init.is_file() and init not in seen and not _under(init, prefixes):
+            seen.add(init)
+            todo.append((init, _dotted(init, root)))
     while todo and len(seen) <= MAX_LOCAL_FILES:
         path, dotted = todo.pop()
         for name in _imported_names(path, dotted, path.name == "__init__.py"):

@@ -85,6 +85,23 @@ def test_the_hash_follows_every_imported_local_module_and_nothing_else(package, 
     assert (module_source_hash(f"{pkg}.fit") != before) is changes
 
 
+def test_f20_the_parent_packages_init_counts_though_nothing_imports_it(tmp_path, monkeypatch):
+    """A package's ``__init__.py`` runs whenever its module is imported: editing it changes
+    the hash even when the module imports nothing local."""
+    pkg = f"lab_{uuid.uuid4().hex[:8]}"
+    (tmp_path / pkg).mkdir()
+    (tmp_path / pkg / "__init__.py").write_text("SCALE = 1\n")
+    (tmp_path / pkg / "mod.py").write_text("import os\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        before = module_source_hash(f"{pkg}.mod")
+        (tmp_path / pkg / "__init__.py").write_text("SCALE = 1000\n")
+        assert module_source_hash(f"{pkg}.mod") != before
+    finally:
+        for name in [n for n in sys.modules if n == pkg or n.startswith(f"{pkg}.")]:
+            del sys.modules[name]
+
+
 def test_a_module_importing_nothing_local_hashes_as_its_own_file(tmp_path, monkeypatch):
     name = f"alone_{uuid.uuid4().hex[:8]}"
     path = tmp_path / f"{name}.py"

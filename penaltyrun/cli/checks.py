@@ -74,9 +74,10 @@ def check_known_keys(cfg: Mapping[str, Any], base: Mapping[str, Any]) -> None:
                                       "instead")
 
 
-def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
+def check_run_dir(path: str | Path, key: str = "hydra.run.dir", sweep: bool = False) -> None:
     """Check that directory ``path`` exists or can be created (nothing is left behind),
-    that no other run is using it and that its ``results.parquet`` can be written.
+    that no other run is using it and that its ``results.parquet`` can be written; of a
+    ``sweep`` directory, also the run directories already in it.
 
     Raises
     ------
@@ -85,7 +86,7 @@ def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
         parent is not writable, ``results.parquet`` there is not a file, or another
         penaltyrun run holds the directory (:mod:`penaltyrun.runner.lock`).
     """
-    from penaltyrun.runner.lock import check_not_locked
+    from penaltyrun.runner.lock import check_not_locked, check_sweep_dir
 
     path = Path(path).expanduser()
     for part in (path, *path.parents):
@@ -97,7 +98,7 @@ def check_run_dir(path: str | Path, key: str = "hydra.run.dir") -> None:
         if results.exists() and not results.is_file():
             raise ConfigError(key, f"{results} exists and is not a file (penaltyrun writes "
                                    "its results there)")
-        check_not_locked(path, key)
+        (check_sweep_dir if sweep else check_not_locked)(path, key)
     if path.exists():
         if not path.is_dir():
             raise ConfigError(key, f"{path} exists and is not a directory")
@@ -257,7 +258,7 @@ def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) ->
     check_known_keys(plain_nohydra(cells.with_params_schema(cfg)), plain_nohydra(base))
     check_config(cfg, base=base)
     if multirun:
-        check_run_dir(cfg.hydra.sweep.dir, "hydra.sweep.dir")
+        check_run_dir(cfg.hydra.sweep.dir, "hydra.sweep.dir", sweep=True)
     else:
         check_run_dir(cfg.hydra.run.dir, "hydra.run.dir")
 

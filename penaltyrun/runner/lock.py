@@ -118,7 +118,8 @@ def is_locked(run_dir: Path) -> bool:
 #: Folders and files a run (and Hydra) writes into its directory: never symbolic links,
 #: and the files regular files (a FIFO would block the write).
 OWN_DIRS = (JOBS_DIR, ".hydra")
-OWN_FILES = (LOCK_FILE, ".hydra/config.yaml", ".hydra/hydra.yaml", ".hydra/overrides.yaml")
+OWN_FILES = (LOCK_FILE, ".hydra/config.yaml", ".hydra/hydra.yaml", ".hydra/overrides.yaml",
+             "multirun.yaml")
 
 
 def check_not_locked(run_dir: Path, key: str = "hydra.run.dir") -> None:
@@ -143,6 +144,28 @@ def check_not_locked(run_dir: Path, key: str = "hydra.run.dir") -> None:
                           "again")
     if is_locked(run_dir):
         raise _busy_error(run_dir, key)
+
+
+def check_sweep_dir(sweep_dir: Path, key: str = "hydra.sweep.dir") -> None:
+    """:func:`check_not_locked` of a sweep's directory and of each run directory already in
+    it (a resumed sweep writes into them); a run directory that is a symbolic link is
+    refused as well.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`check_not_locked`, naming the first offending path.
+    """
+    sweep_dir = Path(sweep_dir)
+    check_not_locked(sweep_dir, key)
+    if not sweep_dir.is_dir():
+        return
+    for child in sorted(sweep_dir.iterdir()):
+        if child.is_symlink():
+            raise ConfigError(key, f"{child} is a symbolic link; a sweep writes its runs only "
+                              "inside its directory: remove it, then run again")
+        if child.is_dir() and not child.name.startswith("."):
+            check_not_locked(child, key)
 
 
 def acquire(run_dir: Path) -> None:

@@ -89,3 +89,18 @@ def test_the_preflight_refuses_a_fifo_in_place_of_the_runs_own_files(tmp_path, n
     os.mkfifo(run / name)
     with pytest.raises(ConfigError, match="not a regular file.*remove it"):
         lock.check_not_locked(run)
+
+
+@pytest.mark.parametrize("name", ["multirun.yaml", "0_zermelo_full/.hydra/config.yaml",
+                                  "0_zermelo_full/.penaltyrun.lock", "1_zermelo_full"])
+def test_s7_a_sweep_refuses_links_in_its_own_and_its_runs_files(tmp_path, victim, name):
+    """A sweep's ``multirun.yaml`` and the files of the run directories already in it (a
+    resumed sweep writes into them), or a run directory itself, as a link: refused."""
+    sweep = tmp_path / "sweep"
+    (sweep / "0_zermelo_full" / ".hydra").mkdir(parents=True)
+    (sweep / name).symlink_to(victim)
+    with pytest.raises(ConfigError, match="is a symbolic link.*remove it"):
+        lock.check_sweep_dir(sweep)
+    assert victim.read_text(encoding="utf-8") == "precious data\n"
+    (sweep / name).unlink()
+    lock.check_sweep_dir(sweep)  # nothing else in the way

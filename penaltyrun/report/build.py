@@ -243,7 +243,8 @@ def build_report(src: Path, out: Path, paper: bool = True,
                                                    basin_points, progress, probe, n_workers,
                                                    sections_cache),
                           lambda folder: outdir.report_files(
-                              folder, [*TABLES, "summary", "comparison"]))
+                              folder, [*TABLES, "summary", "comparison"]),
+                          source=Path(src))
     if sections_cache is not None:
         sections_cache.prune()
     logger.info("report: %s", out / "report.md")

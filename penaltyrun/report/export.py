@@ -86,14 +86,14 @@ def export_best(src: Path, out: Path) -> list[Path]:
     Raises
     ------
     ConfigError
-        ``out`` is a symbolic link or a file.
+        ``out`` is a symbolic link or a file, or leads through a link inside ``src``.
     """
     out = Path(out)
     with trust.reading_results():
         best = best_per_cell(add_variant(read_results(src)))
     names: list[str] = []
     outdir.write_into(out, "--export", lambda tmp: names.extend(_write(best, tmp)),
-                      outdir.export_files, prefix=".export-")
+                      outdir.export_files, prefix=".export-", source=Path(src))
     logger.info("exported the best matrices of %d cells to %s", len(names) // 2, out)
     return [out / name for name in names]
 

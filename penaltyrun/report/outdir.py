@@ -38,15 +38,39 @@ def plain_name(name: str, suffixes: Iterable[str]) -> bool:
             and not name.startswith(".") and name.lower().endswith(tuple(suffixes)))
 
 
-def prepare(out: Path, key: str) -> Path:
-    """Create the output folder ``out``; refuse a symbolic link or a file.
+def link_inside(out: Path, source: Path) -> Path | None:
+    """The first part of the path ``out`` (as given, before ``..`` is resolved) that is a
+    symbolic link placed inside the folder ``source`` (a received results folder, which
+    may hold links pointing anywhere), or None."""
+    source = Path(source)
+    folder = Path(os.path.realpath(source if source.is_dir() else source.parent))
+    out = Path(out)
+    path = Path(out.anchor) if out.is_absolute() else Path.cwd()
+    for part in out.parts[1:] if out.is_absolute() else out.parts:
+        path = path / part
+        if part != ".." and path.is_symlink():
+            where = Path(os.path.realpath(path.parent))
+            if where == folder or folder in where.parents:
+                return path
+    return None
+
+
+def prepare(out: Path, key: str, source: Path | None = None) -> Path:
+    """Create the output folder ``out``; refuse a symbolic link or a file, and a path
+    through a symbolic link inside the results folder ``source`` (:func:`link_inside`).
 
     Raises
     ------
     ConfigError
-        ``out`` is a symbolic link or not a folder (one line with the fix).
+        ``out`` is a symbolic link or not a folder, or leads through a link inside
+        ``source`` (one line with the fix).
     """
     out = Path(out)
+    link = link_inside(out, source) if source is not None else None
+    if link is not None:
+        raise ConfigError(key, f"{out} leads through {link}, a symbolic link inside the "
+                          f"results folder {source}; reports and exports are written only "
+                          "into real folders: choose another folder")
     if out.is_symlink():
         raise ConfigError(key, f"{out} is a symbolic link; reports and exports are written "
                           "only into a real folder: remove the link or choose another folder")
@@ -117,10 +141,12 @@ def remove_abandoned(out: Path, prefix: str) -> list[str]:
 
 
 def write_into(out: Path, key: str, write: Callable[[Path], None],
-               owned: Callable[[Path], set[str]], prefix: str = ".report-") -> list[Path]:
+               owned: Callable[[Path], set[str]], prefix: str = ".report-",
+               source: Path | None = None) -> list[Path]:
     """Run ``write(tmp)`` in a fresh folder ``<prefix><pid>-XXXX`` inside ``out``, then move
     its files into ``out`` and remove the files ``owned(out)`` names that the new set does
-    not (and the temporary folders of killed reports, :func:`remove_abandoned`).
+    not (and the temporary folders of killed reports, :func:`remove_abandoned`); ``out``
+    is checked by :func:`prepare` against the results folder ``source``.
 
     Returns
     -------
@@ -133,7 +159,7 @@ def write_into(out: Path, key: str, write: Callable[[Path], None],
         Writing failed (e.g. a full disk): one line naming the folder (and the free space);
         nothing of the new output is left in ``out``.
     """
-    out = prepare(out, key)
+    out = prepare(out, key, source)
     remove_abandoned(out, prefix)
     tmp = Path(tempfile.mkdtemp(prefix=f"{prefix}{os.getpid()}-", dir=out))
     try:

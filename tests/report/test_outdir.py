@@ -89,3 +89,38 @@ def test_temporary_folders_of_killed_reports_are_removed_by_the_next_one(tmp_pat
     assert (tmp_path / "report.md").is_file()
     assert not [p for p in tmp_path.iterdir()
                 if p.name.startswith(f".report-{os.getpid()}-") and p != running]
+
+
+@pytest.mark.parametrize("given", ["received/report/v2", "received/lnk/../out",
+                                   "{abs}/received/report/v2"])
+def test_s8_an_output_path_through_a_link_inside_the_results_folder_is_refused(
+        tmp_path, monkeypatch, given):
+    """A received folder may hold links pointing anywhere: ``-o`` through one of them
+    (also followed by ``..``) is refused before anything is written."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    received = tmp_path / "received"
+    received.mkdir()
+    (received / "report").symlink_to(elsewhere, target_is_directory=True)
+    (received / "lnk").symlink_to(elsewhere / "deep", target_is_directory=True)
+    (elsewhere / "deep").mkdir()
+    monkeypatch.chdir(tmp_path)
+    out = given.format(abs=tmp_path)
+    with pytest.raises(ConfigError, match="symbolic link inside the results folder"):
+        outdir.write_into(out, "report.output", lambda tmp: None, lambda folder: set(),
+                          source=received)
+    assert sorted(p.name for p in elsewhere.rglob("*")) == ["deep"]
+
+
+def test_links_outside_the_results_folder_are_the_users_own(tmp_path, monkeypatch):
+    """A link on the way to the output that is not inside the results folder (a home
+    folder linked elsewhere) is followed as usual."""
+    real = tmp_path / "real"
+    real.mkdir()
+    (tmp_path / "home").symlink_to(real, target_is_directory=True)
+    (tmp_path / "received").mkdir()
+    monkeypatch.chdir(tmp_path)
+    outdir.write_into("home/report", "report.output",
+                      lambda tmp: (tmp / "a.md").write_text("x"), lambda folder: set(),
+                      source=tmp_path / "received")
+    assert (real / "report" / "a.md").read_text() == "x"

@@ -5,6 +5,7 @@ from pathlib import Path
 from penaltyrun import yamlsafe
 from penaltyrun.cli import overrides, userconf
 from penaltyrun.io import filecheck
+from penaltyrun.problems.lqr import plant
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "security.md"
 
@@ -19,6 +20,8 @@ def test_the_page_states_the_limits_of_the_code():
     assert f"| {filecheck.MAX_FILE_ROWS} rows, 4 GiB ({filecheck.MAX_FILE_BYTES} bytes) |" in text
     assert filecheck.MAX_FILE_BYTES == 4 << 30
     assert f"| one `-m` command | {overrides.MAX_RUNS} runs |" in text
+    assert f"| 64 MiB ({plant.MAX_PLANT_BYTES} bytes) of arrays once read |" in text
+    assert plant.MAX_PLANT_BYTES == 64 << 20
     assert userconf.SCAN_DEPTH == 3 and "`DIR/a/b/x.yaml`" in text
 
 

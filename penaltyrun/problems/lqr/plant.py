@@ -226,6 +226,27 @@ def _from_file(path: Any, key: str) -> tuple[Any, Any, float | None]:
     return data["A"], data["B"], dt
 
 
+#: Most bytes the arrays of one ``.npz`` or ``.mat`` plant file may take once read (checked
+#: from the file's headers before its arrays are decompressed).
+MAX_PLANT_BYTES = 64 << 20
+
+
+def _declared_bytes(file: Path, suffix: str) -> int:
+    """Bytes the arrays of a ``.npz`` (its members' uncompressed sizes) or ``.mat`` plant
+    file (each variable's shape, 16 bytes an entry at most) declare, read from headers
+    only; 0 for other files (a YAML file has its own limit)."""
+    if suffix == ".npz":
+        import zipfile
+
+        with zipfile.ZipFile(file) as archive:
+            return sum(info.file_size for info in archive.infolist())
+    if suffix == ".mat":
+        from scipy.io import whosmat
+
+        return sum(16 * int(np.prod(shape, dtype=np.int64)) for _, shape, _ in whosmat(file))
+    return 0
+
+
 def _read_plant_file(file: Path, key: str) -> Mapping[str, Any]:
     """The variables of a regular plant file, at least ``A`` and ``B``.
 
@@ -237,6 +258,10 @@ def _read_plant_file(file: Path, key: str) -> Mapping[str, Any]:
     """
     suffix = file.suffix.lower()
     try:
+        declared = _declared_bytes(file, suffix)
+        if declared > MAX_PLANT_BYTES:
+            raise ConfigError(key, f"{file.name} holds arrays of {declared} bytes once read "
+                              f"(the limit for a plant file is {MAX_PLANT_BYTES} bytes)")
         if suffix == ".mat":
             from scipy.io import loadmat
 

@@ -151,3 +151,21 @@ def test_bad_plant_on_the_command_line_exits_2(tmp_path, override, key):
     assert proc.returncode == 2, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and key in lines[0] and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".mat"])
+def test_a_plant_file_whose_arrays_are_too_large_is_refused_from_its_headers(tmp_path, suffix):
+    """A small file of compressed zeros declaring a 3000 × 3000 matrix (72 MB once read):
+    refused from its headers, before any array is decompressed (both formats compress)."""
+    from penaltyrun.problems.lqr import plant
+
+    A = np.zeros((3000, 3000))
+    path = tmp_path / f"big{suffix}"
+    if suffix == ".npz":
+        np.savez_compressed(path, A=A, B=np.zeros((3000, 1)))
+    else:
+        savemat(path, {"A": A, "B": np.zeros((3000, 1))}, do_compression=True)
+    assert path.stat().st_size < 2_000_000
+    assert 3000 * 3000 * 8 > plant.MAX_PLANT_BYTES
+    with pytest.raises(ConfigError, match="the limit for a plant file is"):
+        lqr.make_problem("default", {"plant_file": str(path)})

@@ -96,7 +96,8 @@ def _read_one(path: Path, columns: tuple[str, ...] | None = None) -> pd.DataFram
 def declared_rows(path: Path | Iterable[Path]) -> int:
     """Rows the results files at or under ``path`` declare in their footers (files whose
     footer cannot be read count 0; nothing else is read)."""
-    paths = find_results(path) if isinstance(path, (str, Path)) else [Path(p) for p in path]
+    paths = find_results(path, quiet=True) if isinstance(path, (str, Path)) else \
+        [Path(p) for p in path]
     total = 0
     for p in paths:
         try:

@@ -184,16 +184,17 @@ def write_table_atomic(table: pa.Table, path: Path) -> Path:
     return path
 
 
-def find_results(path: Path) -> list[Path]:
+def find_results(path: Path, quiet: bool = False) -> list[Path]:
     """Result files at ``path``: the file itself, or every results.parquet file below a
-    folder (not inside ``jobs/corrupt``; a directory of that name is no result file)."""
+    folder (not inside ``jobs/corrupt``; a directory of that name is no result file, with
+    one warning unless ``quiet``)."""
     path = Path(path)
     if path.is_file():
         return [path]
     candidates = [path] if path.exists() and not path.is_dir() else \
         [p for p in path.rglob(RESULTS_FILE) if CORRUPT_DIR not in p.parts]
     for p in candidates:
-        if not p.is_file():  # a pipe, a device or a folder of that name is never opened
+        if not p.is_file() and not quiet:  # a pipe, a device or a folder: never opened
             logger.warning("skipped %s: not a regular file", p)
     return sorted(p for p in candidates if p.is_file())
 

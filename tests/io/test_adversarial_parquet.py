@@ -200,3 +200,15 @@ def test_decode_json_turns_too_deep_into_a_value_error():
     with pytest.raises(ValueError, match="nested too deep"):
         decode_json("[" * 100_000 + "]" * 100_000)
     assert decode_json('{"a": [1]}') == {"a": [1]}
+
+
+def test_a_folder_named_like_a_results_file_is_named_once(tmp_path, caplog):
+    """Counting the declared rows (which a report does first) says nothing; reading says
+    once that the folder is not a regular file."""
+    _good(tmp_path / "good")
+    (tmp_path / "bad" / RESULTS_FILE).mkdir(parents=True)
+    with caplog.at_level(logging.WARNING):
+        assert read.declared_rows(tmp_path) == 1
+        read.read_results(tmp_path)
+    lines = [r.getMessage() for r in caplog.records if "not a regular file" in r.getMessage()]
+    assert len(lines) == 1

@@ -17,12 +17,14 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from penaltyrun import yamlsafe
+from penaltyrun.cli.reachable import follow_defaults
 from penaltyrun.errors import ConfigError
 
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
@@ -372,7 +374,7 @@ def check_files(source: ConfigSource, searchpath: list[str],
     choices : list of (group, name)
         Config-group choices of the command line, e.g. ``("experiment", "mine")``.
     """
-    check_limits(source, searchpath)
+    check_limits(source, searchpath, choices)
     check_yaml(source.primary / f"{source.config_name}.yaml", "--config-name")
     for group, name in choices:
         for folder in search_dirs(source, searchpath):
@@ -404,11 +406,14 @@ def _user_yaml_files(folder: Path) -> Iterator[Path]:
                 stack.append((entry, level + 1))
 
 
-def check_limits(source: ConfigSource, searchpath: list[str]) -> None:
+def check_limits(source: ConfigSource, searchpath: list[str],
+                 choices: Iterable[tuple[str, str]] = ()) -> None:
     """Every YAML file of the user's config directories within the limits of
     :mod:`penaltyrun.yamlsafe` (size, nesting, aliases), before Hydra reads any of them:
     Hydra follows defaults lists (an experiment's ``- /problem: mine``) to files the
-    command line does not name, and reads them without bounds. A file's syntax is left to
+    command line does not name, and reads them without bounds: the files the defaults lists
+    reach are checked too, hidden, deeper or behind a linked folder
+    (:func:`penaltyrun.cli.reachable.follow_defaults`). A file's syntax is left to
     :func:`check_yaml` and Hydra, which name it only when it is used.
 
     Raises
@@ -419,18 +424,28 @@ def check_limits(source: ConfigSource, searchpath: list[str]) -> None:
     import yaml
     from omegaconf._utils import get_yaml_loader
 
-    for folder in search_dirs(source, searchpath):
-        if not folder.is_dir() or folder.resolve() == CONF_DIR:
-            continue
-        for path in _user_yaml_files(folder):
-            try:
-                yamlsafe.load_file(path, loader=get_yaml_loader())
-            except yamlsafe.YamlLimitError as exc:
-                parts = path.relative_to(folder).parts
-                option = "--config-dir" if folder in source.config_dirs else \
-                    "--config-path" if folder == source.primary else "hydra.searchpath"
-                raise ConfigError(parts[0] if len(parts) > 1 else option,
-                                  f"{exc}; every YAML file in {_shown(folder)} is checked "
-                                  f"before Hydra reads any") from None
-            except (OSError, UnicodeDecodeError, yaml.YAMLError):
-                continue
+    user = [f for f in search_dirs(source, searchpath)
+            if f.is_dir() and f.resolve() != CONF_DIR]
+
+    def load(path: Path, folder: Path) -> Any:
+        try:
+            return yamlsafe.load_file(path, loader=get_yaml_loader())
+        except yamlsafe.YamlLimitError as exc:
+            parts = path.relative_to(folder).parts if folder in path.parents else ()
+            option = "--config-dir" if folder in source.config_dirs else \
+                "--config-path" if folder == source.primary else "hydra.searchpath"
+            raise ConfigError(parts[0] if len(parts) > 1 else option,
+                              f"{exc}; every YAML file in {_shown(folder)} is checked "
+                              f"before Hydra reads any") from None
+        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            return None
+
+    start = [(path, folder) for folder in user for path in _user_yaml_files(folder)]
+    primary = source.primary / f"{source.config_name}.yaml"
+    start += [(primary, source.primary)] if primary.is_file() else []
+    start += [(folder / group / f"{name}.yaml", folder) for group, name in choices
+              for folder in user if (folder / group / f"{name}.yaml").is_file()]
+    start = list(dict.fromkeys(start))
+    homes = {path: folder for path, folder in start}
+    follow_defaults(start, user, lambda path: load(path, homes.get(path) or next(
+        (f for f in user if f in path.parents), path.parent)))

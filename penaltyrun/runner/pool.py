@@ -138,6 +138,10 @@ def _worker_main(conn: Connection, parent_pid: int, func: JobFunc,
     """Loop of one worker: receive a job, send back ``("record", record)``; ``None`` ends
     the loop. A thread sends heartbeats meanwhile."""
     own_fault_handler()
+    try:  # its own process group: what a job's code starts ends with the worker (stop)
+        os.setpgid(0, 0)
+    except OSError:
+        pass
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the main process stops us
     interrupts.mark_worker()  # so a KeyboardInterrupt here comes from a job's code
     for signum in (signal.SIGTERM, signal.SIGHUP):  # not the main process's handlers
@@ -254,14 +258,27 @@ class _Worker:
 
     def stop(self, kill: bool = False) -> None:
         """End the worker: SIGTERM (SIGKILL with ``kill``, e.g. a stopped process), then
-        SIGKILL if it is still there after 5 s."""
+        SIGKILL if it is still there after 5 s; then every process left in its process
+        group (what a job's code started: a subprocess, a fork) is killed too."""
         if self.proc.is_alive():
             self.proc.kill() if kill else self.proc.terminate()
         self.proc.join(timeout=5)
         if self.proc.is_alive():
             self.proc.kill()
             self.proc.join(timeout=5)
+        _kill_group(self.proc.pid)
         self.conn.close()
+
+
+def _kill_group(pid: int | None) -> None:
+    """SIGKILL the process group ``pid`` leads (a worker's, :func:`_worker_main`), if it
+    still has members; never another group (a worker that had not yet made its own)."""
+    if not pid or pid == os.getpgid(0):
+        return
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
 
 
 def import_shared(jobs: list[Job]) -> list[str]:

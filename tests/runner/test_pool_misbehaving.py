@@ -41,6 +41,16 @@ def _misbehaving(job, how: str, marker_dir: Path):
             os._exit(3)
         elif how == "segv":
             os.kill(os.getpid(), signal.SIGSEGV)
+        elif how in ("subprocess", "fork"):  # a child that outlives the job, then a hang
+            import subprocess
+
+            child = subprocess.Popen(["sleep", "3600"]).pid if how == "subprocess" else \
+                os.fork()
+            if child == 0:
+                time.sleep(3600)
+                os._exit(0)
+            (marker_dir / f"child-{child}").write_text("")
+            time.sleep(3600)
     return {"job_id": job.job_id, "problem": job.problem, "case": job.case,
             "param": job.param, "optimizer": job.optimizer, "start": job.start,
             "seed": job.seed, "status": "ok", "best_cost": 1.0}
@@ -103,3 +113,22 @@ def test_which_worker_ends_are_its_own():
     assert ended_itself(-signal.SIGABRT)
     assert not ended_itself(-signal.SIGKILL) and not ended_itself(-signal.SIGTERM)
     assert not ended_itself(None)
+
+
+@pytest.mark.parametrize("how", ["subprocess", "fork"])
+def test_what_a_timed_out_job_started_ends_with_its_worker(tmp_path, how):
+    """F7: a job that starts a subprocess (or forks) and then hangs: recorded timeout, and
+    its child does not outlive the run (the worker's process group is killed)."""
+    out, _, _ = _run(how, tmp_path, job_timeout=1.0, stall_timeout=600, max_retries=1)
+    assert out[0]["status"] == "timeout"
+    pids = [int(p.name.split("-")[1]) for p in tmp_path.glob("child-*")]
+    assert len(pids) == 1
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and Path(f"/proc/{pids[0]}").exists() and \
+            Path(f"/proc/{pids[0]}/stat").read_text().split(")")[-1].split()[0] != "Z":
+        time.sleep(0.1)
+    alive = Path(f"/proc/{pids[0]}").exists() and \
+        Path(f"/proc/{pids[0]}/stat").read_text().split(")")[-1].split()[0] != "Z"
+    if alive:
+        os.kill(pids[0], signal.SIGKILL)
+    assert not alive

@@ -26,6 +26,7 @@ from penaltyrun.io.schema import (
     decode_json,
     to_timestamp,
 )
+from penaltyrun.typed import is_number
 
 #: Columns without which a Parquet file is not penaltyrun results.
 IDENTITY_COLUMNS = ("job_id", "problem", "case", "param", "optimizer", "start", "status")
@@ -288,7 +289,7 @@ def _object_problem(name: str, value: object) -> str | None:
 
 def _number(value: object) -> bool:
     """A JSON number (or null, a missing one); not a boolean."""
-    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
+    return value is None or is_number(value)
 
 
 def _rectangular(matrix: object) -> bool:

@@ -66,14 +66,14 @@ def prepare(out: Path, key: str, source: Path | None = None) -> Path:
         ``source`` (one line with the fix).
     """
     out = Path(out)
+    if out.is_symlink():
+        raise ConfigError(key, f"{out} is a symbolic link; reports and exports are written "
+                          "only into a real folder: remove the link or choose another folder")
     link = link_inside(out, source) if source is not None else None
     if link is not None:
         raise ConfigError(key, f"{out} leads through {link}, a symbolic link inside the "
                           f"results folder {source}; reports and exports are written only "
                           "into real folders: choose another folder")
-    if out.is_symlink():
-        raise ConfigError(key, f"{out} is a symbolic link; reports and exports are written "
-                          "only into a real folder: remove the link or choose another folder")
     if out.exists() and not out.is_dir():
         raise ConfigError(key, f"{out} is a file; pass a folder path")
     out.mkdir(parents=True, exist_ok=True)

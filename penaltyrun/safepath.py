@@ -8,7 +8,10 @@ folder, a file there named like a module that penaltyrun or the standard library
 not already loaded is imported (this module imports only ``os`` and ``sys``, which every
 interpreter has loaded at start-up) — unless the user put the folder on ``PYTHONPATH``.
 Other entry points keep the folder: the runner imports user problem modules from it on
-purpose.
+purpose. What no package can guard against is a planted ``penaltyrun.py`` (or
+``penaltyrun/``) in the folder, found before the package itself: in a folder received from
+someone else, run the installed ``penaltyrun-report`` command (or ``python -P -m``), which
+never puts the current folder on ``sys.path``.
 """
 
 import os
@@ -18,34 +21,38 @@ import sys
 REPORT_MODULE = "penaltyrun.report_cli"
 
 
-def run_as(module: str, argv: list[str] | None = None) -> bool:
-    """Whether this interpreter was started as ``python [options] -m module`` (from the
-    interpreter's original command line, ``argv`` by default ``sys.orig_argv``)."""
-    argv = list(getattr(sys, "orig_argv", []) if argv is None else argv)
-    i = 1
-    while i < len(argv):
-        arg = argv[i]
-        if arg == "-m":
-            return i + 1 < len(argv) and argv[i + 1] == module
-        if arg.startswith("-m"):
-            return arg[2:] == module
-        if not arg.startswith("-") or arg == "-c":
-            return False  # a script or a command: not -m
-        i += 2 if arg in ("-X", "-W") else 1  # these two take the next argument
-    return False
+def run_as(module: str, argv: list[str] | None = None,
+           orig_argv: list[str] | None = None) -> bool:
+    """Whether this interpreter runs ``python [options] -m module`` and is still locating
+    it: Python sets ``sys.argv[0]`` to ``"-m"`` while it imports the module's packages,
+    and the module's name is then the element of the original command line
+    (``sys.orig_argv``) just before the script's arguments, alone or as the tail of a
+    combined option (``-m module``, ``-mmodule``, ``-Bm module``, ``-Bmmodule``), whatever
+    options come first."""
+    argv = list(sys.argv if argv is None else argv)
+    orig = list(getattr(sys, "orig_argv", []) if orig_argv is None else orig_argv)
+    if not argv or argv[0] != "-m" or len(orig) < len(argv):
+        return False
+    name = orig[len(orig) - len(argv)]
+    if name.startswith("-"):  # -mmodule or -Bmmodule: the name follows the m
+        name = name[name.index("m") + 1:] if "m" in name[1:] else ""
+    return name == module
 
 
 def drop_current_folder() -> None:
-    """Remove the current folder that ``python -m`` put first on ``sys.path`` (kept when
-    the interpreter runs with ``-P``/``PYTHONSAFEPATH`` or the folder is on
-    ``PYTHONPATH``)."""
+    """Remove the current folder from ``sys.path``, where ``python -m`` put it first (and an
+    empty ``PYTHONPATH`` entry may have put it again); kept when the interpreter runs with
+    ``-P``/``PYTHONSAFEPATH`` or the user named the folder on ``PYTHONPATH``."""
     if not sys.path or sys.flags.safe_path:
         return
     here = os.path.abspath(os.getcwd())
     named = {os.path.abspath(p) for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
              if p}
-    if os.path.abspath(sys.path[0] or os.curdir) == here and here not in named:
-        del sys.path[0]
+    if here in named:
+        return
+    # the entry python -m put first, and any an empty PYTHONPATH entry ("a:" or ":a") put
+    # there too (an accident, not a choice of the folder)
+    sys.path[:] = [p for p in sys.path if os.path.abspath(p or os.curdir) != here]
 
 
 def guard_report_cli() -> None:

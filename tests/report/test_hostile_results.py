@@ -337,18 +337,33 @@ def test_report_cli_takes_the_current_folder_off_sys_path(tmp_path, monkeypatch)
     assert sys.path == [str(tmp_path), "/lib"]
 
 
-@pytest.mark.parametrize("argv, expected", [
-    (["python", "-m", "penaltyrun.report_cli", "."], True),
-    (["python", "-mpenaltyrun.report_cli"], True),
-    (["python", "-X", "dev", "-B", "-m", "penaltyrun.report_cli"], True),
-    (["python", "-m", "penaltyrun.cli", "problem=zermelo"], False),
-    (["python", "script.py", "-m", "penaltyrun.report_cli"], False),
-    (["penaltyrun-report", "."], False),
-    (["python", "-c", "import penaltyrun"], False)])
-def test_the_package_knows_when_it_runs_as_the_report_module(argv, expected):
+@pytest.mark.parametrize("orig, argv, expected", [
+    (["python", "-m", "penaltyrun.report_cli", "."], ["-m", "."], True),
+    (["python", "-mpenaltyrun.report_cli"], ["-m"], True),
+    (["python", "-Bm", "penaltyrun.report_cli", "."], ["-m", "."], True),
+    (["python", "-Bmpenaltyrun.report_cli", "."], ["-m", "."], True),
+    (["python", "--check-hash-based-pycs", "default", "-m", "penaltyrun.report_cli", "-o",
+      "x"], ["-m", "-o", "x"], True),
+    (["python", "-X", "dev", "-B", "-m", "penaltyrun.report_cli"], ["-m"], True),
+    (["python", "-m", "penaltyrun.cli", "problem=zermelo"], ["-m", "problem=zermelo"], False),
+    (["python", "script.py", "-m", "penaltyrun.report_cli"],
+     ["script.py", "-m", "penaltyrun.report_cli"], False),
+    (["penaltyrun-report", "."], ["penaltyrun-report", "."], False),
+    (["python", "-c", "import penaltyrun"], ["-c"], False)])
+def test_the_package_knows_when_it_runs_as_the_report_module(orig, argv, expected):
     from penaltyrun import safepath
 
-    assert safepath.run_as(safepath.REPORT_MODULE, argv) is expected
+    assert safepath.run_as(safepath.REPORT_MODULE, argv, orig) is expected
+
+
+def test_an_empty_pythonpath_entry_does_not_keep_the_current_folder(tmp_path, monkeypatch):
+    from penaltyrun import safepath
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("PYTHONPATH", "/lib:")
+    monkeypatch.setattr(sys, "path", [str(tmp_path), "/lib", "", "/std"])
+    safepath.drop_current_folder()
+    assert sys.path == ["/lib", "/std"]
 
 
 def test_an_unknown_case_is_reported_from_its_stored_columns(tmp_path):

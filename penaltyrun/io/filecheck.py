@@ -232,6 +232,8 @@ def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = N
     return frame
 
 
+#: Entries of the held-out JSON that are one value, not one per scenario.
+HOLDOUT_SCALARS = ("horizon", "training_horizon", "training")
 #: JSON columns whose every value is an object ({name: value}) when present.
 OBJECT_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop",
                   "optimizer_settings", "problem_params", "param_options")
@@ -284,12 +286,22 @@ def _object_problem(name: str, value: object) -> str | None:
         cost = value.get("cost", [])
         if not isinstance(cost, list) or not all(_number(c) for c in cost):
             return "held-out costs that are not a list of numbers"
+        if any(not isinstance(v, list) for k, v in value.items() if k not in HOLDOUT_SCALARS):
+            return "held-out data whose per-scenario entries are not all lists"
     return None
 
 
-def _number(value: object) -> bool:
-    """A JSON number (or null, a missing one); not a boolean."""
-    return value is None or is_number(value)
+def _number(value: object, missing: bool = True) -> bool:
+    """A JSON number that fits a float (or, with ``missing``, null); not a boolean."""
+    if value is None:
+        return missing
+    if not is_number(value):
+        return False
+    try:
+        float(value)
+    except OverflowError:  # an integer beyond the floats' range
+        return False
+    return True
 
 
 def _rectangular(matrix: object) -> bool:
@@ -297,5 +309,6 @@ def _rectangular(matrix: object) -> bool:
     if not isinstance(matrix, list) or not matrix or not all(isinstance(r, list) for r in matrix):
         return False
     width = len(matrix[0])
-    return width > 0 and all(len(r) == width and all(_number(v) for v in r) for r in matrix)
+    return width > 0 and all(len(r) == width and all(_number(v, missing=False) for v in r)
+                             for r in matrix)
 

@@ -20,6 +20,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from penaltyrun.errors import ResultsUnreadableError
 from penaltyrun.io import longholdout
 from penaltyrun.io.filecheck import (
     KEEP_COLUMNS,
@@ -77,7 +78,10 @@ def read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Data
     Raises
     ------
     ValueError
-        The file changed since it was read (fewer rows), or its rows cannot be used.
+        The file changed since it was read (fewer rows).
+    ResultsUnreadableError
+        Its rows cannot be used (:func:`~penaltyrun.io.filecheck.check_content`): one line
+        naming the file.
     OSError, pyarrow.ArrowException
         It cannot be read as Parquet.
     """
@@ -101,7 +105,12 @@ def read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Data
     table = decoded(pa.concat_tables(pieces)) if pieces else \
         decoded(parquet.schema_arrow.empty_table().select(present))
     with _Quiet(longholdout.logger):
-        frame = table_frame(table, path, wanted)
+        try:
+            frame = table_frame(table, path, wanted)
+        except ValueError as exc:  # damaged rows a lazy read meets only now: one line
+            raise ResultsUnreadableError(
+                f"{path}: {exc}; read lazily, its damaged rows were found only as they were "
+                "needed: move the file out of the folder, then report again") from None
     if order:  # back to the order of ``rows``
         frame = frame.iloc[np.argsort(np.concatenate(order), kind="stable")]
     return frame.reset_index(drop=True)

@@ -124,7 +124,13 @@ CONTENT = {"minus infinite cost": (_with(best_cost=-np.inf), "column best_cost h
                                              "held-out lists of different lengths"),
            "optimizer settings a list": (_with(optimizer_settings=[1, 2]),
                                          "column optimizer_settings holds a JSON list"),
-           "no start column": (_no_start, "not penaltyrun results (no column start)")}
+           "no start column": (_no_start, "not penaltyrun results (no column start)"),
+           "integer beyond the floats": (_with(matrices={"K": [[10 ** 400, 0], [0, 1]]}),
+                                         "not a rectangular array of numbers"),
+           "missing matrix entry": (_with(matrices={"K": [[1.0, None], [None, 1.0]]}),
+                                    "not a rectangular array of numbers"),
+           "held-out entry not a list": (_with(holdout={"cost": [1.0], "scenario": 7}),
+                                         "per-scenario entries are not all lists")}
 
 HOSTILE = {**CONTENT,
            "null problem": (_null_problem, "column problem has 1 empty values"),

@@ -115,6 +115,18 @@ def test_a_file_that_lost_rows_since_it_was_read_is_an_error(folder):
         fill_columns(lazy, ["matrices"])
 
 
+def test_damaged_rows_met_by_a_lazy_read_are_one_error_naming_the_file(tmp_path):
+    """A lazy read leaves the matrices in the file: a damaged one is found when its rows
+    are read, and said in one line naming the file (no traceback)."""
+    from penaltyrun.errors import ResultsUnreadableError
+
+    path = write_file(tmp_path / "d", [record(i) for i in range(5)]
+                      + [record(5, matrices={"K": [[1.0, 2.0], [3.0]]})], 2)
+    lazy = read.read_results(tmp_path / "d", lazy=True)
+    with pytest.raises(ResultsUnreadableError, match=f"{path}: column matrices holds"):
+        fill_columns(lazy, ["matrices"])
+
+
 def test_results_files_are_written_in_row_groups_a_lazy_reader_reads_one_at_a_time(
         tmp_path, monkeypatch):
     """write_table_atomic cuts a results file into row groups of ROW_GROUP_ROWS rows; a

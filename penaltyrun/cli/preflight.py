@@ -74,10 +74,11 @@ def preflight(argv: list[str]) -> str:
     multirun = "-m" in argv or "--multirun" in argv
     with userconf.hydra_context(source):
         _check_choices(parsed, source, hydra_overrides, searchpath)
-        profile = _profile_sweeps(_compose_groups(parsed, source, hydra_overrides), parsed,
-                                  parser) if multirun else []
+        grouped = _compose_groups(parsed, source, hydra_overrides) if multirun else None
+        profile = _profile_sweeps(grouped, parsed, parser) if multirun else []
         if multirun:
-            check_sweep_product(parsed + profile)
+            check_sweep_product(parsed + profile + _profile_sweeps(grouped, parsed, parser,
+                                                                   hydra_keys=True))
         from_profile = {o.key_or_group for o in profile}
         try:
             _check_choices(parsed + profile, source, hydra_overrides, searchpath)
@@ -110,10 +111,13 @@ def _compose_groups(parsed: list[Any], source: userconf.ConfigSource,
         return None
 
 
-def _profile_sweeps(cfg: DictConfig | None, parsed: list[Any], parser: Any) -> list[Any]:
+def _profile_sweeps(cfg: DictConfig | None, parsed: list[Any], parser: Any,
+                    hydra_keys: bool = False) -> list[Any]:
     """The sweeps of the composed config's ``hydra.sweeper.params`` (an experiment
     profile's) as parsed overrides, leaving out keys the command line sets itself (those
-    win, as in Hydra's basic sweeper).
+    win, as in Hydra's basic sweeper); those of ``hydra.*`` keys instead with
+    ``hydra_keys`` (not checked as config keys, but swept by Hydra all the same: they
+    count in the number of runs).
 
     Raises
     ------
@@ -128,7 +132,7 @@ def _profile_sweeps(cfg: DictConfig | None, parsed: list[Any], parser: Any) -> l
     given = {o.key_or_group for o in parsed}
     out = []
     for key, value in OmegaConf.to_container(params, resolve=False).items():
-        if key in given or str(key).startswith("hydra"):
+        if key in given or str(key).startswith("hydra") != hydra_keys:
             continue
         line = f"{key}={value}"
         check_size(line, f"hydra.sweeper.params.{key}")

@@ -136,6 +136,11 @@ def test_b4_sweeps_whose_product_is_too_large_are_refused_at_once(tmp_path):
     with pytest.raises(ConfigError, match="the sweeps make 20000 runs"):
         preflight(["--config-dir", str(tmp_path), "+experiment=wide", "-m", "mode=plan",
                    "runner.n_starts=range(1,21)"])
+    (tmp_path / "experiment" / "named.yaml").write_text(  # a hydra.* key is swept too
+        "# @package _global_\nhydra:\n  sweeper:\n    params:\n"
+        "      runner.seed: range(0,200)\n      hydra.job.name: range(0,200)\n")
+    with pytest.raises(ConfigError, match="the sweeps make 40000 runs"):
+        preflight(["--config-dir", str(tmp_path), "+experiment=named", "-m", "mode=plan"])
     assert preflight(["-m", "mode=plan", "runner.seed=range(0,10)",
                       "optimizer.max_evals=range(100,110)"]) == "plan"
 

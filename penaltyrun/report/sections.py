@@ -92,7 +92,14 @@ def paper_matrix_rows(df: pd.DataFrame) -> pd.DataFrame:
     df = narrow(df, ["problem", "case", "variant", "problem_params", "optimizer", "param",
                      "status", "best_converged", "best_cost", "matrices"])
     for (problem, case, variant), g in groups(df, ["problem", "case", "variant"]):
-        rows = _paper_matrix_table(g)
+        try:
+            rows = _paper_matrix_table(g)
+        except Exception as exc:  # stored parameters the problem accepts but cannot run
+            reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+            protocol.warn(f"{problem} / {case}: the paper's matrices could not be evaluated "
+                          f"with the stored parameters ({type(exc).__name__}: {reason}); "
+                          "their table is left out")
+            continue
         if not rows.empty:
             rows.insert(0, "variant", variant)
             rows.insert(0, "case", case)

@@ -14,6 +14,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
@@ -380,3 +381,19 @@ def test_an_unknown_case_is_reported_from_its_stored_columns(tmp_path):
     assert len(warned) == 1 and "no_such_case" in warned[0]
     assert list(out.glob("zermelo_default_phase_plane*.png"))  # the known case's figures
     assert not list(out.glob("zermelo_no_such_case*phase_plane*.png"))
+
+
+def test_stored_parameters_the_problem_accepts_but_cannot_run_cost_one_warning(tmp_path):
+    """B8: a start position stored as text passes the problem's construction but fails
+    its evaluation: the paper's-matrices table is left out with one warning, the rest of
+    the report is written."""
+    from penaltyrun.report import protocol
+    from penaltyrun.report.sections import paper_matrix_rows
+
+    protocol.reset()
+    frame = pd.DataFrame(rows(problem="zermelo", case="default", params={"x0": "far"}))
+    frame["variant"] = ""
+    for column in ("problem_params", "matrices"):
+        frame[column] = [json.dumps(v) for v in frame[column]]
+    assert paper_matrix_rows(frame).empty
+    assert [w for w in protocol.WARNINGS if "could not be evaluated" in w]

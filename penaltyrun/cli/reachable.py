@@ -56,20 +56,21 @@ def candidates(entry: Any, group: str, dirs: Iterable[Path]) -> list[Path]:
 
 
 def follow_defaults(start: Iterable[tuple[Path, Path]], dirs: list[Path],
-                    load: Callable[[Path], Any]) -> list[Path]:
+                    load: Callable[[Path, Path], Any]) -> list[Path]:
     """Read, with ``load``, every file of ``start`` ((file, its search folder) pairs) and
     every file their defaults lists reach, transitively, each once (at most
     :data:`MAX_FOLLOWED` beyond ``start``); returns the files reached beyond ``start``.
 
-    ``load(path)`` reads a file within the limits and returns its data (None for a file it
-    cannot use); it raises for a file beyond a limit, which ends the walk.
+    ``load(path, folder)`` reads a file (found in search folder ``folder``) within the
+    limits and returns its data (None for a file it cannot use); it raises for a file
+    beyond a limit, which ends the walk.
     """
     todo = list(start)
     seen = {path for path, _ in todo}
     reached: list[Path] = []
     while todo and len(reached) <= MAX_FOLLOWED:
         path, folder = todo.pop()
-        data = load(path)
+        data = load(path, folder)
         defaults = data.get("defaults") if isinstance(data, dict) else None
         if not isinstance(defaults, list):
             continue

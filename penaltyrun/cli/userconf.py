@@ -445,7 +445,4 @@ def check_limits(source: ConfigSource, searchpath: list[str],
     start += [(primary, source.primary)] if primary.is_file() else []
     start += [(folder / group / f"{name}.yaml", folder) for group, name in choices
               for folder in user if (folder / group / f"{name}.yaml").is_file()]
-    start = list(dict.fromkeys(start))
-    homes = {path: folder for path, folder in start}
-    follow_defaults(start, user, lambda path: load(path, homes.get(path) or next(
-        (f for f in user if f in path.parents), path.parent)))
+    follow_defaults(list(dict.fromkeys(start)), user, load)

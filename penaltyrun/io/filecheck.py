@@ -30,9 +30,6 @@ from penaltyrun.typed import is_number
 
 #: Columns without which a Parquet file is not penaltyrun results.
 IDENTITY_COLUMNS = ("job_id", "problem", "case", "param", "optimizer", "start", "status")
-#: JSON columns that name a job's cell (its variant, its parameterization): checked on
-#: reading, so a file holding damaged ones is skipped rather than breaking a report.
-KEY_JSON_COLUMNS = ("problem_params", "param_options")
 #: Columns read whatever the caller asks for: those that identify a job, check its file
 #: and count it once.
 KEEP_COLUMNS = (*IDENTITY_COLUMNS, "config_hash", "schema_version")
@@ -207,13 +204,6 @@ def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = N
     for name in (n for n in TIMESTAMP_COLUMNS if n in names):  # schema <= 3: ISO text
         if not isinstance(frame[name].dtype, pd.DatetimeTZDtype):
             frame[name] = pd.to_datetime(frame[name].map(to_timestamp), utc=True)
-    for name in (n for n in KEY_JSON_COLUMNS if n in names):  # each distinct value once
-        for value in frame[name].dropna().unique():
-            try:
-                decode_json(value)
-            except (ValueError, TypeError) as exc:
-                raise ValueError(f"column {name} holds text that is not usable JSON "
-                                 f"({first_line(exc)[:80]})") from None
     try:
         if "optimizer_settings" in names:  # each distinct (optimizer, settings) once
             pairs = list(zip(frame["optimizer"], frame["optimizer_settings"]))

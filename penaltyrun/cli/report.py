@@ -86,6 +86,10 @@ def report_main(argv: list[str] | None = None) -> None:
         from penaltyrun.runner.options import workers_argument
 
         check_output_dir(args.output, "-o")
+        if args.export:  # refused before the report is written, not after
+            from penaltyrun.report import outdir
+
+            outdir.check(Path(args.export), "--export", src)
         for item in args.problem_module:
             name, sep, module_path = item.partition("=")
             if not sep or not name.strip():

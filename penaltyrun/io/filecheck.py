@@ -224,6 +224,10 @@ def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = N
 
 #: Entries of the held-out JSON that are one value, not one per scenario.
 HOLDOUT_SCALARS = ("horizon", "training_horizon", "training")
+#: List columns of costs (none of which is −∞).
+COST_LISTS = ("history", "trace_best")
+#: Columns of times (s), none negative (NaN: not recorded).
+TIME_COLUMNS = ("t_final", "wall_time_s")
 #: JSON columns whose every value is an object ({name: value}) when present.
 OBJECT_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop",
                   "optimizer_settings", "problem_params", "param_options")
@@ -231,7 +235,8 @@ OBJECT_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop",
 
 def check_content(frame: pd.DataFrame) -> str | None:
     """Why the values of ``frame`` (a results table as read) cannot be reported (None: they
-    can): a best cost of −∞ (no cost is), a JSON column of :data:`OBJECT_COLUMNS` whose value
+    can): a cost of −∞ (no cost is: best, trace, history or held-out), a negative time
+    (:data:`TIME_COLUMNS`, ``trace_cpu_s``), a JSON column of :data:`OBJECT_COLUMNS` whose value
     is not an object or is nested too deep to parse, a matrix that is not a rectangular
     array of numbers, or held-out lists of different lengths. Each distinct value is decoded
     once; columns absent from ``frame`` (a lazily read frame's) are not checked here but
@@ -240,6 +245,16 @@ def check_content(frame: pd.DataFrame) -> str | None:
         cost = pd.to_numeric(frame["best_cost"], errors="coerce").to_numpy(float)
         if np.isneginf(cost).any():
             return "column best_cost holds -inf (no cost is)"
+    for name in (n for n in COST_LISTS if n in frame):
+        if any(np.isneginf(np.asarray(v, float)).any() for v in frame[name].dropna()):
+            return f"column {name} holds -inf (no cost is)"
+    for name in (n for n in TIME_COLUMNS if n in frame):
+        times = pd.to_numeric(frame[name], errors="coerce").to_numpy(float)
+        if (times < 0).any():
+            return f"column {name} holds negative times"
+    if "trace_cpu_s" in frame and any((np.asarray(v, float) < 0).any()
+                                      for v in frame["trace_cpu_s"].dropna()):
+        return "column trace_cpu_s holds negative times"
     for name in (n for n in OBJECT_COLUMNS if n in frame):
         for value in frame[name].dropna().unique():
             why = json_object_problem(name, value)
@@ -276,6 +291,8 @@ def _object_problem(name: str, value: object) -> str | None:
         cost = value.get("cost", [])
         if not isinstance(cost, list) or not all(_number(c) for c in cost):
             return "held-out costs that are not a list of numbers"
+        if any(c is not None and float(c) == -np.inf for c in cost):
+            return "held-out costs of -inf (no cost is)"
         if any(not isinstance(v, list) for k, v in value.items() if k not in HOLDOUT_SCALARS):
             return "held-out data whose per-scenario entries are not all lists"
     return None

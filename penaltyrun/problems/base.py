@@ -71,7 +71,7 @@ into objects that know the problem's matrices, bounds and cost. Hydra and pandas
 from __future__ import annotations
 
 import inspect
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, Protocol, runtime_checkable
 
@@ -424,12 +424,47 @@ class ParamsMixin:
             raise ConfigError(
                 f"{prefix}.{unknown[0]}", "unknown parameter", allowed=sorted(names)
             )
-        values = {}
-        for key, value in mapping.items():
-            default = getattr(cls(), key)
-            values[key] = tuple(value) if isinstance(default, tuple) and value is not None \
-                else value
+        values = {key: _like_default(f"{prefix}.{key}", getattr(cls(), key), value)
+                  for key, value in mapping.items()}
         return replace(cls(), **values)
+
+
+def _numeric(value: Any, depth: int = 3) -> bool:
+    """A number, or a list (tuple, array) of numbers nested at most ``depth`` deep."""
+    if is_number(value, any_real=True):
+        return True
+    return depth > 0 and isinstance(value, (list, tuple, np.ndarray)) and \
+        all(_numeric(v, depth - 1) for v in value)
+
+
+def _like_default(key: str, default: Any, value: Any) -> Any:
+    """``value`` for a parameter whose default is ``default``: a list for a tuple default
+    (as a tuple; of numbers, or lists of them, where the default's entries are), a number
+    for a number,
+    a bool for a bool; None kept. The problem's own checks (ranges, shapes) come after.
+
+    Raises
+    ------
+    ConfigError
+        ``value`` is of another kind (e.g. text where numbers are expected).
+    """
+    if value is None:
+        return value
+    if isinstance(default, tuple):
+        if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Iterable):
+            raise ConfigError(key, f"expected a list, got {type(value).__name__} "
+                              f"{str(value)[:40]!r}")
+        value = tuple(value)
+        numbers = bool(default) and all(_numeric(d) for d in default)
+        if numbers and not all(_numeric(v) for v in value):
+            raise ConfigError(key, f"expected a list of numbers, got {str(value)[:60]}")
+        return value
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise ConfigError(key, f"expected true or false, got {str(value)[:40]!r}")
+    elif is_number(default, any_real=True) and not is_number(value, any_real=True):
+        raise ConfigError(key, f"expected a number, got {str(value)[:40]!r}")
+    return value
 
 
 def check_spd(name: str, matrix: Any, size: int) -> np.ndarray:

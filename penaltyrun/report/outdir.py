@@ -56,8 +56,22 @@ def link_inside(out: Path, source: Path) -> Path | None:
 
 
 def prepare(out: Path, key: str, source: Path | None = None) -> Path:
-    """Create the output folder ``out``; refuse a symbolic link or a file, and a path
-    through a symbolic link inside the results folder ``source`` (:func:`link_inside`).
+    """Create the output folder ``out`` after :func:`check`.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`check`.
+    """
+    out = check(out, key, source)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def check(out: Path, key: str, source: Path | None = None) -> Path:
+    """Refuse the output folder ``out`` (nothing created) when it is a symbolic link or a
+    file, or a path through a symbolic link inside the results folder ``source``
+    (:func:`link_inside`).
 
     Raises
     ------
@@ -76,7 +90,6 @@ def prepare(out: Path, key: str, source: Path | None = None) -> Path:
                           "into real folders: choose another folder")
     if out.exists() and not out.is_dir():
         raise ConfigError(key, f"{out} is a file; pass a folder path")
-    out.mkdir(parents=True, exist_ok=True)
     return out
 
 
@@ -186,5 +199,5 @@ def write_into(out: Path, key: str, write: Callable[[Path], None],
     return [out / name for name in new]
 
 
-__all__ = ["export_files", "plain_name", "prepare", "remove_abandoned", "report_files",
+__all__ = ["check", "export_files", "plain_name", "prepare", "remove_abandoned", "report_files",
            "write_into"]

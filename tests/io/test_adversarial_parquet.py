@@ -130,7 +130,17 @@ CONTENT = {"minus infinite cost": (_with(best_cost=-np.inf), "column best_cost h
            "missing matrix entry": (_with(matrices={"K": [[1.0, None], [None, 1.0]]}),
                                     "not a rectangular array of numbers"),
            "held-out entry not a list": (_with(holdout={"cost": [1.0], "scenario": 7}),
-                                         "per-scenario entries are not all lists")}
+                                         "per-scenario entries are not all lists"),
+           "held-out cost of minus infinity": (_with(holdout={"cost": [1.0, -np.inf]}),
+                                               "held-out costs of -inf"),
+           "trace of minus infinity": (_with(trace_evals=[1, 2], trace_best=[1.0, -np.inf]),
+                                       "column trace_best holds -inf"),
+           "history of minus infinity": (_with(history=[-np.inf, np.inf, np.nan]),
+                                         "column history holds -inf"),
+           "negative arrival time": (_with(t_final=-np.inf), "column t_final holds negative"),
+           "negative wall time": (_with(wall_time_s=-1.0), "column wall_time_s holds negative"),
+           "negative CPU trace": (_with(trace_evals=[1], trace_best=[1.0],
+                                        trace_cpu_s=[-0.5]), "trace_cpu_s holds negative")}
 
 HOSTILE = {**CONTENT,
            "null problem": (_null_problem, "column problem has 1 empty values"),

@@ -6,6 +6,7 @@ import logging
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -36,7 +37,24 @@ def test_matrices_of_another_problem_or_size_are_left_out_with_one_warning(caplo
     assert list(kept.index) == [0, 4, 5]  # a job storing no matrices (e.g. failed) stays
     lines = [r.getMessage() for r in caplog.records if "do not fit" in r.getMessage()]
     assert len(lines) == 1 and "left out 3 job(s) of zermelo / default" in lines[0]
-    assert "(K 2×2)" in lines[0] and "r1, r2, r3" in lines[0]
+    assert "(K 2×2, eigenvalues 1e-08 to 10)" in lines[0] and "r1, r2, r3" in lines[0]
+
+
+def test_matrices_no_search_of_the_problem_gives_are_left_out_with_one_warning(caplog):
+    """Not symmetric, not positive definite, or eigenvalues outside the problem's bounds
+    (Zermelo: 1e-8 to 10): no search gives them; one warning, not one per section."""
+    protocol.reset()
+    rng = np.random.default_rng(3)
+    q, _ = np.linalg.qr(rng.normal(size=(2, 2)))
+    edge = (q @ np.diag([1e-8, 10.0]) @ q.T).tolist()  # the bounds, up to rounding
+    df = _frame([{"K": [[1.0, 0.5], [0.0, 1.0]]}, {"K": [[1.0, 0.0], [0.0, -1.0]]},
+                 {"K": [[1e308, 0.0], [0.0, 1e308]]}, {"K": [[11.0, 0.0], [0.0, 1.0]]},
+                 {"K": [[1e-9, 0.0], [0.0, 1.0]]}, {"K": edge}])
+    with caplog.at_level(logging.WARNING):
+        kept = fitting_rows(df)
+    assert list(kept.index) == [5]
+    lines = [r.getMessage() for r in caplog.records if "do not fit" in r.getMessage()]
+    assert len(lines) == 1 and "left out 5 job(s) of zermelo / default" in lines[0]
 
 
 def test_no_fitting_row_is_one_error_not_an_empty_report():

@@ -383,10 +383,10 @@ def test_an_unknown_case_is_reported_from_its_stored_columns(tmp_path):
     assert not list(out.glob("zermelo_no_such_case*phase_plane*.png"))
 
 
-def test_stored_parameters_the_problem_accepts_but_cannot_run_cost_one_warning(tmp_path):
-    """B8: a start position stored as text passes the problem's construction but fails
-    its evaluation: the paper's-matrices table is left out with one warning, the rest of
-    the report is written."""
+def test_stored_parameters_of_the_wrong_kind_leave_the_problem_unbuilt_with_one_warning(
+        tmp_path):
+    """B8: a start position stored as text is refused when the problem is rebuilt (one
+    warning naming the parameter); the paper's-matrices table is left out."""
     from penaltyrun.report import protocol
     from penaltyrun.report.sections import paper_matrix_rows
 
@@ -396,4 +396,41 @@ def test_stored_parameters_the_problem_accepts_but_cannot_run_cost_one_warning(t
     for column in ("problem_params", "matrices"):
         frame[column] = [json.dumps(v) for v in frame[column]]
     assert paper_matrix_rows(frame).empty
-    assert [w for w in protocol.WARNINGS if "could not be evaluated" in w]
+    assert len([w for w in protocol.WARNINGS if "problem.params.x0" in w]) == 1
+
+
+def test_stored_parameters_the_problem_accepts_but_cannot_run_cost_one_warning(
+        tmp_path, monkeypatch):
+    """B8: parameters that pass the problem's construction but fail its evaluation: the
+    paper's-matrices table is left out with one warning, nothing else is lost."""
+    from penaltyrun.problems.zermelo import Zermelo
+    from penaltyrun.report import protocol
+    from penaltyrun.report.sections import paper_matrix_rows
+
+    def fails(self, *args, **kwargs):
+        raise ValueError("cannot run these parameters")
+
+    monkeypatch.setattr(Zermelo, "evaluate", fails)
+    monkeypatch.setattr(Zermelo, "evaluate_batch", fails)
+    protocol.reset()
+    frame = pd.DataFrame(rows(problem="zermelo", case="default"))
+    frame["variant"] = ""
+    for column in ("problem_params", "matrices"):
+        frame[column] = [json.dumps(v) for v in frame[column]]
+    assert paper_matrix_rows(frame).empty
+    assert len([w for w in protocol.WARNINGS if "could not be evaluated" in w]) == 1
+
+
+def test_s8_an_export_link_is_refused_before_the_report_is_written(tmp_path, capsys):
+    folder = tmp_path / "received"
+    write(folder, rows(problem="zz_user"))
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (folder / "export").symlink_to(victim)
+    with pytest.raises(SystemExit) as exc:
+        report_main([str(folder), "-o", str(tmp_path / "rep"), "--export",
+                     str(folder / "export")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--export" in err[0] and "symbolic link" in err[0]
+    assert not (tmp_path / "rep").exists() and not any(victim.iterdir())

@@ -174,7 +174,7 @@ def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = None,
-                 lazy: bool = False) -> pd.DataFrame:
+                 lazy: bool = False, sources: bool = False) -> pd.DataFrame:
     """All results under ``path`` (file, folder, or several) as one DataFrame, each job once.
 
     JSON columns stay text; use :func:`~penaltyrun.io.schema.decode_json` to parse them.
@@ -193,6 +193,10 @@ def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = No
         Leave the columns of :data:`LAZY_COLUMNS` in the files: the frame has
         :data:`SOURCE` and :data:`ROW` instead (where each row comes from), and
         :func:`fill_columns` reads them for the rows that need them.
+    sources : bool
+        Keep :data:`SOURCE` and :data:`ROW` in a frame read whole too (e.g. to name the
+        file of rows found unusable later; drop them before the frame is used as one read
+        whole).
 
     Returns
     -------
@@ -252,7 +256,7 @@ def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = No
         df = _dedupe(concat_compact(frames))
     else:
         df = _dedupe(pd.concat(frames, ignore_index=True))
-    if not lazy:
+    if not lazy and not sources:
         df = df.drop(columns=[SOURCE, ROW])
     df = _mark_statuses(df.reset_index(drop=True))
     if lazy:

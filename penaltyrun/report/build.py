@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from penaltyrun.io.filecheck import ROW, SOURCE
 from penaltyrun.io.memory import release_memory
 from penaltyrun.io.read import declared_rows, read_results
 from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
@@ -234,7 +235,9 @@ def build_report(src: Path, out: Path, paper: bool = True,
         stream = declared_rows(src) > STREAM_MIN_ROWS
     with trust.reading_results():
         df = fitting_rows(add_variant(read_results(
-            src, FRAME_COLUMNS if stream else REPORT_COLUMNS, lazy=stream)))
+            src, FRAME_COLUMNS if stream else REPORT_COLUMNS, lazy=stream, sources=True)))
+        if not stream:  # the files named in fitting_rows' warnings; read whole from here
+            df = df.drop(columns=[SOURCE, ROW])
         sections_cache = None
         if cache_dir is not None and not stream:
             sections_cache = cache.SectionCache.at(cache_dir)

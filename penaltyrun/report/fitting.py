@@ -5,8 +5,8 @@ the wrong size, or that no search of the problem can give (not symmetric positiv
 eigenvalues outside the problem's bounds), e.g. edited or damaged data; every section that
 decodes a start's matrices (best-known tables, the paper's matrices, controllers, basin
 maps, probes, exports) would fail on them. :func:`fitting_rows` leaves such rows out of the
-report once, with one warning per problem case naming their runs, before any section reads
-them.
+report once, with one warning per problem case naming their runs (and files, where the frame
+says where its rows come from), before any section reads them.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import pandas as pd
 
 from penaltyrun.errors import ConfigError, ResultsUnreadableError
 from penaltyrun.io import decode_json
+from penaltyrun.io.filecheck import SOURCE
 from penaltyrun.problems.base import check_spd
 from penaltyrun.report import protocol
 
@@ -82,11 +83,14 @@ def fitting_rows(df: pd.DataFrame) -> pd.DataFrame:
         if len(bad):
             keep[bad] = False
             runs = sorted({str(r) for r in df.loc[bad, "run_id"]})
+            files = sorted({str(f) for f in df.loc[bad, SOURCE]}) if SOURCE in df else []
             shapes = ", ".join(f"{n} {s}×{s}, eigenvalues {lo:g} to {hi:g}"
                                for n, (s, lo, hi) in fits.items())
             protocol.warn(f"left out {len(bad)} job(s) of {problem} / {case} whose stored "
                           f"matrices do not fit the problem ({shapes}); run(s): "
-                          f"{', '.join(runs[:3])}{' ...' if len(runs) > 3 else ''}")
+                          f"{', '.join(runs[:3])}{' ...' if len(runs) > 3 else ''}"
+                          + (f"; file(s): {', '.join(files[:3])}"
+                             f"{' ...' if len(files) > 3 else ''}" if files else ""))
     if not keep.any():
         raise ResultsUnreadableError("no usable results: the stored matrices of every job "
                                      "do not fit its problem (see the warnings above)")

@@ -80,4 +80,7 @@ def test_a_report_beside_a_file_of_misfit_matrices_reports_the_rest(tmp_path, ca
                      "--basin-points", "0"])
     text = (tmp_path / "report" / "report.md").read_text(encoding="utf-8")
     assert f"left out {len(table)} job(s) of zermelo / default" in text
-    assert any("do not fit the problem" in r.getMessage() for r in caplog.records)
+    lines = [r.getMessage() for r in caplog.records if "do not fit the problem" in
+             r.getMessage()]
+    assert len(lines) == 1 and str(tmp_path / "bad" / RESULTS_FILE) in lines[0]
+    assert str(tmp_path / "good") not in lines[0]

@@ -26,6 +26,7 @@ from penaltyrun.io.schema import (
     decode_json,
     to_timestamp,
 )
+from penaltyrun.jobrecord import FIELDS, NUMBERS
 from penaltyrun.typed import is_number
 
 #: Columns without which a Parquet file is not penaltyrun results.
@@ -224,10 +225,12 @@ def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = N
 
 #: Entries of the held-out JSON that are one value, not one per scenario.
 HOLDOUT_SCALARS = ("horizon", "training_horizon", "training")
-#: List columns of costs (none of which is −∞).
-COST_LISTS = ("history", "trace_best")
-#: Columns of times (s), none negative (NaN: not recorded).
-TIME_COLUMNS = ("t_final", "wall_time_s")
+#: Numeric columns (a number or a list of numbers a row) whose entries no run records: a
+#: cost of −∞ (no cost is), a negative time (s; NaN: not recorded).
+IMPOSSIBLE_VALUES = {
+    **dict.fromkeys(("best_cost", "history", "trace_best"), (np.isneginf, "-inf (no cost is)")),
+    **dict.fromkeys(("t_final", "wall_time_s", "trace_cpu_s"),
+                    (lambda v: v < 0, "negative times"))}
 #: JSON columns whose every value is an object ({name: value}) when present.
 OBJECT_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop",
                   "optimizer_settings", "problem_params", "param_options")
@@ -235,32 +238,30 @@ OBJECT_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop",
 
 def check_content(frame: pd.DataFrame) -> str | None:
     """Why the values of ``frame`` (a results table as read) cannot be reported (None: they
-    can): a cost of −∞ (no cost is: best, trace, history or held-out), a negative time
-    (:data:`TIME_COLUMNS`, ``trace_cpu_s``), a JSON column of :data:`OBJECT_COLUMNS` whose value
+    can): a value of :data:`IMPOSSIBLE_VALUES` (a cost of −∞, a negative time) or a
+    held-out cost of −∞, a JSON column of :data:`OBJECT_COLUMNS` whose value
     is not an object or is nested too deep to parse, a matrix that is not a rectangular
     array of numbers, or held-out lists of different lengths. Each distinct value is decoded
     once; columns absent from ``frame`` (a lazily read frame's) are not checked here but
     when their rows are read."""
-    if "best_cost" in frame:
-        cost = pd.to_numeric(frame["best_cost"], errors="coerce").to_numpy(float)
-        if np.isneginf(cost).any():
-            return "column best_cost holds -inf (no cost is)"
-    for name in (n for n in COST_LISTS if n in frame):
-        if any(np.isneginf(np.asarray(v, float)).any() for v in frame[name].dropna()):
-            return f"column {name} holds -inf (no cost is)"
-    for name in (n for n in TIME_COLUMNS if n in frame):
-        times = pd.to_numeric(frame[name], errors="coerce").to_numpy(float)
-        if (times < 0).any():
-            return f"column {name} holds negative times"
-    if "trace_cpu_s" in frame and any((np.asarray(v, float) < 0).any()
-                                      for v in frame["trace_cpu_s"].dropna()):
-        return "column trace_cpu_s holds negative times"
+    for name, (impossible, what) in IMPOSSIBLE_VALUES.items():
+        if name in frame and any(impossible(v).any() for v in _numbers(frame[name])):
+            return f"column {name} holds {what}"
     for name in (n for n in OBJECT_COLUMNS if n in frame):
         for value in frame[name].dropna().unique():
             why = json_object_problem(name, value)
             if why:
                 return why
     return None
+
+
+def _numbers(column: pd.Series) -> list[np.ndarray]:
+    """The values of a numeric column of the schema as float arrays: the whole column for a
+    number a row (anything else taken as NaN), one array a row for a list of numbers
+    (:data:`penaltyrun.jobrecord.NUMBERS`)."""
+    if FIELDS[str(column.name)].kind != NUMBERS:
+        return [pd.to_numeric(column, errors="coerce").to_numpy(float)]
+    return [np.asarray(v, float) for v in column.dropna()]
 
 
 def json_object_problem(name: str, text: object) -> str | None:

@@ -440,8 +440,8 @@ def _numeric(value: Any, depth: int = 3) -> bool:
 def _like_default(key: str, default: Any, value: Any) -> Any:
     """``value`` for a parameter whose default is ``default``: a list for a tuple default
     (as a tuple; of numbers, or lists of them, where the default's entries are), a number
-    for a number,
-    a bool for a bool; None kept. The problem's own checks (ranges, shapes) come after.
+    for a number, a bool for a bool; None kept. The problem's own checks (ranges, shapes)
+    come after.
 
     Raises
     ------

@@ -139,12 +139,18 @@ def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     into the file. The tight box of a figure that needs one is measured once, at the
     saving resolution, and given to ``savefig`` as a box: ``bbox_inches="tight"`` would
     measure it after a whole dry-run draw (the same box; 3-D axes keep that path).
+
+    Log-axis tick labels are written in plain text (10⁻³, not mathtext;
+    :func:`penaltyrun.report.ticks.plain_log_labels`), which is laid out without parsing.
     """
     import warnings
 
     import matplotlib.pyplot as plt
     from matplotlib.layout_engine import TightLayoutEngine
 
+    from penaltyrun.report.ticks import plain_log_labels
+
+    plain_log_labels(fig)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         TightLayoutEngine().execute(fig)

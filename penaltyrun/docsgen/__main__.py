@@ -19,6 +19,10 @@ Commands (every one takes ``--root``, the repository root, default the current f
 * ``study probe NAME``: probe each problem × case's best diagonal and full point for cliffs
   of the criterion (one variable at a time, steps of 1e-6 to 1e-3 of its range) and write
   ``studies/NAME/probe.csv`` (:mod:`penaltyrun.docsgen.probe`);
+* ``study store-probes NAME``: probe the points the report probes (each problem × case ×
+  variant's best diagonal and full start) and store them in ``studies/NAME/probe.parquet``,
+  which every later report of the study reads instead of evaluating them again
+  (:mod:`penaltyrun.io.storedprobe`);
 * ``study tables NAME``: rebuild ``studies/NAME/tables`` from the committed data (after a
   report change; nothing is re-run).
 """
@@ -53,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
                              "(e.g. docs/explanation); check then skips the study tables")
     study = sub.add_parser("study", help="run or merge a study")
     study.add_argument("action", choices=("list", "run", "merge", "rejudge", "probe",
-                                                  "tables"))
+                                          "store-probes", "tables"))
     study.add_argument("name", nargs="?")
     study.add_argument("--run-dir", type=Path, help="fixed run directory "
                        "(default outputs/studies/NAME)")
@@ -101,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name}: {studies.load_study(root, name).title}")
         return 0
     if not args.name:
-        parser.error("study run/merge/rejudge/probe/tables needs a NAME")
+        parser.error("study run/merge/rejudge/probe/store-probes/tables needs a NAME")
     try:
         workers = workers_argument(args.workers)
         if args.action == "run":
@@ -116,6 +120,8 @@ def main(argv: list[str] | None = None) -> int:
                                   tables=not args.no_tables)
         elif args.action == "probe":
             probe.probe_study(root, args.name, workers=workers)
+        elif args.action == "store-probes":
+            probe.store_probes(root, args.name, workers=workers)
         else:
             studies.merge_study(root, args.name, run_dir=args.run_dir, dest=args.dest,
                                 tables=not args.no_tables)

@@ -15,6 +15,12 @@ as the best-known table does), rebuilds its problem from the stored ``problem``,
 * ``studies/NAME/probe.json``: provenance (git commit, package versions, ladder).
 
 The results pages read the CSV; nothing is evaluated when they are rendered.
+
+``python -m penaltyrun.docsgen study store-probes NAME`` probes the points the report
+probes (each problem × case × variant's best diagonal and full start, over every optimizer)
+and stores the whole probes, at full precision, in ``studies/NAME/probe.parquet``
+(:mod:`penaltyrun.io.storedprobe`); a report of the study reads them instead of evaluating
+the same steps again.
 """
 
 from __future__ import annotations
@@ -107,6 +113,70 @@ def probe_study(root: Path, name: str, *, workers: int | str = "auto",
     tmp.write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")
     os.replace(tmp, study.folder / PROBE_PROVENANCE)
     logger.info("probe %s: wrote %s", name, _display_path(path, root))
+    return path
+
+
+def stored_record(record: dict[str, Any], steps: tuple[float, ...] = STEPS
+                  ) -> dict[str, Any]:
+    """Probe one stored best point (a results row as a dict); the row of
+    :data:`penaltyrun.io.storedprobe.PROBE_FILE`."""
+    from penaltyrun.io import storedprobe
+    from penaltyrun.report.cliffs import probe_row
+
+    probed = probe_row(record, steps)
+    if probed is None:
+        raise StudyError(f"cannot probe {record['job_id']}: problem {record['problem']!r}, "
+                         f"case {record['case']!r} not rebuilt from the stored parameters")
+    return storedprobe.record(record["job_id"], record.get("config_hash"),
+                              record["best_z"], probed[0])
+
+
+def report_points(df: Any) -> list[dict[str, Any]]:
+    """The points the report probes: each problem × case × variant's best converged
+    diagonal and full start (:func:`penaltyrun.report.cliffs.section`), as dicts."""
+    from penaltyrun.report.bestknown import best_rows
+    from penaltyrun.report.cases import CASE_KEYS
+    from penaltyrun.report.fitting import fitting_rows
+    from penaltyrun.report.stats import add_variant
+
+    frame = fitting_rows(add_variant(df))
+    points = {}
+    for _, group in frame.groupby(CASE_KEYS, sort=True):
+        for _, row in sorted(best_rows(group).items()):
+            points.setdefault((row["job_id"], str(row.get("config_hash"))), row.to_dict())
+    return list(points.values())
+
+
+def store_probes(root: Path, name: str, *, workers: int | str = "auto",
+                 steps: tuple[float, ...] = STEPS) -> Path:
+    """Probe the report's points of study ``name`` and write them to
+    ``studies/NAME/probe.parquet`` (module docstring); return its path.
+
+    Raises
+    ------
+    StudyError
+        If the study has no merged results or a point's problem cannot be rebuilt.
+    """
+    from penaltyrun.io import storedprobe
+    from penaltyrun.io.schema import read_results
+
+    study = load_study(root, name)
+    results = study.folder / RESULTS
+    if not results.is_file():
+        raise StudyError(f"study {name!r} has no {RESULTS} (run `{study.make_target}`)")
+    points = report_points(read_results(results))
+    logger.info("store-probes %s: %d best points, ladder %s of each variable's range", name,
+                len(points), ", ".join(f"{s:g}" for s in steps))
+    rows = []
+    workers = max(1, min(resolve_workers(workers), len(points) or 1))
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for row in pool.map(stored_record, points, [steps] * len(points)):
+            rows.append(row)
+            logger.info("store-probes %s: %d/%d", name, len(rows), len(points))
+    info = {"git_commit": git_commit(root), "packages": package_versions(),
+            "steps": list(steps), "points": len(rows)}
+    path = storedprobe.write(study.folder / storedprobe.PROBE_FILE, rows, info)
+    logger.info("store-probes %s: wrote %s", name, _display_path(path, root))
     return path
 
 

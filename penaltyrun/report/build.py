@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from penaltyrun.io import storedprobe
 from penaltyrun.io.filecheck import ROW, SOURCE
 from penaltyrun.io.memory import release_memory
 from penaltyrun.io.read import declared_rows, read_results
@@ -236,6 +237,7 @@ def build_report(src: Path, out: Path, paper: bool = True,
     with trust.reading_results():
         df = fitting_rows(add_variant(read_results(
             src, FRAME_COLUMNS if stream else REPORT_COLUMNS, lazy=stream, sources=True)))
+        stored = stored_probes(df) if probe else None
         if not stream:  # the files named in fitting_rows' warnings; read whole from here
             df = df.drop(columns=[SOURCE, ROW])
         sections_cache = None
@@ -244,7 +246,7 @@ def build_report(src: Path, out: Path, paper: bool = True,
         outdir.write_into(out, "report.output",
                           lambda tmp: _write_report(source_label or str(src), df, tmp, paper,
                                                    basin_points, progress, probe, n_workers,
-                                                   sections_cache),
+                                                   sections_cache, stored),
                           lambda folder: outdir.report_files(
                               folder, [*TABLES, "summary", "comparison"]),
                           source=Path(src))
@@ -257,12 +259,25 @@ def build_report(src: Path, out: Path, paper: bool = True,
 def _write_report(src: str, df: pd.DataFrame, out: Path, paper: bool,
                   basin_points: int = basins.REPORT_POINTS,
                   progress: bool | None = None, probe: bool = True, workers: int = 1,
-                  sections_cache: cache.SectionCache | None = None) -> None:
-    """Write every file of the report into ``out`` (see :func:`build_report`)."""
+                  sections_cache: cache.SectionCache | None = None,
+                  stored: pd.DataFrame | None = None) -> None:
+    """Write every file of the report into ``out`` (see :func:`build_report`; ``stored``:
+    :func:`stored_probes`)."""
     n_cases = df.groupby(cases.CASE_KEYS, sort=True).ngroups
     with Steps(len(STEPS) + n_cases, progress, lazy(df) and release_memory) as steps:
         _write_files(src, df, out, paper, basin_points, steps, n_cases, probe, workers,
-                     sections_cache)
+                     sections_cache, stored)
+
+
+def stored_probes(df: pd.DataFrame) -> pd.DataFrame:
+    """The cliff probes stored beside the results files of ``df`` (its :data:`SOURCE`
+    column; :mod:`penaltyrun.io.storedprobe`) of starts in ``df``, with each start's
+    ``problem`` and ``case`` (so that a cached section's key holds its own case's)."""
+    stored = storedprobe.read_beside(df[SOURCE].dropna().unique())
+    starts = df[["job_id", "config_hash", "problem", "case"]].copy()
+    starts["config_hash"] = [storedprobe.config_key(h) for h in starts["config_hash"]]
+    return stored.merge(starts.drop_duplicates(["job_id", "config_hash"]),
+                        on=["job_id", "config_hash"], how="inner")
 
 
 #: The report's steps besides one per case section (what its progress bar counts).
@@ -273,7 +288,8 @@ STEPS = ("cell statistics", "comparisons", "best-known optima", "held-out", "ver
 
 def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_points: int,
                  steps: Steps, n_cases: int, probe: bool = True, workers: int = 1,
-                 sections_cache: cache.SectionCache | None = None) -> None:
+                 sections_cache: cache.SectionCache | None = None,
+                 stored: pd.DataFrame | None = None) -> None:
     """:func:`_write_report` with its progress bar ``steps``."""
     steps.step(STEPS[0])
     summary = cell_summary(df)
@@ -297,6 +313,7 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
     steps.step(STEPS[5])
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
            "basin_points": int(basin_points), "probe": bool(probe), "cache": sections_cache,
+           "probes": stored if stored is not None else pd.DataFrame(),
            "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
     _write_csv(ctx["paper"], out, "paper")
     if paper:

@@ -118,7 +118,8 @@ def case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool, stem: str) ->
              ("basins of attraction", lambda: basins.section(g, out, stem,
                                                              ctx["basin_points"])
               if ctx["basin_points"] > 0 else []),
-             ("cliffs", lambda: cliffs.section(g, out, stem) if ctx["probe"] else []),
+             ("cliffs", lambda: cliffs.section(g, out, stem, ctx["probes"])
+              if ctx["probe"] else []),
              ("paper values", lambda: sections.paper_section(g, ctx["paper"])
               if paper else []),
              ("held-out", lambda: holdout.problem_section(g, ctx["held"], ctx["imps"], out)
@@ -158,7 +159,8 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
 
 #: Tables and settings every section reads (built once by the report, sent once to each
 #: worker, part of the key of a cached section).
-SHARED = ("summary", "comp", "bk", "held", "imps", "paper", "basin_points", "probe")
+SHARED = ("summary", "comp", "bk", "held", "imps", "paper", "basin_points", "probe",
+          "probes")
 
 
 def write_sections(df: pd.DataFrame, ctx: dict[str, Any], out: Path, paper: bool,

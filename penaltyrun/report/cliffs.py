@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from penaltyrun.io import decode_json
+from penaltyrun.io import decode_json, storedprobe
 from penaltyrun.optim.probe import CLIFF, STEPS, CliffProbe, probe
 from penaltyrun.report import protocol
 from penaltyrun.report.bestknown import best_rows
@@ -56,11 +56,15 @@ def rebuilt_layout(row: pd.Series | dict[str, Any]) -> tuple[Any, Any] | None:
                               decode_json(row.get("param_options")) or {})
 
 
-def probe_row(row: pd.Series | dict[str, Any],
-              steps: tuple[float, ...] = STEPS) -> tuple[CliffProbe, list[str]] | None:
+def probe_row(row: pd.Series | dict[str, Any], steps: tuple[float, ...] = STEPS,
+              stored: pd.DataFrame | None = None) -> tuple[CliffProbe, list[str]] | None:
     """Probe one stored start's best point (``best_z`` in the layout of its ``param`` and
     ``param_options``); the probe and the variables' names, or None when the problem
-    cannot be rebuilt or the start stored no decision vector."""
+    cannot be rebuilt or the start stored no decision vector.
+
+    ``stored``: probes stored beside the results (:mod:`penaltyrun.io.storedprobe`); the
+    start's stored probe of exactly this point and ladder is used instead of evaluating.
+    """
     z = row.get("best_z")
     if z is None or not len(z):
         return None
@@ -68,6 +72,9 @@ def probe_row(row: pd.Series | dict[str, Any],
     if rebuilt is None:
         return None
     prob, layout = rebuilt
+    kept = storedprobe.lookup(stored, row["job_id"], row.get("config_hash"), z, steps)
+    if kept is not None and kept.change.shape[1] == layout.dim:
+        return kept, layout.names()
     lb, ub = layout.bounds()
 
     def cost_batch(batch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -185,12 +192,15 @@ def figure(probes: dict[str, tuple[pd.Series, CliffProbe, list[str]]], title: st
     return save_figure(fig, path)
 
 
-def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
+def section(g: pd.DataFrame, out: Path, stem: str,
+            stored: pd.DataFrame | None = None) -> list[str]:
     """Markdown lines of one problem × case × variant's probe (figure ``cliffs_<stem>.png``
-    in ``out``); none when its problem cannot be rebuilt."""
+    in ``out``); none when its problem cannot be rebuilt. ``stored``: probes stored
+    beside the results, used where one is of exactly the probed point
+    (:func:`probe_row`)."""
     probes: dict[str, tuple[pd.Series, CliffProbe, list[str]]] = {}
     for fam, row in best_rows(g).items():
-        probed = probe_row(row)
+        probed = probe_row(row, stored=stored)
         if probed is None:
             return []
         probes[fam] = (row, *probed)
@@ -199,6 +209,11 @@ def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
     first = g.iloc[0]
     path = figure(probes, f"{first['problem']} / {first['case']}: cost change near the best "
                   "points", out / f"cliffs_{stem}.png")
+    read = [fam for fam, (row, _, _) in probes.items() if storedprobe.lookup(
+        stored, row["job_id"], row.get("config_hash"), row["best_z"], STEPS) is not None]
+    source = ([f"The probe of the best {' and '.join(read)} point was read from "
+               f"`{storedprobe.PROBE_FILE}` beside the results (the same evaluations, "
+               "stored with them), not evaluated again.", ""] if read else [])
     return ["### Cliffs next to the best points", "",
             "Each variable of the best diagonal and full point moved alone, up and down, by "
             "the step (a fraction of its range); the largest relative change of the cost. A "
@@ -210,7 +225,7 @@ def section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
             "the map itself: GEAGSP is discontinuous where its Gram–Schmidt step skips a "
             "basis vector, and a margin of m means such a jump about m radians of an angle "
             "away.", "",
-            markdown(table(probes), digits=3), "",
+            *source, markdown(table(probes), digits=3), "",
             f"![cliffs next to the best points]({path.name})", ""]
 
 

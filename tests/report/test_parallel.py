@@ -72,7 +72,7 @@ def test_sections_come_back_in_order_with_one_progress_call_each(tmp_path):
     held, imps = holdout.holdout_rows(df)
     ctx = {"summary": cell_summary(df), "comp": pairwise(df), "bk": best_known(df),
            "held": held, "imps": imps, "paper": pd.DataFrame(), "basin_points": 0,
-           "probe": False}
+           "probe": False, "probes": pd.DataFrame()}
     done: list[str] = []
     with trust.reading_results():
         lines = list(write_sections(df, ctx, tmp_path, False, 2, done.append))

@@ -177,12 +177,15 @@ def lookup(stored: pd.DataFrame | None, job_id: object, config_hash: object, z: 
     z = np.asarray(z, float)
     for row in rows.itertuples(index=False):
         stored_z, stored_steps = np.asarray(row.best_z, float), np.asarray(row.steps, float)
-        if (stored_z.shape == z.shape and np.array_equal(stored_z, z)
+        if not (stored_z.shape == z.shape and np.array_equal(stored_z, z)
                 and np.array_equal(stored_steps, np.asarray(steps, float))):
-            shape = (stored_steps.size, z.size, 2)
+            continue
+        shape = (stored_steps.size, z.size, 2)
+        change = np.asarray(row.change, float)
+        flips = np.asarray(row.status_change, bool)
+        if change.size == flips.size == stored_steps.size * z.size * 2:
             return CliffProbe(stored_steps, float(row.cost), bool(row.converged),
-                              np.asarray(row.change, float).reshape(shape),
-                              np.asarray(row.status_change, bool).reshape(shape))
+                              change.reshape(shape), flips.reshape(shape))
     return None
 
 

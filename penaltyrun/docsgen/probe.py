@@ -29,6 +29,7 @@ import json
 import logging
 import os
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -74,6 +75,37 @@ def best_points(df: Any) -> list[dict[str, Any]]:
     return points
 
 
+def _probed(root: Path, name: str, select: Callable[[Any], list[dict[str, Any]]],
+            work: Callable[..., dict[str, Any]], steps: tuple[float, ...],
+            workers: int | str, label: str,
+            described: Callable[[dict[str, Any]], str] = lambda row: ""
+            ) -> tuple[Any, list[dict[str, Any]]]:
+    """Study ``name`` and ``work(point, steps)`` of each of its points ``select(results)``,
+    in ``workers`` processes, logged as ``label`` (``described(row)`` after each).
+
+    Raises
+    ------
+    StudyError
+        If the study has no merged results.
+    """
+    from penaltyrun.io.schema import read_results
+
+    study = load_study(root, name)
+    results = study.folder / RESULTS
+    if not results.is_file():
+        raise StudyError(f"study {name!r} has no {RESULTS} (run `{study.make_target}`)")
+    points = select(read_results(results))
+    logger.info("%s %s: %d best points, ladder %s of each variable's range", label, name,
+                len(points), ", ".join(f"{s:g}" for s in steps))
+    rows = []
+    workers = max(1, min(resolve_workers(workers), len(points) or 1))
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for row in pool.map(work, points, [steps] * len(points)):
+            rows.append(row)
+            logger.info("%s %s: %d/%d%s", label, name, len(rows), len(points), described(row))
+    return study, rows
+
+
 def probe_study(root: Path, name: str, *, workers: int | str = "auto",
                 steps: tuple[float, ...] = STEPS) -> Path:
     """Probe study ``name`` (module docstring); return the written CSV.
@@ -85,24 +117,14 @@ def probe_study(root: Path, name: str, *, workers: int | str = "auto",
     """
     import pandas as pd
 
-    from penaltyrun.io.schema import read_results
     from penaltyrun.report.cliffs import KEYS, step_columns
 
-    study = load_study(root, name)
-    results = study.folder / RESULTS
-    if not results.is_file():
-        raise StudyError(f"study {name!r} has no {RESULTS} (run `{study.make_target}`)")
-    points = best_points(read_results(results))
-    logger.info("probe %s: %d best points, ladder %s of each variable's range", name,
-                len(points), ", ".join(f"{s:g}" for s in steps))
-    rows = []
-    workers = max(1, min(resolve_workers(workers), len(points)))
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        for row in pool.map(probe_record, points, [steps] * len(points)):
-            rows.append(row)
-            logger.info("probe %s: %d/%d (%s / %s, %s): largest change %.3g %% at %g",
-                        name, len(rows), len(points), row["problem"], row["case"],
-                        row["map"], row[step_columns(steps[-1])[0]], steps[-1])
+    def described(row: dict[str, Any]) -> str:
+        return (f" ({row['problem']} / {row['case']}, {row['map']}): largest change "
+                f"{row[step_columns(steps[-1])[0]]:.3g} % at {steps[-1]:g}")
+
+    study, rows = _probed(root, name, best_points, probe_record, steps, workers, "probe",
+                          described)
     columns = KEYS + [c for s in steps for c in step_columns(s)]  # the CSV's fixed order
     path, tmp = study.folder / PROBE_FILE, study.folder / (PROBE_FILE + ".tmp")
     pd.DataFrame(rows, columns=columns).to_csv(tmp, index=False, float_format="%.6g")
@@ -158,21 +180,9 @@ def store_probes(root: Path, name: str, *, workers: int | str = "auto",
         If the study has no merged results or a point's problem cannot be rebuilt.
     """
     from penaltyrun.io import storedprobe
-    from penaltyrun.io.schema import read_results
 
-    study = load_study(root, name)
-    results = study.folder / RESULTS
-    if not results.is_file():
-        raise StudyError(f"study {name!r} has no {RESULTS} (run `{study.make_target}`)")
-    points = report_points(read_results(results))
-    logger.info("store-probes %s: %d best points, ladder %s of each variable's range", name,
-                len(points), ", ".join(f"{s:g}" for s in steps))
-    rows = []
-    workers = max(1, min(resolve_workers(workers), len(points) or 1))
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        for row in pool.map(stored_record, points, [steps] * len(points)):
-            rows.append(row)
-            logger.info("store-probes %s: %d/%d", name, len(rows), len(points))
+    study, rows = _probed(root, name, report_points, stored_record, steps, workers,
+                          "store-probes")
     info = {"git_commit": git_commit(root), "packages": package_versions(),
             "steps": list(steps), "points": len(rows)}
     path = storedprobe.write(study.folder / storedprobe.PROBE_FILE, rows, info)

@@ -86,3 +86,25 @@ def test_a_bad_worker_count_is_one_line_and_exit_2(tmp_path, capsys, workers):
                  "--workers", workers]) == 2
     lines = capsys.readouterr().err.splitlines()
     assert len(lines) == 1 and "--workers: must be a positive integer or auto" in lines[0]
+
+
+def test_store_probes_writes_what_is_committed(tmp_path):
+    import numpy as np
+
+    from penaltyrun.io import storedprobe
+
+    root = tmp_path
+    shutil.copytree(ROOT / "studies" / "robust_mpc", root / "studies" / "robust_mpc",
+                    ignore=shutil.ignore_patterns(storedprobe.PROBE_FILE))
+    assert main(["--root", str(root), "study", "store-probes", "robust_mpc",
+                 "--workers", "1"]) == 0
+    written = storedprobe.read_one(root / "studies" / "robust_mpc" / storedprobe.PROBE_FILE)
+    committed = storedprobe.read_one(ROOT / "studies" / "robust_mpc" / storedprobe.PROBE_FILE)
+    assert list(written["job_id"]) == list(committed["job_id"])
+    for a, b in zip(written.itertuples(), committed.itertuples()):
+        np.testing.assert_array_equal(a.best_z, b.best_z)
+        np.testing.assert_allclose(np.asarray(a.change, float), np.asarray(b.change, float),
+                                   rtol=1e-7, atol=1e-12)
+        np.testing.assert_array_equal(a.status_change, b.status_change)
+    (root / "studies" / "robust_mpc" / "results.parquet").unlink()
+    assert main(["--root", str(root), "study", "store-probes", "robust_mpc"]) == 2

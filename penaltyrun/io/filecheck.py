@@ -86,6 +86,18 @@ def conform(table: pa.Table) -> pa.Table:
     return table
 
 
+def check_columns(table: pa.Table) -> str | None:
+    """Why some columns of a results table, read apart from its identity columns (the
+    per-row columns a lazy read leaves in the file), cannot be reported (None: they can):
+    a type that does not cast to the schema's (:func:`conform`) or a value
+    :func:`check_content` refuses."""
+    try:
+        frame = conform(table).to_pandas()
+    except ValueError as exc:
+        return first_line(exc)
+    return check_content(frame)
+
+
 #: Marker of an Arrow extension type in a Parquet footer's serialized Arrow schema.
 EXTENSION_KEY = b"ARROW:extension:name"
 #: Most rows one results file may hold (declared in its footer; checked before reading).

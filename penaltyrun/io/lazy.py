@@ -26,6 +26,7 @@ from penaltyrun.io.filecheck import (
     KEEP_COLUMNS,
     ROW,
     SOURCE,
+    check_columns,
     check_footer,
     decoded,
     decoded_size,
@@ -47,15 +48,34 @@ LAZY_COLUMNS = ("error", "best_z", "z_names", "matrices", "scalars", "metrics", 
 def read_compact(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
     """A results file read lazily: row group by row group, each group's text
     columns held as categories (:func:`compact`) before the next is read, so reading
-    holds one group's decoded text at a time."""
+    holds one group's decoded text at a time.
+
+    The columns left in the file are checked as they would be when read whole (one row
+    group at a time, then dropped), so a file with damaged rows is refused here, where
+    the reader skips it with one warning, not in the middle of a report that needs them.
+
+    Raises
+    ------
+    ValueError
+        The file is refused (its footer, size, a column or a value).
+    """
     refused = check_footer(path)
     if refused:
         raise ValueError(refused)
     schema = pq.read_schema(path)
     wanted = [n for n in schema.names if n in columns]
+    left = [n for n in schema.names if n in COLUMNS and n not in wanted]
     parquet = pq.ParquetFile(path, read_dictionary=text_columns(schema, wanted))
+    checked = pq.ParquetFile(path, read_dictionary=text_columns(schema, left))
     pieces, used, first = [], 0, 0
     for g in range(parquet.metadata.num_row_groups):
+        if left:
+            rest = checked.read_row_group(g, columns=left)
+            problem = check_columns(decoded(rest, used))
+            if problem:
+                raise ValueError(problem)
+            used += decoded_size(rest)
+            del rest
         table = parquet.read_row_group(g, columns=wanted)
         size = decoded_size(table)
         frame = table_frame(decoded(table, used), path, columns)
@@ -107,10 +127,10 @@ def read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Data
     with _Quiet(longholdout.logger):
         try:
             frame = table_frame(table, path, wanted)
-        except ValueError as exc:  # damaged rows a lazy read meets only now: one line
+        except ValueError as exc:  # checked when read (read_compact): changed since
             raise ResultsUnreadableError(
-                f"{path}: {exc}; read lazily, its damaged rows were found only as they were "
-                "needed: move the file out of the folder, then report again") from None
+                f"{path}: {exc}; its rows were checked when the results were read, so the "
+                "file changed since: report again") from None
     if order:  # back to the order of ``rows``
         frame = frame.iloc[np.argsort(np.concatenate(order), kind="stable")]
     return frame.reset_index(drop=True)

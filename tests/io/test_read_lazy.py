@@ -115,14 +115,36 @@ def test_a_file_that_lost_rows_since_it_was_read_is_an_error(folder):
         fill_columns(lazy, ["matrices"])
 
 
-def test_damaged_rows_met_by_a_lazy_read_are_one_error_naming_the_file(tmp_path):
-    """A lazy read leaves the matrices in the file: a damaged one is found when its rows
-    are read, and said in one line naming the file (no traceback)."""
+def test_a_file_with_damaged_rows_is_skipped_by_a_lazy_read_with_one_warning(tmp_path,
+                                                                              caplog):
+    """A lazy read leaves the matrices in the file but checks them as it reads the file
+    (a row group at a time): the damaged file is skipped with one warning naming it and
+    the rest of the folder is read, as a read of whole files does."""
+    import logging
+
+    damaged = write_file(tmp_path / "d", [record(i) for i in range(5)]
+                         + [record(5, matrices={"K": [[1.0, 2.0], [3.0]]})], 2)
+    write_file(tmp_path / "e", [record(i, config_hash="h2") for i in range(4)], 2)
+    with caplog.at_level(logging.WARNING):
+        lazy = read.read_results(tmp_path, lazy=True)
+    warned = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert len(warned) == 1 and str(damaged) in warned[0]
+    assert "column matrices holds matrix 'K'" in warned[0]
+    assert len(lazy) == 4 and set(lazy["config_hash"]) == {"h2"}
+    assert lazy.attrs["skipped_files"] == {str(damaged): warned[0].split(": ", 1)[1]}
+    eager = read.read_results(tmp_path)
+    assert len(eager) == 4
+
+
+def test_damaged_rows_written_after_a_lazy_read_are_one_error_naming_the_file(tmp_path):
+    """A file replaced by damaged rows after the lazy read is found when its rows are
+    read, and said in one line naming the file (no traceback)."""
     from penaltyrun.errors import ResultsUnreadableError
 
-    path = write_file(tmp_path / "d", [record(i) for i in range(5)]
-                      + [record(5, matrices={"K": [[1.0, 2.0], [3.0]]})], 2)
+    path = write_file(tmp_path / "d", [record(i) for i in range(6)], 2)
     lazy = read.read_results(tmp_path / "d", lazy=True)
+    write_file(tmp_path / "d", [record(i) for i in range(5)]
+               + [record(5, matrices={"K": [[1.0, 2.0], [3.0]]})], 2)
     with pytest.raises(ResultsUnreadableError, match=f"{path}: column matrices holds"):
         fill_columns(lazy, ["matrices"])
 

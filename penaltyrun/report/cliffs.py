@@ -73,7 +73,7 @@ def probe_row(row: pd.Series | dict[str, Any], steps: tuple[float, ...] = STEPS,
         return None
     prob, layout = rebuilt
     kept = storedprobe.lookup(stored, row["job_id"], row.get("config_hash"), z, steps)
-    if kept is not None and kept.change.shape[1] == layout.dim:
+    if kept is not None:
         return kept, layout.names()
     lb, ub = layout.bounds()
 

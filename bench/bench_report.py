@@ -74,6 +74,12 @@ from machine import machine
 
 ROOT = Path(__file__).resolve().parent.parent
 
+#: The interpreter of every timed process. ``-P``: ``python -c`` would otherwise put the
+#: working directory first on ``sys.path``, before ``PYTHONPATH``, so that a process meant
+#: to run the base worktree's code, started from this repository, ran this tree's instead.
+PYTHON = (sys.executable, "-P")
+#: Prints where the package a timed process runs comes from (checked before timing).
+WHERE = "import penaltyrun\nprint(penaltyrun.__file__)\n"
 READ = ("import sys\nfrom penaltyrun.io import read_results\n"
         "print(len(read_results(sys.argv[1])), 'rows')\n")
 REPORT = ("import sys\nfrom multiprocessing import forkserver\n"
@@ -137,7 +143,7 @@ def measure(code: str, args: list[str], pythonpath: str | None = None,
     with tempfile.TemporaryDirectory() as empty:
         env["PENALTYRUN_CACHE_DIR"] = cache_dir or empty
         t0 = time.perf_counter()
-        proc = subprocess.Popen([sys.executable, "-c", code, *args], env=env,
+        proc = subprocess.Popen([*PYTHON, "-c", code, *args], env=env,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
@@ -148,6 +154,14 @@ def measure(code: str, args: list[str], pythonpath: str | None = None,
         raise SystemExit(f"benchmark process failed ({proc.returncode}):\n{err[-2000:]}")
     return {"cpu": usage.ru_utime + usage.ru_stime, "wall": wall,
             "rss": usage.ru_maxrss / 1024}
+
+
+def _check_tree(tree: Path) -> None:
+    """Stop unless a timed process given ``tree`` on ``PYTHONPATH`` imports its package."""
+    where = subprocess.run([*PYTHON, "-c", WHERE], env={**os.environ, "PYTHONPATH": str(tree)},
+                           check=True, capture_output=True, text=True).stdout.strip()
+    if not Path(where).resolve().is_relative_to(Path(tree).resolve()):
+        raise SystemExit(f"a process meant to run {tree} imported {where}")
 
 
 def _row(name: str, m: dict[str, float]) -> str:
@@ -167,7 +181,7 @@ def large(rows: int, steps: bool = False) -> None:
             env = {**os.environ, "PYTHONPATH": str(ROOT)}
             for memory in ("default", "lean"):
                 print(f"\nprocess memory settings: {memory}")
-                subprocess.run([sys.executable, "-c", STEPS, str(src), f"{tmp}/report",
+                subprocess.run([*PYTHON, "-c", STEPS, str(src), f"{tmp}/report",
                                 memory], env=env, check=True)
             return
         runs = {}
@@ -209,7 +223,7 @@ def row_groups(rows: int) -> None:
 
     print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; {rows} synthetic rows")
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([sys.executable, "-c", WRITE_TWO, tmp, str(rows)], check=True,
+        subprocess.run([*PYTHON, "-c", WRITE_TWO, tmp, str(rows)], check=True,
                        env={**os.environ, "PYTHONPATH": os.pathsep.join(
                            [str(ROOT), str(ROOT / "tests" / "report")])})
         print("| file | row groups | CPU s | wall s | peak RSS MB |\n|---|---|---|---|---|")
@@ -326,6 +340,9 @@ def main() -> None:
     print(f"# {machine()}; {time.strftime('%Y-%m-%d', time.gmtime())}; input {args.input}")
     with tempfile.TemporaryDirectory() as tmp, \
             (nullcontext() if args.no_base else base_worktree(args.base, Path(tmp))) as base_tree:
+        if base_tree is not None:
+            _check_tree(base_tree)
+        _check_tree(ROOT)
         runs: dict[str, list[dict[str, float]]] = {"read": [], "report": [], "base": []}
         runs["read"].append(measure(READ, [args.input], str(ROOT)))
         for i in range(args.repeats):

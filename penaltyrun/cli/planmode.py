@@ -87,13 +87,14 @@ def expand_cells(argv: list[str]) -> tuple[list[DictConfig], bool]:
                   and not o.is_sweep_override()]
     task = [o for o in parsed if not o.key_or_group.startswith("hydra")]
     with userconf.hydra_context(source):
+        userconf.give_config_loader(parsed)
         first = compose(config_name=source.config_name,
                         overrides=_first_values(task) + hydra_args, return_hydra_config=True)
         if not multirun:
             return [first], False
         sweep = dict(first.hydra.sweeper.get("params") or {})
         lines = [f"{k}={v}" for k, v in sweep.items()] + [o.input_line for o in task]
-        combos = sweep_combinations(parser.parse_overrides(lines))
+        combos = sweep_combinations(userconf.give_config_loader(parser.parse_overrides(lines)))
         return [compose(config_name=source.config_name, overrides=list(c) + hydra_args)
                 for c in combos], True
 

@@ -73,6 +73,7 @@ def preflight(argv: list[str]) -> str:
     hydra_overrides, searchpath = _searchpath(parsed)
     multirun = "-m" in argv or "--multirun" in argv
     with userconf.hydra_context(source):
+        userconf.give_config_loader(parsed)
         _check_choices(parsed, source, hydra_overrides, searchpath)
         grouped = _compose_groups(parsed, source, hydra_overrides) if multirun else None
         profile = _profile_sweeps(grouped, parsed, parser) if multirun else []

@@ -240,6 +240,18 @@ def hydra_context(source: ConfigSource) -> Iterator[None]:
         GlobalHydra.instance().clear()
 
 
+def give_config_loader(overrides: list[Any]) -> list[Any]:
+    """``overrides`` (parsed), each given the config loader of Hydra's global state, which
+    a glob sweep (``param=glob(*)``) needs to list its group's options, as Hydra's own
+    sweeper gives it. Must be called inside :func:`hydra_context`."""
+    from hydra.core.global_hydra import GlobalHydra
+
+    loader = GlobalHydra.instance().config_loader()
+    for override in overrides:
+        override.config_loader = loader
+    return overrides
+
+
 def group_options(group: str, source: ConfigSource, hydra_overrides: list[str]) -> list[str]:
     """Config names Hydra finds in ``group`` (package, ``--config-dir``, searchpath).
 

@@ -94,3 +94,25 @@ def test_a_run_logs_the_forecast_in_its_first_lines(tmp_path):
     assert "forecast: 2 jobs × ≤ 24 evaluations" in log[1]
     assert "3 batches of 6" in log[2]
     assert "CPU" in log[3] and "64 cores" in log[3] and "512 cores" in log[3]
+
+
+def test_a_glob_sweep_is_planned_and_run_over_its_group(tmp_path):
+    """``param=glob(...)`` lists the group's configs through Hydra's config loader, which
+    the checks before Hydra and the plan give it as Hydra's own sweeper does."""
+    from penaltyrun.cli.planmode import expand_cells
+    from penaltyrun.cli.preflight import preflight
+
+    argv = ["-m", "param=glob(*,exclude=cayley*)", *SMALL, "runner.n_starts=1"]
+    assert preflight([*argv, "mode=plan"]) == "plan"
+    cells, multirun = expand_cells(argv)
+    assert multirun and len(cells) >= 4
+    proc = cli("mode=plan", *argv, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"penaltyrun plan: {len(cells)} cells, {len(cells)} jobs")
+    labels = set(rows(proc.stdout))
+    assert {"zermelo/default/diagonal/pso", "zermelo/default/givens/pso"} <= labels
+    assert not any("cayley" in label for label in labels)
+    run = cli(*argv, "runner.report=false", f"hydra.sweep.dir={tmp_path / 'sweep'}",
+              cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert len(list((tmp_path / "sweep").glob("*/results.parquet"))) == len(cells)

@@ -140,17 +140,18 @@ def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     saving resolution, and given to ``savefig`` as a box: ``bbox_inches="tight"`` would
     measure it after a whole dry-run draw (the same box; 3-D axes keep that path).
 
-    Log-axis tick labels are written in plain text (10⁻³, not mathtext;
-    :func:`penaltyrun.report.ticks.plain_log_labels`), which is laid out without parsing.
+    Log axes are made lighter first (:func:`penaltyrun.report.ticks.lighter_log_axes`):
+    tick labels in plain text (10⁻³, not mathtext), laid out without parsing, and on axes
+    spanning two decades or more minor ticks at 2 and 5 × 10ᵏ only.
     """
     import warnings
 
     import matplotlib.pyplot as plt
     from matplotlib.layout_engine import TightLayoutEngine
 
-    from penaltyrun.report.ticks import plain_log_labels
+    from penaltyrun.report.ticks import lighter_log_axes
 
-    plain_log_labels(fig)
+    lighter_log_axes(fig)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         TightLayoutEngine().execute(fig)

@@ -95,3 +95,30 @@ def test_saving_a_log_figure_parses_no_mathtext(tmp_path, monkeypatch):
     path = save_figure(fig, tmp_path / "f.png")
     assert path.is_file() and path.stat().st_size > 0
     assert calls == []
+
+
+def test_minor_ticks_thinned_to_1_2_5_only_on_axes_of_two_decades_or_more():
+    from penaltyrun.report.ticks import THIN_SUBS, thin_log_minor_ticks
+
+    fig = plt.figure(figsize=(12, 5))
+    wide, narrow, linear = (fig.add_subplot(1, 3, k) for k in (1, 2, 3))
+    wide.loglog([1.0, 1e3], [1e-3, 1.0])
+    narrow.semilogy([0.0, 1.0], [0.02, 0.09])  # less than a decade: minor ticks labelled
+    linear.plot([0, 1], [0, 1])
+    fig.canvas.draw()
+    narrow_labels = [t.get_text() for t in narrow.yaxis.get_minorticklabels()]
+    assert len(wide.xaxis.get_minor_locator()()) > 12  # 2, 3, ..., 9 in each decade
+    thin_log_minor_ticks(fig)
+    for axis in (wide.xaxis, wide.yaxis):
+        minor = axis.get_minor_locator()
+        assert type(minor) is matplotlib.ticker.LogLocator
+        locs = [v for v in minor() if axis.get_view_interval()[0] <= v
+                <= axis.get_view_interval()[1]]
+        mantissas = {round(v / 10 ** math.floor(math.log10(v)), 6) for v in locs}
+        assert mantissas == set(THIN_SUBS)
+    assert len(narrow.yaxis.get_minor_locator()()) > 2  # untouched
+    fig.canvas.draw()
+    assert [t.get_text() for t in narrow.yaxis.get_minorticklabels()] == narrow_labels
+    assert any(narrow_labels)
+    assert type(linear.xaxis.get_minor_locator()) is matplotlib.ticker.NullLocator
+    plt.close(fig)

@@ -37,6 +37,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from penaltyrun.io.filecheck import check_footer, read_bounded
 from penaltyrun.optim.probe import CliffProbe
 
 logger = logging.getLogger(__name__)
@@ -123,10 +124,6 @@ def read_one(path: Path) -> pd.DataFrame:
     OSError, pyarrow.ArrowException
         It cannot be read as Parquet.
     """
-    # filecheck applies the held-out file beside results to every frame it makes and is
-    # imported where a probe file is found, as longholdout does.
-    from penaltyrun.io.filecheck import check_footer, read_bounded
-
     refused = check_footer(path)
     if refused:
         raise ValueError(refused)
@@ -157,7 +154,8 @@ def read_beside(results: Iterable[Path | str]) -> pd.DataFrame:
             continue
         try:
             frames.append(read_one(path))
-        except (OSError, pa.ArrowException, ValueError, KeyError, MemoryError) as exc:
+        except (OSError, pa.ArrowException, ValueError, KeyError, TypeError,
+                MemoryError) as exc:
             text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             logger.warning("skipped stored probe file %s: %s (its probes are computed)",
                            path, text)

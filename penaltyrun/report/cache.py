@@ -17,8 +17,8 @@ What goes into a key:
 * the bundle: each section's rows (every column, every value) and its file stem, the
   ``paper`` flag;
 * the shared tables' rows of the bundle's problem case (cell summaries, map-vs-map tests,
-  best-known values, held-out rows and ratios, paper rows) and the basin-map and probe
-  settings.
+  best-known values, held-out rows and ratios, paper rows, probes stored beside the
+  results) and the basin-map and probe settings.
 
 Not cached (drawn every time): a lazily read report (its rows are read inside the
 sections), and a problem case whose code or data lies outside penaltyrun: a user problem,

@@ -174,3 +174,28 @@ def test_the_code_fingerprint_follows_every_file_but_compiled_caches(tmp_path):
     source = tree / "report" / "cases.py"
     source.write_text(source.read_text(encoding="utf-8") + "\n", encoding="utf-8")
     assert cache.tree_digest(tree) != before
+
+
+def test_a_stored_probe_of_the_case_is_part_of_its_key(tmp_path, drawn):
+    """A probe file added beside the results changes the section (it says where its probe
+    came from): the cached one is not reused."""
+    from penaltyrun.io import storedprobe
+    from penaltyrun.io.schema import read_results
+    from penaltyrun.report import cliffs
+    from penaltyrun.report.bestknown import best_rows
+
+    src = _input(tmp_path / "in")
+    options = {**OPTIONS, "probe": True}
+    build_report(src, tmp_path / "r0", cache_dir=tmp_path / "cache", **options)
+    assert len(drawn) == 1
+    rows = []
+    for row in best_rows(read_results(src / RESULTS_FILE)).values():
+        result, _ = cliffs.probe_row(row)
+        rows.append(storedprobe.record(row["job_id"], row["config_hash"], row["best_z"],
+                                       result))
+    storedprobe.write(src / storedprobe.PROBE_FILE, rows, {})
+    stored = build_report(src, tmp_path / "r1", cache_dir=tmp_path / "cache", **options)
+    assert len(drawn) == 2
+    assert "read from `probe.parquet`" in (stored / "report.md").read_text()
+    build_report(src, tmp_path / "r2", cache_dir=tmp_path / "cache", **options)
+    assert len(drawn) == 2

@@ -54,7 +54,7 @@ from multiprocessing.connection import Connection, wait
 from typing import Any
 
 from penaltyrun.jobrecord import FAILED, TIMEOUT
-from penaltyrun.runner import interrupts
+from penaltyrun.runner import interrupts, proctree
 from penaltyrun.runner.job import identity_columns
 from penaltyrun.runner.plan import Job
 
@@ -142,6 +142,7 @@ def _worker_main(conn: Connection, parent_pid: int, func: JobFunc,
         os.setpgid(0, 0)
     except OSError:
         pass
+    proctree.become_subreaper()  # and what leaves the group is still found below it
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the main process stops us
     interrupts.mark_worker()  # so a KeyboardInterrupt here comes from a job's code
     for signum in (signal.SIGTERM, signal.SIGHUP):  # not the main process's handlers
@@ -259,7 +260,10 @@ class _Worker:
     def stop(self, kill: bool = False) -> None:
         """End the worker: SIGTERM (SIGKILL with ``kill``, e.g. a stopped process), then
         SIGKILL if it is still there after 5 s; then every process left in its process
-        group (what a job's code started: a subprocess, a fork) is killed too."""
+        group (what a job's code started: a subprocess, a fork) is killed too, and on
+        Linux every process below it, also one in a session of its own or orphaned
+        (:mod:`penaltyrun.runner.proctree`), stopped first so that none forks meanwhile."""
+        below = proctree.freeze_descendants(self.proc.pid)
         if self.proc.is_alive():
             self.proc.kill() if kill else self.proc.terminate()
         self.proc.join(timeout=5)
@@ -267,6 +271,7 @@ class _Worker:
             self.proc.kill()
             self.proc.join(timeout=5)
         _kill_group(self.proc.pid)
+        proctree.kill(below)
         self.conn.close()
 
 

@@ -41,15 +41,27 @@ def _misbehaving(job, how: str, marker_dir: Path):
             os._exit(3)
         elif how == "segv":
             os.kill(os.getpid(), signal.SIGSEGV)
-        elif how in ("subprocess", "fork"):  # a child that outlives the job, then a hang
+        elif how in ("subprocess", "fork", "setsid"):  # a child outliving the job, a hang
             import subprocess
 
-            child = subprocess.Popen(["sleep", "3600"]).pid if how == "subprocess" else \
-                os.fork()
+            child = os.fork() if how == "fork" else subprocess.Popen(
+                ["sleep", "3600"], start_new_session=how == "setsid").pid
             if child == 0:
                 time.sleep(3600)
                 os._exit(0)
             (marker_dir / f"child-{child}").write_text("")
+            time.sleep(3600)
+        elif how == "daemon":  # double fork: the grandchild, in a session of its own,
+            read, write = os.pipe()  # is orphaned when its parent exits
+            if os.fork() == 0:
+                os.setsid()
+                if os.fork() == 0:
+                    os.write(write, str(os.getpid()).encode().ljust(16))
+                    time.sleep(3600)
+                    os._exit(0)
+                os._exit(0)
+            grandchild = int(os.read(read, 16).decode())
+            (marker_dir / f"child-{grandchild}").write_text("")
             time.sleep(3600)
     return {"job_id": job.job_id, "problem": job.problem, "case": job.case,
             "param": job.param, "optimizer": job.optimizer, "start": job.start,
@@ -115,10 +127,12 @@ def test_which_worker_ends_are_its_own():
     assert not ended_itself(None)
 
 
-@pytest.mark.parametrize("how", ["subprocess", "fork"])
+@pytest.mark.parametrize("how", ["subprocess", "fork", "setsid", "daemon"])
 def test_what_a_timed_out_job_started_ends_with_its_worker(tmp_path, how):
     """F7: a job that starts a subprocess (or forks) and then hangs: recorded timeout, and
-    its child does not outlive the run (the worker's process group is killed)."""
+    its child does not outlive the run (the worker's process group is killed), nor does a
+    child in a session of its own or a daemon's orphaned grandchild (Linux: the worker is
+    their subreaper and stops and kills every process below it)."""
     out, _, _ = _run(how, tmp_path, job_timeout=1.0, stall_timeout=600, max_retries=1)
     assert out[0]["status"] == "timeout"
     pids = [int(p.name.split("-")[1]) for p in tmp_path.glob("child-*")]

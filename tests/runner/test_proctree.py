@@ -38,6 +38,9 @@ def test_the_tree_below_a_process_is_found_stopped_and_killed():
         assert proctree.descendants(grandchild) == []
         fds = proctree.freeze_descendants(top.pid)
         assert len(fds) == len(below)
+        deadline = time.monotonic() + 10  # a signal is delivered asynchronously
+        while _state(grandchild) not in ("T", "t") and time.monotonic() < deadline:
+            time.sleep(0.01)
         assert _state(grandchild) in ("T", "t")
         proctree.kill(fds)
         deadline = time.monotonic() + 10

@@ -21,6 +21,8 @@ from pathlib import Path
 import pandas as pd
 import pyarrow as pa
 
+from penaltyrun.io.schema import config_key
+
 logger = logging.getLogger(__name__)
 
 #: File name of the re-judged held-out data, beside ``results.parquet``.
@@ -29,11 +31,6 @@ LONG_FILE = "holdout_long.parquet"
 LONG_PROVENANCE = "holdout_long.json"
 #: Columns of :data:`LONG_FILE`.
 LONG_COLUMNS = ("job_id", "config_hash", "holdout", "status", "wall_time_s")
-
-
-def _key(config_hash: object) -> str:
-    """A configuration hash as a dictionary key (missing: empty, whether None or NaN)."""
-    return "" if config_hash is None or config_hash != config_hash else str(config_hash)
 
 
 def _read_checked(path: Path) -> pd.DataFrame:
@@ -79,10 +76,10 @@ def apply(frame: pd.DataFrame, results: Path) -> pd.DataFrame:
         logger.warning("skipped re-judged held-out file %s: %s (the held-out data stored "
                        "in %s are reported)", path, text, results)
         return frame
-    table = {(str(j), _key(h)): v for j, h, v in zip(long["job_id"], long["config_hash"],
+    table = {(str(j), config_key(h)): v for j, h, v in zip(long["job_id"], long["config_hash"],
                                                      long["holdout"])}
     out = frame.copy()
-    out["holdout"] = [table.get((str(j), _key(h))) for j, h in zip(frame["job_id"],
+    out["holdout"] = [table.get((str(j), config_key(h))) for j, h in zip(frame["job_id"],
                                                                    frame["config_hash"])]
     missing = int(out["holdout"].isna().sum() - frame["holdout"].isna().sum())
     if missing > 0:

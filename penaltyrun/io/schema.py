@@ -242,3 +242,9 @@ def decode_json(value: str | float | None) -> Any:
         return json.loads(value)
     except RecursionError:
         raise ValueError("JSON nested too deep to parse") from None
+
+
+def config_key(config_hash: object) -> str:
+    """A job's ``config_hash`` as a key for matching rows of two files (missing: empty,
+    whether None or the NaN pandas puts in a column)."""
+    return "" if config_hash is None or config_hash != config_hash else str(config_hash)

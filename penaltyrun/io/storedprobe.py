@@ -38,6 +38,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from penaltyrun.io.filecheck import check_footer, read_bounded
+from penaltyrun.io.schema import config_key
 from penaltyrun.optim.probe import CliffProbe
 
 logger = logging.getLogger(__name__)
@@ -55,11 +56,6 @@ SCHEMA = pa.schema([
 ])
 #: Columns of :data:`PROBE_FILE`, in order.
 COLUMNS = tuple(SCHEMA.names)
-
-
-def config_key(config_hash: object) -> str:
-    """A configuration hash as a key (missing: empty, whether None or NaN)."""
-    return "" if config_hash is None or config_hash != config_hash else str(config_hash)
 
 
 def record(job_id: str, config_hash: object, z: np.ndarray, result: CliffProbe
@@ -187,5 +183,5 @@ def lookup(stored: pd.DataFrame | None, job_id: object, config_hash: object, z: 
     return None
 
 
-__all__ = ["COLUMNS", "METADATA_KEY", "PROBE_FILE", "SCHEMA", "config_key", "lookup",
-           "read_beside", "read_one", "record", "write"]
+__all__ = ["COLUMNS", "METADATA_KEY", "PROBE_FILE", "SCHEMA", "lookup", "read_beside",
+           "read_one", "record", "write"]

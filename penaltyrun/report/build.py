@@ -18,6 +18,7 @@ from penaltyrun.io import storedprobe
 from penaltyrun.io.filecheck import ROW, SOURCE
 from penaltyrun.io.memory import release_memory
 from penaltyrun.io.read import declared_rows, read_results
+from penaltyrun.io.schema import config_key
 from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import (
@@ -275,7 +276,7 @@ def stored_probes(df: pd.DataFrame) -> pd.DataFrame:
     ``problem`` and ``case`` (so that a cached section's key holds its own case's)."""
     stored = storedprobe.read_beside(df[SOURCE].dropna().unique())
     starts = df[["job_id", "config_hash", "problem", "case"]].copy()
-    starts["config_hash"] = [storedprobe.config_key(h) for h in starts["config_hash"]]
+    starts["config_hash"] = [config_key(h) for h in starts["config_hash"]]
     return stored.merge(starts.drop_duplicates(["job_id", "config_hash"]),
                         on=["job_id", "config_hash"], how="inner")
 

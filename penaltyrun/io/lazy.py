@@ -45,14 +45,16 @@ LAZY_COLUMNS = ("error", "best_z", "z_names", "matrices", "scalars", "metrics", 
                 "history", "trace_evals", "trace_best", "trace_cpu_s", "config", "packages")
 
 
-def read_compact(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
+def read_compact(path: Path, columns: tuple[str, ...],
+                 checked: Iterable[str] = COLUMNS) -> pd.DataFrame:
     """A results file read lazily: row group by row group, each group's text
     columns held as categories (:func:`compact`) before the next is read, so reading
     holds one group's decoded text at a time.
 
-    The columns left in the file are checked as they would be when read whole (one row
-    group at a time, then dropped), so a file with damaged rows is refused here, where
-    the reader skips it with one warning, not in the middle of a report that needs them.
+    The columns of ``checked`` left in the file (those the caller may read later) are
+    checked as they would be when read whole (one row group at a time, then dropped), so
+    a file with damaged rows is refused here, where the reader skips it with one warning,
+    not in the middle of a report that needs them.
 
     Raises
     ------
@@ -64,7 +66,7 @@ def read_compact(path: Path, columns: tuple[str, ...]) -> pd.DataFrame:
         raise ValueError(refused)
     schema = pq.read_schema(path)
     wanted = [n for n in schema.names if n in columns]
-    left = [n for n in schema.names if n in COLUMNS and n not in wanted]
+    left = [n for n in schema.names if n in set(checked) & set(COLUMNS) and n not in wanted]
     parquet = pq.ParquetFile(path, read_dictionary=text_columns(schema, wanted))
     checked = pq.ParquetFile(path, read_dictionary=text_columns(schema, left))
     pieces, used, first = [], 0, 0

@@ -174,7 +174,8 @@ def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = None,
-                 lazy: bool = False, sources: bool = False) -> pd.DataFrame:
+                 lazy: bool = False, sources: bool = False,
+                 checked: Iterable[str] | None = None) -> pd.DataFrame:
     """All results under ``path`` (file, folder, or several) as one DataFrame, each job once.
 
     JSON columns stay text; use :func:`~penaltyrun.io.schema.decode_json` to parse them.
@@ -197,6 +198,10 @@ def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = No
         Keep :data:`SOURCE` and :data:`ROW` in a frame read whole too (e.g. to name the
         file of rows found unusable later; drop them before the frame is used as one read
         whole).
+    checked : iterable of str, optional
+        With ``lazy``: the columns left in the files that are checked as each file is
+        read (the ones the caller may fill later), as a read of whole files checks the
+        columns it reads; a file failing the check is skipped. Default: every column.
 
     Returns
     -------
@@ -219,6 +224,7 @@ def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = No
         if unknown:
             raise ValueError(f"not results columns: {', '.join(unknown)}")
         columns = tuple(n for n in COLUMNS if n in set(columns) | set(KEEP_COLUMNS))
+    checked = COLUMNS if checked is None else tuple(checked)
     if lazy:
         columns = tuple(n for n in (columns or COLUMNS) if n not in LAZY_COLUMNS)
     single = isinstance(path, (str, Path))
@@ -238,7 +244,7 @@ def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = No
     try:
         for p in paths:
             try:
-                frames.append(read_compact(p, columns) if lazy else _read_one(p, columns))
+                frames.append(read_compact(p, columns, checked) if lazy else _read_one(p, columns))
             except (OSError, pa.ArrowException, ValueError, MemoryError,
                     RecursionError) as exc:
                 reason = first_line(exc)

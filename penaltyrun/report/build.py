@@ -237,7 +237,8 @@ def build_report(src: Path, out: Path, paper: bool = True,
         stream = declared_rows(src) > STREAM_MIN_ROWS
     with trust.reading_results():
         df = fitting_rows(add_variant(read_results(
-            src, FRAME_COLUMNS if stream else REPORT_COLUMNS, lazy=stream, sources=True)))
+            src, FRAME_COLUMNS if stream else REPORT_COLUMNS, lazy=stream, sources=True,
+            checked=REPORT_COLUMNS)))
         stored = stored_probes(df) if probe else None
         if not stream:  # the files named in fitting_rows' warnings; read whole from here
             df = df.drop(columns=[SOURCE, ROW])

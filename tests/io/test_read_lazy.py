@@ -169,3 +169,18 @@ def test_results_files_are_written_in_row_groups_a_lazy_reader_reads_one_at_a_ti
     assert [sorted(shuffled[ROW].to_numpy()[b]) for b in joined] == [[0, 2, 4, 5], [7]]
     filled = fill_columns(shuffled.iloc[batches[1]], ("matrices",))
     assert [json.loads(m)["K"][0][0] for m in filled["matrices"]] == [5.0, 6.0]
+
+
+def test_a_lazy_read_checks_the_columns_a_read_whole_of_the_same_columns_checks(tmp_path):
+    """Damage in a column the caller never reads (``history`` here) refuses the file in
+    neither read when the caller names its columns, and in both by default."""
+    write_file(tmp_path / "d", [record(i) for i in range(3)]
+               + [record(3, history=[1.0, float("-inf")])], 2)
+    used = [c for c in read.COLUMNS if c != "history"]
+    assert len(read.read_results(tmp_path, used)) == 4
+    assert len(read.read_results(tmp_path, lazy=True, checked=used)) == 4
+    from penaltyrun.errors import ResultsUnreadableError
+
+    for kwargs in ({}, {"lazy": True}):
+        with pytest.raises(ResultsUnreadableError, match="no readable results"):
+            read.read_results(tmp_path, **kwargs)

@@ -175,12 +175,8 @@ def cpu_ticks(pid: int) -> int | None:
     """User + system CPU time of process ``pid`` in clock ticks (Linux ``/proc``), or
     ``None`` where it cannot be read; a stopped process (state ``T``) gives ``None`` too,
     so that it counts as making no progress."""
-    try:
-        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as fh:
-            fields = fh.read().rsplit(")", 1)[1].split()
-    except (OSError, IndexError):
-        return None
-    if fields[0] in ("T", "t"):
+    fields = proctree.stat_fields(pid)
+    if fields is None or fields[0] in ("T", "t"):
         return None
     return int(fields[11]) + int(fields[12])
 

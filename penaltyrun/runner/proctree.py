@@ -42,12 +42,22 @@ def become_subreaper() -> None:
         pass
 
 
-def _parent(pid: int) -> int | None:
-    """Parent id of process ``pid`` (``/proc``), None when it is gone or unreadable."""
+def stat_fields(pid: int) -> list[str] | None:
+    """The fields of ``/proc/PID/stat`` after the command name (state, parent id, ...;
+    ``man 5 proc`` numbers them from 3), None when the process is gone or unreadable."""
     try:
         with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as fh:
-            return int(fh.read().rsplit(")", 1)[1].split()[1])
-    except (OSError, IndexError, ValueError):
+            return fh.read().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+
+
+def _parent(pid: int) -> int | None:
+    """Parent id of process ``pid`` (``/proc``), None when it is gone or unreadable."""
+    fields = stat_fields(pid)
+    try:
+        return int(fields[1]) if fields else None
+    except (IndexError, ValueError):
         return None
 
 
@@ -111,4 +121,4 @@ def kill(pidfds: list[int]) -> None:
 
 
 __all__ = ["PR_SET_CHILD_SUBREAPER", "ROUNDS", "become_subreaper", "descendants",
-           "freeze_descendants", "kill"]
+           "freeze_descendants", "kill", "stat_fields"]

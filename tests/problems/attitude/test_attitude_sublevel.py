@@ -105,3 +105,39 @@ def test_the_basin_plane_region_is_the_set_at_zero_rates():
     assert reg["inside"].tolist() == want.tolist()
     assert reg["inside"][0] and not reg["inside"][2]
     assert reg["level"] == region.sampled
+
+
+def _every_ray_at_every_radius(P, gain, inertia, n_directions, n_radii, seed):
+    """The sampled level from every ray at every radius (no early stop)."""
+    d = sublevel._directions(P, n_directions, np.random.default_rng(seed))
+    s_max = np.sqrt(sublevel.edge_level(P))
+    s = np.linspace(0.0, s_max, n_radii + 1)[1:]
+    x = s[None, :, None] * d[:, None, :]
+    qv, w = x[..., :3], x[..., 3:]
+    q0 = np.sqrt(np.clip(1.0 - np.sum(qv * qv, axis=-1), 0.0, None))[..., None]
+    dq = 0.5 * (q0 * w + np.cross(qv, w))
+    dw = np.einsum("ij,...j->...i", np.linalg.inv(inertia),
+                   -np.cross(w, np.einsum("ij,...j->...i", inertia, w))
+                   - np.einsum("ij,...j->...i", gain, x))
+    vdot = 2.0 * np.einsum("...i,ij,...j->...", x, P, np.concatenate([dq, dw], axis=-1))
+    bad = vdot >= 0.0
+    first = np.where(bad.any(axis=1), s[np.argmax(bad, axis=1)], s_max)
+    return sublevel.SAFETY * float(np.min(first)) ** 2
+
+
+@pytest.mark.parametrize(("kp", "kd", "turns"), [(1.0, 1.0, False), (1.0, 0.05, False),
+                                                (10.0, 0.1, True), (100.0, 0.3, True),
+                                                (1000.0, 1.0, True)])
+def test_the_sampled_level_stops_where_every_ray_would(kp, kd, turns):
+    """Visiting the radii outward and stopping at the first block with V̇ ≥ 0 gives the level
+    of evaluating every ray at every radius, whether a ray turns inside the hemisphere
+    (stiff, lightly damped gains) or none does (the level is then the edge level's)."""
+    rng = np.random.default_rng(int(kp / kd))
+    gain = np.hstack([kp * KP, kd * KD]) + 1e-4 * rng.standard_normal((3, 6))
+    P, _ = sublevel.lyapunov_matrix(gain, INERTIA)
+    edge = sublevel.SAFETY * sublevel.edge_level(P)
+    for n_directions, n_radii in [(50, 7), (300, 200), (2000, 200)]:
+        got = sublevel.sampled_level(P, gain, INERTIA, n_directions, n_radii, seed=3)
+        want = _every_ray_at_every_radius(P, gain, INERTIA, n_directions, n_radii, 3)
+        assert got == pytest.approx(want, rel=1e-14)
+    assert (got < 0.99 * edge) == turns

@@ -163,6 +163,13 @@ def trajectory(G: Any, params: Params, t_end: float, n_points: int = 500,
                y0: Any = None) -> dict[str, np.ndarray]:
     """Closed-loop histories on [0, t_end] by scipy DOP853 dense output.
 
+    The steps are chosen by the error control alone (up to the problem's ``max_step``),
+    without the cap :func:`reference_max_step` puts on a run that looks for the arrival
+    event: nothing is detected here (``t_end`` is given), and the dense output holds the
+    tolerances between steps. On a two-minute manoeuvre that is about 20× less CPU than
+    with the 0.2 s cap, for histories within a few parts in 10⁸ of their range of the
+    capped run's (a few parts in 10⁶ through the kinks of a torque limit).
+
     Returns
     -------
     dict
@@ -179,7 +186,7 @@ def trajectory(G: Any, params: Params, t_end: float, n_points: int = 500,
     t = np.linspace(0.0, t_end, n_points)
     sol = solve_ivp(rhs, (0.0, max(t_end, 1e-12)), np.concatenate([y_init, [0.0]]), t_eval=t,
                     rtol=params.rtol, atol=params.atol, method="DOP853",
-                    max_step=reference_max_step(params))
+                    max_step=params.max_step)
     y = sol.y.T
     u = np.clip(-y[:, 1:7] @ G.T, -u_max, u_max)
     dist = params.event_distance(y)

@@ -174,6 +174,26 @@ def test_simulate_histories():
     np.testing.assert_allclose(np.linalg.norm(sim["q"], axis=1), 1.0, atol=1e-9)
 
 
+@pytest.mark.parametrize(("case", "overrides"), [("rest_to_rest", {}),
+                                                 ("detumble", {"u_max": 0.05})])
+def test_simulate_histories_match_a_run_with_capped_steps(case, overrides):
+    """The plotted histories, whose steps the error control chooses alone, agree with a
+    scipy run whose steps are capped at 0.05 s to 1e-5 of their range (through the
+    saturation's kinks too)."""
+    from dataclasses import replace
+
+    from penaltyrun.problems.attitude.reference import trajectory
+
+    prob = make("attitude_lyapunov", case, overrides)
+    t_end = prob.evaluate(GOOD)["t_final"]
+    G = prob.gain(GOOD)
+    free = trajectory(G, prob.params, t_end, 300, prob.y0)
+    capped = trajectory(G, replace(prob.params, max_step=0.05), t_end, 300, prob.y0)
+    for key in ("q", "w", "u", "J"):
+        scale = np.abs(capped[key]).max()
+        np.testing.assert_allclose(free[key], capped[key], rtol=0, atol=1e-5 * scale)
+
+
 def test_saturation_respected():
     prob = make("attitude_lyapunov", "rest_to_rest", {"u_max": 0.05})
     sim = prob.simulate(GOOD, n_points=300)

@@ -10,6 +10,11 @@ Three kinds of process run on the same input:
 * ``base``: the same report run by the code of ``--base`` (default ``main``), checked out into
   a temporary git worktree and put first on ``PYTHONPATH`` (skipped with ``--no-base``).
 
+Before the timed runs each tree's report runs once untimed (skipped with ``--no-warm``):
+numba caches its compiled kernels beside each tree's sources, and a fresh base worktree's
+first report would otherwise pay for compiling every kernel it uses (a minute or more of
+CPU) where this tree's, already compiled, does not.
+
 ``report`` and ``base`` runs are interleaved (``--repeats`` pairs) so that both see the same
 load of a shared machine; the script prints every run, then the min and median ratios
 base/report and report/read. ``--workers N [N ...]`` runs this tree's report once per
@@ -47,6 +52,7 @@ code that draws it changes).
 Usage::
 
     python bench/bench_report.py [--input studies] [--base e37fb9b] [--repeats 1] [--no-base]
+                                 [--no-warm]
     python bench/bench_report.py --no-base --workers 1 2
     python bench/bench_report.py --large 1000000
     python bench/bench_report.py --large 300000 --steps
@@ -310,6 +316,8 @@ def main() -> None:
     parser.add_argument("--base", default="main", help="git revision of the 'before' code")
     parser.add_argument("--repeats", type=int, default=1, help="interleaved pairs")
     parser.add_argument("--no-base", action="store_true", help="time this tree only")
+    parser.add_argument("--no-warm", action="store_true",
+                        help="skip the untimed report of each tree before the timed ones")
     parser.add_argument("--large", type=int, metavar="N", help="report N synthetic rows")
     parser.add_argument("--steps", action="store_true",
                         help="with --large: resident memory as each report step begins")
@@ -344,6 +352,11 @@ def main() -> None:
             _check_tree(base_tree)
         _check_tree(ROOT)
         runs: dict[str, list[dict[str, float]]] = {"read": [], "report": [], "base": []}
+        if not args.no_warm:
+            for tree in (ROOT, base_tree):
+                if tree is not None:
+                    measure(REPORT, [args.input, f"{tmp}/warm"], str(tree))
+                    shutil.rmtree(f"{tmp}/warm", ignore_errors=True)
         runs["read"].append(measure(READ, [args.input], str(ROOT)))
         for i in range(args.repeats):
             for n in args.workers or []:

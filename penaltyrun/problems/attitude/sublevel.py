@@ -54,8 +54,6 @@ from scipy import linalg
 N_DIRECTIONS = 2000
 #: Radial points per direction.
 N_RADII = 200
-#: Radii of every ray evaluated together by :func:`sampled_level`.
-RADII_PER_STEP = 10
 #: Share of the sampled critical level kept (the sampled estimate's margin).
 SAFETY = 0.9
 #: Seed of the directions and of :func:`check`'s starts.
@@ -156,18 +154,17 @@ def sampled_level(P: np.ndarray, G: np.ndarray, inertia: np.ndarray,
     × c_edge when no sampled ray has V̇ ≥ 0 inside the hemisphere.
 
     The smallest first radius over the rays is the smallest radius at which any ray has
-    V̇ ≥ 0, so the radii are visited outward :data:`RADII_PER_STEP` at a time, every ray at
-    once, and the search stops in the first block where one has: the same level as
-    evaluating every ray at every radius, usually for a fraction of the states."""
+    V̇ ≥ 0: the compiled :func:`penaltyrun.dynamics.attitude_region.first_turn` visits the
+    radii outward, every ray at each, and stops at the first such radius."""
+    from penaltyrun.dynamics.attitude_region import first_turn
+
     d = _directions(P, n_directions, np.random.default_rng(seed))
     s_max = np.sqrt(edge_level(P))
     s = np.linspace(0.0, s_max, n_radii + 1)[1:]
-    for start in range(0, s.size, RADII_PER_STEP):
-        block = s[start:start + RADII_PER_STEP]
-        bad = (vdot(block[:, None, None] * d[None, :, :], P, G, inertia) >= 0.0).any(axis=1)
-        if bad.any():
-            return SAFETY * float(block[np.argmax(bad)]) ** 2
-    return SAFETY * float(s_max) ** 2
+    inertia = np.asarray(inertia, dtype=float)
+    k = first_turn(np.asarray(P, dtype=float), np.asarray(G, dtype=float), inertia,
+                   np.linalg.inv(inertia), d, s)
+    return SAFETY * float(s[k] if k >= 0 else s_max) ** 2
 
 
 def estimate(G: np.ndarray, inertia: np.ndarray, saturated: bool = False

@@ -149,7 +149,9 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
             ("costs", figures.cost_distribution(
                 g, label, f"{title}: best cost per converged start", out / f"costs_{stem}.png",
                 info.paper if paper else None))):
-        if path is not None:
+        if isinstance(path, str):
+            lines += [path, ""]
+        elif path is not None:
             lines += [f"![{name}]({path.name})", ""]
     if not any(line.startswith("![anytime]") for line in lines):
         lines += ["(no anytime traces in these results — older schema: anytime and ECDF "

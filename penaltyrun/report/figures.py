@@ -36,6 +36,12 @@ MAP_COLORS = {m: f"C{i}" for i, m in enumerate(MAP_ORDER)}
 #: Columns the anytime and ECDF figures use (a cell's traces read with them).
 TRACED = ("problem", "case", "problem_variant", "optimizer", "param", "status", "n_evals",
           *TRACE_COLUMNS)
+#: What the report says instead of a fixed-target ECDF figure whose curves would all be 0.
+ECDF_NONE_REACHED = ("Fixed-target ECDF: no start of any optimizer and map here reached "
+                     "its family's best-known cost f* within "
+                     + " or ".join(f"{100 * e:g} %" for e in EPSILONS)
+                     + " (f* is the best over every run of this problem variant, runs with "
+                     "other settings among them), so every curve would be 0: no figure.")
 #: Colour of each published value (dashed lines).
 PAPER_COLORS = {"mean_cost": "k", "median_cost": "0.45"}
 
@@ -127,10 +133,18 @@ def anytime(df: pd.DataFrame, bk: pd.DataFrame, label: str, title: str,
     return _save(fig, path)
 
 
-def ecdf_figure(df: pd.DataFrame, bk: pd.DataFrame, title: str, path: Path) -> Path | None:
+def ecdf_figure(df: pd.DataFrame, bk: pd.DataFrame, title: str, path: Path
+                ) -> Path | str | None:
     """Share of starts whose trace reached f* (1 + ε) by n evaluations, per optimizer × map.
 
     f* is the best-known cost of the map's family. Rows: ε; columns: optimizers.
+
+    Returns
+    -------
+    Path, str or None
+        The figure's path; :data:`ECDF_NONE_REACHED` (a sentence, no figure) when no start
+        reached either target, every curve of the figure then being 0 throughout; None
+        without traces.
     """
     df = narrow(with_problem_variant(df), TRACED)
     curves, traced = {}, set()  # one cell's traces at a time: (optimizer, map) → curves
@@ -151,6 +165,8 @@ def ecdf_figure(df: pd.DataFrame, bk: pd.DataFrame, title: str, path: Path) -> P
     opts = [o for o in _optimizers(df) if o in traced]
     if not opts:
         return None
+    if not any(share.any() for _, shares, _ in curves.values() for share in shares):
+        return ECDF_NONE_REACHED
     colors = _colors(df)
     fig, axes = plt.subplots(len(EPSILONS), len(opts), figsize=(5.5 * len(opts), 3.8 *
                              len(EPSILONS)), squeeze=False, sharey=True)

@@ -115,3 +115,16 @@ def test_saved_figures_are_not_clipped(frame, kept, tmp_path):
     out = figures.ecdf_figure(frame, best_known(frame), "toy", tmp_path / "ecdf.png")
     fig_w = 5.5 * frame["optimizer"].nunique() * 110
     assert Image.open(out).size[0] >= 0.9 * fig_w
+
+
+def test_ecdf_without_any_start_at_a_target_is_a_sentence(frame, tmp_path):
+    """When no start reached f*·(1 + ε) (f* from runs not in the section), every curve
+    would be 0: the report says so instead of drawing the figure."""
+    bk = best_known(frame)
+    bk["best_known"] = bk["best_known"] / 10.0
+    out = figures.ecdf_figure(frame, bk, "toy", tmp_path / "e.png")
+    assert out == figures.ECDF_NONE_REACHED
+    assert "1 % or 0.1 %" in out
+    assert not (tmp_path / "e.png").exists()
+    assert isinstance(figures.ecdf_figure(frame, best_known(frame), "toy",
+                                          tmp_path / "e.png"), type(tmp_path))

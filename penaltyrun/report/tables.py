@@ -139,7 +139,9 @@ def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     The tight layout is applied once (:func:`penaltyrun.report.layout.tight_layout`: what
     ``fig.tight_layout()`` does, each panel measured once instead of twice) without leaving
     a layout engine on the figure: with one, even a placeholder, ``savefig`` draws the
-    whole figure once more before drawing it into the file. The tight box of a figure
+    whole figure once more before drawing it into the file. The placeholder or tight
+    engine a problem's plotting code left (``fig.tight_layout()`` leaves a placeholder) is
+    removed first; another engine (constrained layout) is kept. The tight box of a figure
     that needs one is measured once, at the saving resolution, and given to ``savefig``
     as a box: ``bbox_inches="tight"`` would measure it after a whole dry-run draw (the
     same box; 3-D axes keep that path).
@@ -155,10 +157,13 @@ def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     import warnings
 
     import matplotlib.pyplot as plt
+    from matplotlib.layout_engine import PlaceHolderLayoutEngine, TightLayoutEngine
 
     from penaltyrun.report.layout import tight_layout
     from penaltyrun.report.ticks import lighter_log_axes
 
+    if isinstance(fig.get_layout_engine(), (PlaceHolderLayoutEngine, TightLayoutEngine)):
+        fig.set_layout_engine(None)  # laid out below; a hook's fig.tight_layout() left one
     lighter_log_axes(fig)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)

@@ -99,3 +99,29 @@ def test_measurement_restored_after_a_failure(monkeypatch):
         assert all("get_tightbbox" not in vars(ax) for ax in fig.axes)
     finally:
         plt.close(fig)
+
+
+def test_save_figure_draws_once_after_a_hooks_tight_layout(monkeypatch, tmp_path):
+    """A problem's plotting code that called ``fig.tight_layout()`` left a placeholder
+    layout engine, with which ``savefig`` draws the figure twice; the report removes it."""
+    from matplotlib.figure import Figure
+
+    from penaltyrun.report.tables import save_figure
+
+    draws: list[int] = []
+    draw = Figure.draw
+
+    def counted(self, renderer):
+        draws.append(1)
+        return draw(self, renderer)
+
+    monkeypatch.setattr(Figure, "draw", counted)
+    fig = _shared_column()
+    fig.tight_layout()
+    assert fig.get_layout_engine() is not None
+    save_figure(fig, tmp_path / "f.png")
+    assert len(draws) == 1
+    constrained = _grid()
+    constrained.set_layout_engine("constrained")
+    save_figure(constrained, tmp_path / "c.png")
+    assert (tmp_path / "c.png").stat().st_size > 0

@@ -12,8 +12,8 @@ Three kinds of process run on the same input:
 
 Before the timed runs each tree's report runs once untimed (skipped with ``--no-warm``):
 numba caches its compiled kernels beside each tree's sources, and a fresh base worktree's
-first report would otherwise pay for compiling every kernel it uses (a minute or more of
-CPU) where this tree's, already compiled, does not.
+first report would otherwise pay for compiling every kernel it uses where this tree's,
+already compiled, does not.
 
 ``report`` and ``base`` runs are interleaved (``--repeats`` pairs) so that both see the same
 load of a shared machine; the script prints every run, then the min and median ratios

@@ -65,6 +65,13 @@ def probe_row(row: pd.Series | dict[str, Any], steps: tuple[float, ...] = STEPS,
     ``stored``: probes stored beside the results (:mod:`penaltyrun.io.storedprobe`); the
     start's stored probe of exactly this point and ladder is used instead of evaluating.
     """
+    probed = _probed(row, steps, stored)
+    return None if probed is None else probed[:2]
+
+
+def _probed(row: pd.Series | dict[str, Any], steps: tuple[float, ...],
+            stored: pd.DataFrame | None) -> tuple[CliffProbe, list[str], bool] | None:
+    """:func:`probe_row` and whether the probe was read from ``stored``."""
     z = row.get("best_z")
     if z is None or not len(z):
         return None
@@ -74,7 +81,7 @@ def probe_row(row: pd.Series | dict[str, Any], steps: tuple[float, ...] = STEPS,
     prob, layout = rebuilt
     kept = storedprobe.lookup(stored, row["job_id"], row.get("config_hash"), z, steps)
     if kept is not None:
-        return kept, layout.names()
+        return kept, layout.names(), True
     lb, ub = layout.bounds()
 
     def cost_batch(batch: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -82,7 +89,7 @@ def probe_row(row: pd.Series | dict[str, Any], steps: tuple[float, ...] = STEPS,
         out = prob.evaluate_batch(mats, scalars or None)
         return out.cost, out.converged
 
-    return probe(cost_batch, np.asarray(z, float), lb, ub, steps), layout.names()
+    return probe(cost_batch, np.asarray(z, float), lb, ub, steps), layout.names(), False
 
 
 def skip_margin(row: pd.Series | dict[str, Any]) -> float | None:
@@ -199,18 +206,18 @@ def section(g: pd.DataFrame, out: Path, stem: str,
     beside the results, used where one is of exactly the probed point
     (:func:`probe_row`)."""
     probes: dict[str, tuple[pd.Series, CliffProbe, list[str]]] = {}
+    read = []
     for fam, row in best_rows(g).items():
-        probed = probe_row(row, stored=stored)
+        probed = _probed(row, STEPS, stored)
         if probed is None:
             return []
-        probes[fam] = (row, *probed)
+        probes[fam] = (row, *probed[:2])
+        read += [fam] if probed[2] else []
     if not probes:
         return []
     first = g.iloc[0]
     path = figure(probes, f"{first['problem']} / {first['case']}: cost change near the best "
                   "points", out / f"cliffs_{stem}.png")
-    read = [fam for fam, (row, _, _) in probes.items() if storedprobe.lookup(
-        stored, row["job_id"], row.get("config_hash"), row["best_z"], STEPS) is not None]
     source = ([f"The probe of the best {' and '.join(read)} point was read from "
                f"`{storedprobe.PROBE_FILE}` beside the results (the same evaluations, "
                "stored with them), not evaluated again.", ""] if read else [])

@@ -488,6 +488,18 @@ def check_spd(name: str, matrix: Any, size: int) -> np.ndarray:
     ConfigError
         If the matrix is malformed, of the wrong size, non-symmetric or not PD.
     """
+    return spd_spectrum(name, matrix, size)[0]
+
+
+def spd_spectrum(name: str, matrix: Any, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`check_spd`'s matrix and its eigenvalues (ascending, shape (size,)), computed
+    once for the check and the caller.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`check_spd`.
+    """
     try:
         arr = np.asarray(matrix, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -503,7 +515,7 @@ def check_spd(name: str, matrix: Any, size: int) -> np.ndarray:
     if eig[0] <= 0.0:
         raise ConfigError(name, "matrix is not positive definite "
                           f"(smallest eigenvalue {eig[0]:.3g})")
-    return arr
+    return arr, eig
 
 
 def accepts_thresholds(problem: Any) -> bool:
@@ -543,5 +555,6 @@ __all__ = [
     "accepts_thresholds",
     "check_spd",
     "gradient_support",
+    "spd_spectrum",
     "status_names",
 ]

@@ -11,13 +11,12 @@ says where its rows come from), before any section reads them.
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 
 from penaltyrun.errors import ConfigError, ResultsUnreadableError
 from penaltyrun.io import decode_json
 from penaltyrun.io.filecheck import SOURCE
-from penaltyrun.problems.base import check_spd
+from penaltyrun.problems.base import spd_spectrum
 from penaltyrun.report import protocol
 
 #: Slack of the eigenvalue bounds a stored matrix is checked against, relative to the bound
@@ -41,10 +40,9 @@ def _misfit(value: object, specs: dict[str, tuple[int, float, float]]) -> bool:
         return True
     for name, (size, lower, upper) in specs.items():
         try:  # a missing matrix, another shape, ragged or non-numeric rows: refused too
-            arr = check_spd(name, mats.get(name), size)
+            _, eig = spd_spectrum(name, mats.get(name), size)
         except ConfigError:
             return True
-        eig = np.linalg.eigvalsh(arr)
         slack = SPECTRUM_SLACK * eig[-1]
         if eig[0] < lower * (1.0 - BOUND_SLACK) - slack or \
                 eig[-1] > upper * (1.0 + BOUND_SLACK) + slack:

@@ -146,9 +146,9 @@ def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     as a box: ``bbox_inches="tight"`` would measure it after a whole dry-run draw (the
     same box; 3-D axes keep that path).
 
-    The PNG file is compressed at zlib level :data:`PNG_COMPRESS_LEVEL` (Pillow's default
-    is 6): the same pixels, written in about 60 % of the time, in files about a tenth
-    larger.
+    A PNG file is compressed at zlib level :data:`PNG_COMPRESS_LEVEL` (Pillow's default is
+    6): the same pixels, written in about 60 % of the time, in files about a tenth larger.
+    Another format (the suffix of ``path``) is saved with matplotlib's defaults.
 
     Log axes are made lighter first (:func:`penaltyrun.report.ticks.lighter_log_axes`):
     tick labels in plain text (10⁻³, not mathtext), laid out without parsing, and on axes
@@ -169,7 +169,8 @@ def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
         warnings.simplefilter("always", UserWarning)
         tight_layout(fig)
     flat = all(getattr(ax, "name", "") != "3d" for ax in fig.axes)
-    png = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}}
+    png = ({"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}}
+           if Path(path).suffix.lower() == ".png" else {})
     if not caught and flat and _inside(fig):
         fig.savefig(path, dpi=dpi, **png)
     elif flat:

@@ -125,3 +125,13 @@ def test_save_figure_draws_once_after_a_hooks_tight_layout(monkeypatch, tmp_path
     constrained.set_layout_engine("constrained")
     save_figure(constrained, tmp_path / "c.png")
     assert (tmp_path / "c.png").stat().st_size > 0
+
+
+def test_save_figure_writes_other_formats_with_matplotlibs_defaults(tmp_path):
+    """The PNG compression setting is Pillow's; an SVG (or PDF) is saved as matplotlib
+    saves it."""
+    from penaltyrun.report.tables import save_figure
+
+    for name in ("f.svg", "f.pdf", "f.png"):
+        assert save_figure(_grid(), tmp_path / name).stat().st_size > 0
+    assert (tmp_path / "f.svg").read_text().lstrip().startswith("<?xml")

@@ -50,8 +50,16 @@ def plot_torques(sims: Mapping[str, Mapping[str, np.ndarray]], ax: Any = None) -
     return _plot_components(sims, "u", ("u1", "u2", "u3"), "torque (N·m)", ax)
 
 
-def plot_histories(sims: Mapping[str, Mapping[str, np.ndarray]]) -> Any:
+def plot_histories(sims: Mapping[str, Mapping[str, np.ndarray]], layout: bool = True) -> Any:
     """Figure with quaternion, rate and torque histories stacked (shared time axis).
+
+    Parameters
+    ----------
+    sims : mapping label → dict
+        ``simulate`` dicts (``t`` s, ``q``, ``w`` rad/s, ``u`` N·m).
+    layout : bool, optional
+        Apply ``fig.tight_layout()`` (default); False leaves the layout to the caller (the
+        report lays out every figure it saves).
 
     Returns
     -------
@@ -65,7 +73,8 @@ def plot_histories(sims: Mapping[str, Mapping[str, np.ndarray]]) -> Any:
     plot_torques(sims, axes[2])
     for ax in axes[:2]:
         ax.set_xlabel("")
-    fig.tight_layout()
+    if layout:
+        fig.tight_layout()
     return fig
 
 

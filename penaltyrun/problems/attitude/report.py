@@ -92,7 +92,7 @@ def hooks(law: str) -> tuple[Callable[..., ReportInfo], Callable[..., dict[str, 
                      params: Mapping[str, Any]) -> dict[str, Any]:
         own = {k: v for k, v in sims.items() if not k.startswith("paper")}
         short = {" ".join(k.split()[:2]): v for k, v in own.items()}  # "best diagonal"
-        fig = plot_histories(short)
+        fig = plot_histories(short, layout=False)  # the report lays out what it saves
         for ax in fig.axes:
             legend = ax.get_legend()
             if legend is not None:

@@ -250,7 +250,14 @@ def test_plots_smoke():
     fig = lyap.plot_histories(sims)
     assert len(fig.axes) == 3
     assert len(fig.axes[0].lines) == 8 and len(fig.axes[2].lines) == 6
+    assert fig.get_layout_engine() is not None  # laid out for a user's plt.show()
     plt.close(fig)
+    # the report's hook leaves the layout to the report, which lays out what it saves
+    from penaltyrun.problems import report_hooks
+
+    figures = report_hooks.plots(lyap, sims, "detumble", {})
+    assert figures and all(f.get_layout_engine() is None for f in figures.values())
+    plt.close("all")
 
 
 def test_reference_rhs_gyroscopic_term_is_the_cross_product():

@@ -66,13 +66,14 @@ def read_compact(path: Path, columns: tuple[str, ...],
         raise ValueError(refused)
     schema = pq.read_schema(path)
     wanted = [n for n in schema.names if n in columns]
-    left = [n for n in schema.names if n in set(checked) & set(COLUMNS) and n not in wanted]
+    checkable = set(checked) & set(COLUMNS)
+    left = [n for n in schema.names if n in checkable and n not in wanted]
     parquet = pq.ParquetFile(path, read_dictionary=text_columns(schema, wanted))
-    checked = pq.ParquetFile(path, read_dictionary=text_columns(schema, left))
+    left_file = pq.ParquetFile(path, read_dictionary=text_columns(schema, left))
     pieces, used, first = [], 0, 0
     for g in range(parquet.metadata.num_row_groups):
         if left:
-            rest = checked.read_row_group(g, columns=left)
+            rest = left_file.read_row_group(g, columns=left)
             problem = check_columns(decoded(rest, used))
             if problem:
                 raise ValueError(problem)

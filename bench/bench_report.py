@@ -24,11 +24,12 @@ process ends), the peak RSS is that of the largest single process.
 
 ``--large N`` instead writes N synthetic job rows (12 cells of one problem case, the
 writer of the report's memory tests, ``tests/report/large_results.py``) and times the
-report of them alone (read lazily above 100 000 rows), with its progress bar off; with
-``--steps`` it prints instead the resident memory as each step of the report begins and
-the bytes per row of the frame the report holds. Both run the report twice: with the
+report of them (read lazily above 100 000 rows, progress bar and section cache off) with the
 allocators' defaults and with the process settings of ``penaltyrun-report``
-(:func:`penaltyrun.io.memory.lean_process_memory`).
+(:func:`penaltyrun.io.memory.lean_process_memory`), and the base's report of the same file
+(``--repeats`` pairs interleaved; ``--no-base`` skips it); with ``--steps`` it prints
+instead the resident memory as each step of the report begins and the bytes per row of the
+frame the report holds, with both process settings.
 
 ``--bca`` times the BCa interval of one cell (:func:`penaltyrun.report.stats.bca_ci`, its
 jackknife in closed form) against :func:`scipy.stats.bootstrap` (its jackknife evaluates
@@ -54,7 +55,7 @@ Usage::
     python bench/bench_report.py [--input studies] [--base e37fb9b] [--repeats 1] [--no-base]
                                  [--no-warm]
     python bench/bench_report.py --no-base --workers 1 2
-    python bench/bench_report.py --large 1000000
+    python bench/bench_report.py --large 1000000 [--base main] [--repeats 1]
     python bench/bench_report.py --large 300000 --steps
     python bench/bench_report.py --cache
     python bench/bench_report.py --bca
@@ -174,9 +175,13 @@ def _row(name: str, m: dict[str, float]) -> str:
     return f"| {name} | {m['cpu']:.1f} | {m['wall']:.1f} | {m['rss']:.0f} |"
 
 
-def large(rows: int, steps: bool = False) -> None:
+def large(rows: int, steps: bool = False, base_tree: Path | None = None, repeats: int = 1,
+          warm: bool = True, base_label: str = "base") -> None:
     """Print CPU, wall and peak RSS of the report of ``rows`` synthetic job rows; with
-    ``steps`` instead its memory as each step begins (one process, see :data:`STEPS`)."""
+    ``steps`` instead its memory as each step begins (one process, see :data:`STEPS`).
+    With ``base_tree`` the base's report of the same file is timed too, ``repeats`` pairs
+    interleaved with this tree's (each tree first reports 1 000 rows untimed unless not
+    ``warm``: the first report compiles the kernels it uses)."""
     sys.path.insert(0, str(ROOT / "tests" / "report"))
     from large_results import write_large_results
 
@@ -190,14 +195,33 @@ def large(rows: int, steps: bool = False) -> None:
                 subprocess.run([*PYTHON, "-c", STEPS, str(src), f"{tmp}/report",
                                 memory], env=env, check=True)
             return
-        runs = {}
-        for memory, code in (("default", REPORT_DEFAULT_MEMORY), ("lean", REPORT)):
-            runs[memory] = measure(code.replace("'-o', sys.argv[2]", "'-o', sys.argv[2], "
-                                                "'--progress', 'false'"),
-                                   [str(src), f"{tmp}/report"], str(ROOT))
+        quiet = "'-o', sys.argv[2], '--progress', 'false', '--no-cache'"
+        lean, default = (code.replace("'-o', sys.argv[2]", quiet)
+                         for code in (REPORT, REPORT_DEFAULT_MEMORY))
+        trees = [ROOT] if base_tree is None else [ROOT, base_tree]
+        if warm:
+            small = write_large_results(Path(tmp) / "small", 1000)
+            for tree in trees:
+                measure(lean, [str(small), f"{tmp}/warm"], str(tree))
+                shutil.rmtree(f"{tmp}/warm", ignore_errors=True)
+        runs: dict[str, list[dict[str, float]]] = {"default": [], "lean": [], "base": []}
+        runs["default"].append(measure(default, [str(src), f"{tmp}/report"], str(ROOT)))
+        shutil.rmtree(f"{tmp}/report", ignore_errors=True)
+        for _ in range(repeats):
+            for name, tree in zip(("lean", "base"), trees):
+                runs[name].append(measure(lean, [str(src), f"{tmp}/report"], str(tree)))
+                shutil.rmtree(f"{tmp}/report", ignore_errors=True)
     print("| run | CPU s | wall s | peak RSS MB |\n|---|---|---|---|")
-    for memory, m in runs.items():
-        print(_row(f"report of {rows} rows, process memory settings {memory}", m))
+    for name, label in (("default", "process memory settings default"),
+                        ("lean", "process memory settings lean"),
+                        ("base", f"base {base_label}, process memory settings lean")):
+        for m in runs[name]:
+            print(_row(f"report of {rows} rows, {label}", m))
+    if runs["base"]:
+        for key, unit in (("cpu", "CPU"), ("wall", "wall"), ("rss", "peak RSS")):
+            ratios = [b[key] / r[key] for b, r in zip(runs["base"], runs["lean"])]
+            print(f"{unit}: base/report min {min(ratios):.2f}x median "
+                  f"{statistics.median(ratios):.2f}x")
 
 
 #: Read the report's per-row columns of row ``sys.argv[2]`` of the file ``sys.argv[1]``.
@@ -337,7 +361,13 @@ def main() -> None:
     if args.same:
         raise SystemExit(0 if same(*args.same) else 1)
     if args.large:
-        large(args.large, args.steps)
+        with tempfile.TemporaryDirectory() as tmp, \
+                (nullcontext() if args.no_base or args.steps
+                 else base_worktree(args.base, Path(tmp))) as base_tree:
+            if base_tree is not None:
+                _check_tree(base_tree)
+            large(args.large, args.steps, base_tree, args.repeats, not args.no_warm,
+                  args.base)
         return
     if args.row_groups:
         row_groups(args.row_groups)

@@ -23,7 +23,7 @@ nulls. Only numpy here.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -154,13 +154,51 @@ def closed_loop_of(problem: Any, mats: Mapping[str, Any],
     TypeError
         The hook returned something other than a :class:`ClosedLoop` or None.
     """
+    loop_of = closed_loop_function(problem)
+    return None if loop_of is None else loop_of(mats, scalars)
+
+
+def closed_loop_function(problem: Any
+                         ) -> Callable[[Mapping[str, Any], Mapping[str, float] | None],
+                                       ClosedLoop | None] | None:
+    """:func:`closed_loop_of` bound to ``problem`` (None when it has no ``closed_loop``
+    hook): the hook looked up once, for many candidates of one problem."""
     hook = hooks(problem).closed_loop
     if hook is None:
         return None
-    loop = hook({k: np.asarray(v, dtype=float) for k, v in mats.items()}, scalars or None)
-    if loop is not None and not isinstance(loop, ClosedLoop):
-        raise TypeError(f"closed_loop returned {type(loop).__name__}, not ClosedLoop")
-    return loop
+
+    def loop_of(mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
+                ) -> ClosedLoop | None:
+        loop = hook({k: np.asarray(v, dtype=float) for k, v in mats.items()}, scalars or None)
+        if loop is not None and not isinstance(loop, ClosedLoop):
+            raise TypeError(f"closed_loop returned {type(loop).__name__}, not ClosedLoop")
+        return loop
+
+    return loop_of
+
+
+def slowest_reals(loops: Sequence[ClosedLoop | None]) -> np.ndarray:
+    """max Re(s) of each closed loop (:attr:`Diagnostics.slowest_real`; NaN for None or
+    an empty state matrix), the eigenvalues of loops of one shape computed as one stack.
+
+    Parameters
+    ----------
+    loops : sequence of ClosedLoop or None, length L
+
+    Returns
+    -------
+    ndarray, shape (L,)
+        1 / time unit.
+    """
+    out = np.full(len(loops), np.nan)
+    alike: dict[tuple[Any, ...], list[int]] = {}
+    for i, loop in enumerate(loops):
+        if loop is not None and loop.matrix.size:
+            alike.setdefault((loop.matrix.shape, loop.time, loop.dt), []).append(i)
+    for (_, time, dt), where in alike.items():
+        lam = np.linalg.eigvals(np.stack([loops[i].matrix for i in where]))
+        out[where] = continuous_poles(lam, time, dt).real.max(axis=1)
+    return out
 
 
 def loop_json(loop: ClosedLoop) -> dict[str, Any]:
@@ -204,6 +242,6 @@ def record_columns(problem: Any, mats: Mapping[str, Any],
         return dict.fromkeys(COLUMNS)
 
 
-__all__ = ["COLUMNS", "Diagnostics", "closed_loop_of", "columns", "continuous_poles",
-           "damping_ratios", "diagnose", "gain_norm_cond", "loop_from_json", "loop_json",
-           "record_columns"]
+__all__ = ["COLUMNS", "Diagnostics", "closed_loop_function", "closed_loop_of", "columns",
+           "continuous_poles", "damping_ratios", "diagnose", "gain_norm_cond", "loop_from_json",
+           "loop_json", "record_columns", "slowest_reals"]

@@ -24,6 +24,7 @@ The report never names a problem here: everything comes through the problem prot
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -71,7 +72,7 @@ def best_per_map(g: pd.DataFrame) -> dict[str, pd.Series]:
     return {p: out[p] for p in order}
 
 
-def _problem(row: pd.Series) -> Any:
+def _problem(row: pd.Series | Mapping[str, Any]) -> Any:
     """The job's problem, rebuilt without importing anything the data names (None when it
     cannot be: e.g. a plant named by a module the user did not allow)."""
     try:
@@ -80,7 +81,7 @@ def _problem(row: pd.Series) -> Any:
         return None
 
 
-def _matrices(row: pd.Series) -> dict[str, np.ndarray]:
+def _matrices(row: pd.Series | Mapping[str, Any]) -> dict[str, np.ndarray]:
     return {k: np.asarray(v, float) for k, v in (decode_json(row.get("matrices")) or {}).items()}
 
 
@@ -306,21 +307,36 @@ def start_modes(g: pd.DataFrame) -> pd.DataFrame:
     slowest = pd.Series(stored.astype(float).to_numpy(), index=ok.index)
     built: dict[tuple[str, str, str], Any] = {}
     todo = ok[~np.isfinite(slowest.to_numpy())]
-    columns = ("matrices", "scalars", "closed_loop")
-    for batch in batches(todo, columns):  # a batch of rows' matrices at a time
-        for label, row in batch.iterrows():
-            key = (str(row["problem"]), str(row["case"]), str(row.get("problem_params")))
-            try:
-                if key not in built:
-                    built[key] = _problem(row)
-                loop, _ = loop_of(row, built[key])
-            except Exception:  # counted as no closed loop; controller_rows logs the reason
-                loop = None
-            slowest[label] = dg.diagnose(loop).slowest_real if loop is not None else np.nan
+    columns = ["problem", "case", "problem_params", "matrices", "scalars", "closed_loop"]
+    for batch in batches(todo, columns[3:]):  # a batch of rows' matrices at a time
+        loops = [_start_loop(row, built)
+                 for row in batch.reindex(columns=columns).to_dict("records")]
+        slowest.loc[batch.index] = dg.slowest_reals(loops)
     return pd.DataFrame({"param": ok["param"].astype(str).to_numpy(),
                          "cost": ok["best_cost"].astype(float).to_numpy(),
                          "slowest": slowest.to_numpy(float)},
                         columns=["param", "cost", "slowest"])
+
+
+def _start_loop(row: dict[str, Any], built: dict[tuple[str, str, str], Any]
+                ) -> ClosedLoop | None:
+    """The closed loop of one start for :func:`start_modes` (:func:`loop_of`, with each
+    problem's hook looked up once in ``built``); None where there is none or it fails
+    (counted as no closed loop; :func:`controller_rows` logs the reason for best starts)."""
+    try:
+        stored = decode_json(row["closed_loop"]) if isinstance(row["closed_loop"], str) \
+            else None
+        if stored:
+            return dg.loop_from_json(stored)
+        key = (str(row["problem"]), str(row["case"]), str(row["problem_params"]))
+        if key not in built:
+            prob = None if protocol.module(row["problem"]) is None else _problem(row)
+            built[key] = None if prob is None else dg.closed_loop_function(prob)
+        if built[key] is None:
+            return None
+        return built[key](_matrices(row), decode_json(row["scalars"]) or None)
+    except Exception:
+        return None
 
 
 def mode_lines(modes: pd.DataFrame) -> list[str]:

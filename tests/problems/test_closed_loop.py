@@ -235,3 +235,28 @@ def test_loop_json_round_trip():
     np.testing.assert_array_equal(back.gain, loop.gain)
     assert (back.time, back.dt, back.state_names, back.input_names) == \
         ("discrete", 2.0, ("a", "b"), ("u",))
+
+
+def test_slowest_reals_of_a_batch_are_each_loops_diagnosis():
+    """Loops of several shapes, continuous and discrete (a z = 0 pole), None and an empty
+    loop in one call: each value is :func:`dg.diagnose`'s ``slowest_real`` of its loop."""
+    rng = np.random.default_rng(5)
+    loops = [None, ClosedLoop(np.zeros((0, 0)), "continuous")]
+    for n in (2, 3, 2, 4, 3):
+        loops.append(ClosedLoop(rng.standard_normal((n, n)), "continuous"))
+        loops.append(ClosedLoop(0.5 * rng.standard_normal((n, n)), "discrete", dt=0.1 * n))
+    loops.append(ClosedLoop(np.diag([0.0, 0.5]), "discrete", dt=0.2))
+    got = dg.slowest_reals(loops)
+    assert np.isnan(got[:2]).all()
+    want = [dg.diagnose(loop).slowest_real for loop in loops[2:]]
+    np.testing.assert_allclose(got[2:], want, rtol=1e-12)
+    assert dg.slowest_reals([]).shape == (0,)
+
+
+def test_a_bound_closed_loop_function_is_the_hook():
+    zermelo = problems.make("zermelo", "default")
+    K = spd(np.random.default_rng(2), 2)
+    loop_of = dg.closed_loop_function(zermelo)
+    np.testing.assert_array_equal(loop_of({"K": K}).matrix,
+                                  dg.closed_loop_of(zermelo, {"K": K}).matrix)
+    assert dg.closed_loop_function(object()) is None

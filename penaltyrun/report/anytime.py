@@ -52,7 +52,7 @@ def ecdf(hits: np.ndarray, grid: np.ndarray) -> np.ndarray:
     hits = np.asarray(hits, float)
     if hits.size == 0:
         return np.full(np.shape(grid), np.nan)
-    return (hits[None, :] <= np.asarray(grid, float)[:, None]).mean(axis=1)
+    return np.searchsorted(np.sort(hits), np.asarray(grid, float), side="right") / hits.size
 
 
 def ert(hits: np.ndarray, spent: np.ndarray) -> float:

@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from penaltyrun.report.anytime import (
     anytime_band,
@@ -102,3 +104,15 @@ def test_trace_of():
     assert trace_of(pd.Series({"trace_evals": [], "trace_best": []})) is None
     e, b = trace_of(pd.Series({"trace_evals": [1, 2], "trace_best": [3.0, 1.0]}))
     assert e.tolist() == [1.0, 2.0] and b.tolist() == [3.0, 1.0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.one_of(st.integers(1, 60).map(float), st.just(float("inf"))), max_size=40),
+       st.lists(st.integers(0, 80).map(float), min_size=1, max_size=20))
+def test_ecdf_counts_the_hits_at_or_below_each_grid_point(hits, grid):
+    """Against the share computed by comparing every hit with every grid point (ties,
+    never-reached starts)."""
+    hits, grid = np.array(hits), np.array(grid)
+    if hits.size:
+        np.testing.assert_array_equal(ecdf(hits, grid),
+                                      (hits[None, :] <= grid[:, None]).mean(axis=1))

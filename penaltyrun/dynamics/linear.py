@@ -187,4 +187,50 @@ def quadratic_cost(A_cl: np.ndarray, W: np.ndarray, X0: np.ndarray, t_max: float
     return cost, x_final
 
 
-__all__ = ["COMPILED_MAX_STATES", "COND_MAX", "LoopSolution", "loop_solution", "quadratic_cost"]
+def sampled_loop(A_cl: np.ndarray, X0: np.ndarray, t: np.ndarray, W: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray | None]:
+    """States of ẋ = A_cl x at uniform times ``t`` and, with ``W``, the running cost
+    ∫₀ᵗ x(s)ᵀ W x(s) ds at each of them, exact up to round-off: x(t_{j+1}) = e^{A_cl h} x(t_j)
+    and J(t_{j+1}) − J(t_j) = x(t_j)ᵀ G x(t_j) with G = ∫₀ʰ e^{A_clᵀs} W e^{A_cl s} ds from one
+    exponential of Van Loan's block matrix [[−A_clᵀ, W], [0, A_cl]] h (G = F₂₂ᵀ F₁₂).
+
+    Parameters
+    ----------
+    A_cl : ndarray, shape (C, n, n)
+        Closed-loop matrices of C candidates.
+    X0 : ndarray, shape (k, n)
+        Start states.
+    t : ndarray, shape (N,)
+        Uniform times, t[0] = 0, N ≥ 2.
+    W : ndarray, shape (C, n, n), optional
+        Symmetric weights of the running cost.
+
+    Returns
+    -------
+    x : ndarray, shape (C, k, N, n)
+    J : ndarray, shape (C, k, N), or None without ``W``
+    """
+    h = float(t[1] - t[0])
+    E = expm(A_cl * h)
+    x = np.empty((A_cl.shape[0], X0.shape[0], t.shape[0], X0.shape[1]))
+    X = np.broadcast_to(X0, (A_cl.shape[0],) + X0.shape).copy()
+    for j in range(t.shape[0]):
+        x[:, :, j] = X
+        X = X @ np.swapaxes(E, 1, 2)
+    if W is None:
+        return x, None
+    n = A_cl.shape[1]
+    block = np.zeros((A_cl.shape[0], 2 * n, 2 * n))
+    block[:, :n, :n] = -np.swapaxes(A_cl, 1, 2)
+    block[:, :n, n:] = W
+    block[:, n:, n:] = A_cl
+    F = expm(block * h)
+    G = np.swapaxes(F[:, n:, n:], 1, 2) @ F[:, :n, n:]
+    G = 0.5 * (G + np.swapaxes(G, 1, 2))
+    steps = np.einsum("ckji,cil,ckjl->ckj", x[:, :, :-1], G, x[:, :, :-1])
+    J = np.concatenate([np.zeros(steps.shape[:2] + (1,)), np.cumsum(steps, axis=2)], axis=2)
+    return x, J
+
+
+__all__ = ["COMPILED_MAX_STATES", "COND_MAX", "LoopSolution", "loop_solution", "quadratic_cost",
+           "sampled_loop"]

@@ -182,15 +182,23 @@ def write_sections(df: pd.DataFrame, ctx: dict[str, Any], out: Path, paper: bool
     paper : bool
         Show the paper's values.
     workers : int
-        Processes writing sections: 1 writes them in this process; more start a pool of
+        Processes writing sections: 1 writes them in this process (without a cache, with
+        one section's rows copied out of ``df`` at a time); more start a pool of
         ``min(workers, problem cases)`` workers.
     done : callable
         Called with each section's name when it is written (progress).
     """
     stems = StemBook()
-    bundles = _bundles(df, stems, out, paper)
     n_cases = df.groupby(CASE_KEYS[:2], sort=True).ngroups
-    if workers <= 1 or n_cases <= 1 or _held_in_memory():
+    in_process = workers <= 1 or n_cases <= 1 or _held_in_memory()
+    if in_process and ctx.get("cache") is None:  # no bundle to key: a section's rows at a time
+        for key, g in groups(df, CASE_KEYS):
+            lines = case_lines(g, ctx, out, paper, stems.stem(*key))
+            done(_name(key))
+            yield lines
+        return
+    bundles = _bundles(df, stems, out, paper)
+    if in_process:
         for names, bundle in bundles:
             for name, lines in zip(names, _write(bundle, ctx)):
                 done(name)
@@ -231,10 +239,15 @@ def _bundles(df: pd.DataFrame, stems: StemBook, out: Path, paper: bool
             yield names, (out, paper, cases)
             names, cases = [], []
         current = tuple(key[:2])
-        names.append(" / ".join(str(x) for x in key if x))
+        names.append(_name(key))
         cases.append((g, stems.stem(*key)))
     if cases:
         yield names, (out, paper, cases)
+
+
+def _name(key: tuple) -> str:
+    """A section's name in the progress bar: its problem, case and variant."""
+    return " / ".join(str(x) for x in key if x)
 
 
 def _write(bundle: Bundle, ctx: dict[str, Any]) -> list[list[str]]:

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from penaltyrun.dynamics.linear import sampled_loop
+
 
 def frequency_grid(A: np.ndarray, dt: float | None, points: int) -> np.ndarray:
     """Log-spaced frequencies (rad per time unit): eight decades around the plant's scale
@@ -149,15 +151,7 @@ def sample_linear(A_cl: np.ndarray, X0: np.ndarray, t: np.ndarray) -> np.ndarray
     -------
     ndarray, shape (C, k, N, n)
     """
-    from scipy.linalg import expm
-
-    E = expm(A_cl * (t[1] - t[0]))                                  # (C, n, n)
-    out = np.empty((A_cl.shape[0], X0.shape[0], t.shape[0], X0.shape[1]))
-    X = np.broadcast_to(X0, (A_cl.shape[0],) + X0.shape).copy()
-    for j in range(t.shape[0]):
-        out[:, :, j] = X
-        X = X @ np.swapaxes(E, 1, 2)
-    return out
+    return sampled_loop(A_cl, X0, t)[0]
 
 
 __all__ = ["alpha_for", "disk_gain_phase", "disk_margin", "disk_margin_curve", "frequency_grid",

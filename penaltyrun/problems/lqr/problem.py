@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from penaltyrun.dynamics import linear_feedback as loop
-from penaltyrun.dynamics.linear import loop_solution, quadratic_cost
+from penaltyrun.dynamics.linear import loop_solution, quadratic_cost, sampled_loop
 from penaltyrun.dynamics.riccati import dlqr_gains, lqr_gains
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import criteria, gradient_costs, horizon
@@ -421,8 +421,10 @@ class LQRProblem:
 
     def simulate(self, mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None,
                  n_points: int = 400) -> dict[str, np.ndarray]:
-        """Closed-loop histories of one (Q, R) from every training start (scipy DOP853
-        dense output at the problem's tolerances), for plots.
+        """Closed-loop histories of one (Q, R) from every training start, for plots: exact
+        for a linear loop without input limits
+        (:func:`penaltyrun.dynamics.linear.sampled_loop`), else scipy's DOP853 dense output
+        at the problem's tolerances.
 
         Returns
         -------
@@ -431,8 +433,6 @@ class LQRProblem:
             (k, n_points) running cost; ``channels`` (names of the columns of ``x`` and
             ``u``) and ``limits`` (``u``: ±``u_max`` when the inputs saturate).
         """
-        from scipy.integrate import solve_ivp
-
         Q, R = self._check(mats)
         K, ok, _ = self.gains(Q[None], R[None])
         if not ok[0]:
@@ -442,9 +442,27 @@ class LQRProblem:
                                       self.Wu, self.u_max, self.t_max, float(self.dt),
                                       self._bound(self.x0))
         K = K[0]
-        n = self.plant.n_states
         t = np.linspace(0.0, self.t_max, n_points)
-        xs, us, js = [], [], []
+        if self.plant.linear and self.u_max is None and n_points >= 2:
+            x, J = sampled_loop((self.plant.A - self.plant.B @ K)[None], self.x0, t,
+                                (self.Wx + K.T @ self.Wu @ K)[None])
+            x, J = x[0], J[0]
+        else:
+            x, J = self._integrated(K, t)
+        u = np.stack([loop.feedback_input(np.repeat(K[None], n_points, 0), xk, self.u_max)
+                      for xk in x])
+        names = self.channel_names()
+        limits = {} if self.u_max is None else {"u": (-self.u_max, self.u_max)}
+        return {"t": t, "x": x, "u": u, "J": J,
+                "channels": {"x": list(names[0]), "u": list(names[1])}, "limits": limits}
+
+    def _integrated(self, K: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States (k, N, n) and running cost (k, N) of the gain K (m, n) from every training
+        start at the times ``t``, by scipy's DOP853 (NaN after a failed integration)."""
+        from scipy.integrate import solve_ivp
+
+        n = self.plant.n_states
+        xs, js = [], []
         for x0 in self.x0:
             def rhs(_t: float, y: np.ndarray) -> np.ndarray:
                 x = y[None, :n]
@@ -454,17 +472,13 @@ class LQRProblem:
 
             sol = solve_ivp(rhs, (0.0, self.t_max), np.append(x0, 0.0), t_eval=t,
                             method="DOP853", rtol=self.params.rtol, atol=self.params.atol)
-            x = np.full((n_points, n), np.nan)
+            x = np.full((t.size, n), np.nan)
             x[: sol.y.shape[1]] = sol.y[:n].T
-            J = np.full(n_points, np.nan)
+            J = np.full(t.size, np.nan)
             J[: sol.y.shape[1]] = sol.y[n]
             xs.append(x)
-            us.append(loop.feedback_input(np.repeat(K[None], n_points, 0), x, self.u_max))
             js.append(J)
-        names = self.channel_names()
-        limits = {} if self.u_max is None else {"u": (-self.u_max, self.u_max)}
-        return {"t": t, "x": np.asarray(xs), "u": np.asarray(us), "J": np.asarray(js),
-                "channels": {"x": list(names[0]), "u": list(names[1])}, "limits": limits}
+        return np.asarray(xs), np.asarray(js)
 
     def channel_names(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
         """Names of the states (``x1`` … ``xn``) and inputs (``u1`` … ``um``)."""

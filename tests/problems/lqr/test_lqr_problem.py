@@ -112,3 +112,24 @@ def test_report_hooks():
     assert isinstance(info, base.ReportInfo) and info.cost_unit == "m^2 s"
     assert "16 initial states" in info.holdout_description
     assert lqr.report_info("default", {"holdout_n": 0}).holdout_description == ""
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_exact_histories_of_a_linear_loop_equal_the_integrated_ones(seed):
+    """A linear plant without input limits is sampled exactly (powers of e^{A_cl h}, Van
+    Loan's cost increments); the DOP853 path of saturated or nonlinear plants gives the
+    same histories at tight tolerances."""
+    rng = np.random.default_rng(seed)
+    A_ = rng.standard_normal((3, 3))
+    B_ = rng.standard_normal((3, 2))
+    params = {"A": A_.tolist(), "B": B_.tolist(), "x0": rng.standard_normal((2, 3)).tolist(),
+              "t_max": 4.0, "rtol": 1e-12, "atol": 1e-12}
+    prob = lqr.make_problem("default", params)
+    Q = np.diag(rng.uniform(0.5, 3.0, 3))
+    exact = prob.simulate({"Q": Q, "R": np.eye(2)}, n_points=80)
+    K = prob.gains(Q[None], np.eye(2)[None])[0][0]
+    x, J = prob._integrated(K, exact["t"])
+    scale = np.abs(x).max()
+    np.testing.assert_allclose(exact["x"], x, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(exact["J"], J, rtol=1e-9, atol=1e-12 * J.max())
+    np.testing.assert_allclose(exact["u"], -x @ K.T, rtol=0, atol=1e-8 * scale)

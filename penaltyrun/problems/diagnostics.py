@@ -178,8 +178,9 @@ def closed_loop_function(problem: Any
 
 
 def slowest_reals(loops: Sequence[ClosedLoop | None]) -> np.ndarray:
-    """max Re(s) of each closed loop (:attr:`Diagnostics.slowest_real`; NaN for None or
-    an empty state matrix), the eigenvalues of loops of one shape computed as one stack.
+    """max Re(s) of each closed loop (:attr:`Diagnostics.slowest_real`; NaN for None, an
+    empty or non-finite state matrix, or one whose eigenvalues LAPACK cannot compute), the
+    eigenvalues of loops of one shape computed as one stack.
 
     Parameters
     ----------
@@ -193,11 +194,18 @@ def slowest_reals(loops: Sequence[ClosedLoop | None]) -> np.ndarray:
     out = np.full(len(loops), np.nan)
     alike: dict[tuple[Any, ...], list[int]] = {}
     for i, loop in enumerate(loops):
-        if loop is not None and loop.matrix.size:
+        if loop is not None and loop.matrix.size and np.isfinite(loop.matrix).all():
             alike.setdefault((loop.matrix.shape, loop.time, loop.dt), []).append(i)
     for (_, time, dt), where in alike.items():
-        lam = np.linalg.eigvals(np.stack([loops[i].matrix for i in where]))
-        out[where] = continuous_poles(lam, time, dt).real.max(axis=1)
+        try:
+            lam = np.linalg.eigvals(np.stack([loops[i].matrix for i in where]))
+            out[where] = continuous_poles(lam, time, dt).real.max(axis=1)
+        except np.linalg.LinAlgError:  # one at a time: NaN where it fails
+            for i in where:
+                try:
+                    out[i] = diagnose(loops[i]).slowest_real
+                except np.linalg.LinAlgError:
+                    pass
     return out
 
 

@@ -253,6 +253,16 @@ def test_slowest_reals_of_a_batch_are_each_loops_diagnosis():
     assert dg.slowest_reals([]).shape == (0,)
 
 
+def test_slowest_reals_are_nan_for_loops_that_cannot_be_diagnosed():
+    """A stored loop may be damaged (non-finite entries): it gives NaN, the other loops of
+    its stack their value."""
+    good = ClosedLoop(np.diag([-1.0, -3.0]), "continuous")
+    bad = [ClosedLoop(np.array([[np.nan, 0.0], [0.0, -1.0]]), "continuous"),
+           ClosedLoop(np.array([[np.inf, 0.0], [0.0, -1.0]]), "continuous")]
+    got = dg.slowest_reals([good, *bad, good])
+    assert got[0] == got[-1] == -1.0 and np.isnan(got[1:-1]).all()
+
+
 def test_a_bound_closed_loop_function_is_the_hook():
     zermelo = problems.make("zermelo", "default")
     K = spd(np.random.default_rng(2), 2)

@@ -5,13 +5,15 @@ The results pages and the README are rendered from each study's committed tables
 ``holdout_long.parquet``, see :mod:`penaltyrun.io.longholdout`) through the report. The check
 rebuilds the report's tables from the data into a temporary folder and compares them with
 the committed ones: numbers to a relative 1e-9 (NaN equals NaN; the closed-loop diagnostics
-recomputed from stored matrices, :data:`RECOMPUTED_COLUMNS`, to 1e-6), text exactly, and
-the set of files. A table edited by hand, or data changed without regenerating the tables
+recomputed from stored matrices, :data:`RECOMPUTED_COLUMNS`, to 1e-6), numbers written as
+JSON arrays in a text cell (a front's points) likewise, other text exactly, and the set of
+files. A table edited by hand, or data changed without regenerating the tables
 (``python -m penaltyrun.docsgen study tables NAME`` rebuilds them), fails it.
 """
 
 from __future__ import annotations
 
+import json
 import tempfile
 from pathlib import Path
 
@@ -45,12 +47,29 @@ def compare_csv(committed: Path, fresh: Path) -> str | None:
             rtol = RTOL_RECOMPUTED if column in RECOMPUTED_COLUMNS else RTOL
             bad = ~np.isclose(xv, yv, rtol=rtol, atol=0.0, equal_nan=True)
         else:
-            bad = (x.fillna("").astype(str) != y.fillna("").astype(str)).to_numpy()
+            bad = np.array([not _same_text(u, v, RTOL) for u, v in
+                            zip(x.fillna("").astype(str), y.fillna("").astype(str))], bool)
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
             return (f"column {column!r}, row {k}: committed {x.iloc[k]!r}, from the data "
                     f"{y.iloc[k]!r}")
     return None
+
+
+def _same_text(a: str, b: str, rtol: float) -> bool:
+    """Whether two text cells agree: equal, or both JSON arrays of numbers of one shape
+    equal to ``rtol`` (their last digits move with the processor's floating-point paths,
+    as any computed number does)."""
+    if a == b:
+        return True
+    if not (a.startswith("[") and b.startswith("[")):
+        return False
+    try:
+        u = np.asarray(json.loads(a), dtype=float)
+        v = np.asarray(json.loads(b), dtype=float)
+    except (ValueError, TypeError, RecursionError):
+        return False
+    return u.shape == v.shape and bool(np.allclose(u, v, rtol=rtol, atol=0.0, equal_nan=True))
 
 
 def check_study(root: Path, name: str) -> list[str]:

@@ -54,6 +54,20 @@ def test_csv_comparison_tolerates_round_off_only(tmp_path):
     assert "column 'label', row 1" in tablecheck.compare_csv(a, b)
 
 
+def test_numbers_in_a_json_array_cell_compare_as_numbers(tmp_path):
+    """A front's points (a JSON array in a text column) rounded differently in the last
+    digits on another processor agree; a moved point, another shape or other text fails."""
+    committed = '"[[0.0010113482412618746, 348.38821078816807], [0.036, 122.0]]"'
+    (tmp_path / "a.csv").write_text(f"front,label\n{committed},p\n")
+    for fresh, ok in (('"[[0.0010113482412618736, 348.38821078816807], [0.036, 122.0]]"', True),
+                      ('"[[0.0010113, 348.38821078816807], [0.036, 122.0]]"', False),
+                      ('"[[0.0010113482412618746, 348.38821078816807]]"', False),
+                      ('"[[0.0010113482412618746, 348.38821078816807], [0.036, \'x\']]"',
+                       False)):
+        (tmp_path / "b.csv").write_text(f"front,label\n{fresh},p\n")
+        assert (tablecheck.compare_csv(tmp_path / "a.csv", tmp_path / "b.csv") is None) == ok
+
+
 def test_recomputed_closed_loop_diagnostics_tolerate_another_lapack(tmp_path):
     """A pole recomputed from the stored matrices moves with the processor's LAPACK build
     (1.8e-8 of itself seen); a change the pages could show (1e-4) still fails."""

@@ -23,7 +23,7 @@ nulls. Only numpy here.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -154,27 +154,13 @@ def closed_loop_of(problem: Any, mats: Mapping[str, Any],
     TypeError
         The hook returned something other than a :class:`ClosedLoop` or None.
     """
-    loop_of = closed_loop_function(problem)
-    return None if loop_of is None else loop_of(mats, scalars)
-
-
-def closed_loop_function(problem: Any
-                         ) -> Callable[[Mapping[str, Any], Mapping[str, float] | None],
-                                       ClosedLoop | None] | None:
-    """:func:`closed_loop_of` bound to ``problem`` (None when it has no ``closed_loop``
-    hook): the hook looked up once, for many candidates of one problem."""
     hook = hooks(problem).closed_loop
     if hook is None:
         return None
-
-    def loop_of(mats: Mapping[str, Any], scalars: Mapping[str, float] | None = None
-                ) -> ClosedLoop | None:
-        loop = hook({k: np.asarray(v, dtype=float) for k, v in mats.items()}, scalars or None)
-        if loop is not None and not isinstance(loop, ClosedLoop):
-            raise TypeError(f"closed_loop returned {type(loop).__name__}, not ClosedLoop")
-        return loop
-
-    return loop_of
+    loop = hook({k: np.asarray(v, dtype=float) for k, v in mats.items()}, scalars or None)
+    if loop is not None and not isinstance(loop, ClosedLoop):
+        raise TypeError(f"closed_loop returned {type(loop).__name__}, not ClosedLoop")
+    return loop
 
 
 def slowest_reals(loops: Sequence[ClosedLoop | None]) -> np.ndarray:
@@ -250,6 +236,6 @@ def record_columns(problem: Any, mats: Mapping[str, Any],
         return dict.fromkeys(COLUMNS)
 
 
-__all__ = ["COLUMNS", "Diagnostics", "closed_loop_function", "closed_loop_of", "columns",
-           "continuous_poles", "damping_ratios", "diagnose", "gain_norm_cond", "loop_from_json",
-           "loop_json", "record_columns", "slowest_reals"]
+__all__ = ["COLUMNS", "Diagnostics", "closed_loop_of", "columns", "continuous_poles",
+           "damping_ratios", "diagnose", "gain_norm_cond", "loop_from_json", "loop_json",
+           "record_columns", "slowest_reals"]

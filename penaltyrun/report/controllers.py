@@ -320,21 +320,14 @@ def start_modes(g: pd.DataFrame) -> pd.DataFrame:
 
 def _start_loop(row: dict[str, Any], built: dict[tuple[str, str, str], Any]
                 ) -> ClosedLoop | None:
-    """The closed loop of one start for :func:`start_modes` (:func:`loop_of`, with each
-    problem's hook looked up once in ``built``); None where there is none or it fails
-    (counted as no closed loop; :func:`controller_rows` logs the reason for best starts)."""
+    """The closed loop of one start for :func:`start_modes` (:func:`loop_of`, each problem
+    built once in ``built``); None where there is none or it fails (counted as no closed
+    loop; :func:`controller_rows` logs the reason for best starts)."""
+    key = (str(row["problem"]), str(row["case"]), str(row["problem_params"]))
     try:
-        stored = decode_json(row["closed_loop"]) if isinstance(row["closed_loop"], str) \
-            else None
-        if stored:
-            return dg.loop_from_json(stored)
-        key = (str(row["problem"]), str(row["case"]), str(row["problem_params"]))
         if key not in built:
-            prob = None if protocol.module(row["problem"]) is None else _problem(row)
-            built[key] = None if prob is None else dg.closed_loop_function(prob)
-        if built[key] is None:
-            return None
-        return built[key](_matrices(row), decode_json(row["scalars"]) or None)
+            built[key] = _problem(row)
+        return loop_of(row, built[key])[0]
     except Exception:
         return None
 

@@ -46,18 +46,11 @@ def matrices_of(row: pd.Series | dict) -> dict[str, np.ndarray]:
     return {k: np.asarray(v, float) for k, v in (decode_json(row["matrices"]) or {}).items()}
 
 
-def relative_deviation(K: np.ndarray | None, ref: np.ndarray) -> float:
-    """max |K − ref| / max |ref| (entrywise, relative to the largest entry); ∞ for a
-    missing matrix (a start that stores none) or one of another shape."""
-    if K is None or np.shape(K) != np.shape(ref):
-        return float("inf")
-    return float(np.max(np.abs(K - ref)) / np.max(np.abs(ref)))
-
-
 def deviations(texts: list[Any], refs: Mapping[str, np.ndarray]) -> np.ndarray:
-    """:func:`relative_deviation` of each start's stored matrices from the matrices
-    ``refs``, the largest over ``refs`` (∞ where one is missing or of another shape); the
-    starts' matrices of one shape are compared as one stack.
+    """How far each start's stored matrices are from the matrices ``refs``: the largest over
+    ``refs`` of max |K − ref| / max |ref| (entrywise, relative to the reference's largest
+    entry; ∞ where a matrix is missing or of another shape); the starts' matrices of one
+    shape are compared as one stack.
 
     Parameters
     ----------
@@ -158,7 +151,7 @@ def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
         devs = np.concatenate([
             [], *(deviations(batch["matrices"].tolist(), refs)
                   for batch in batches(narrow(cell, ("matrices",)), ("matrices",)))])
-        best_dev = max(relative_deviation(matrices_of(best).get(k), r) for k, r in refs.items())
+        best_dev = float(deviations([best["matrices"]], refs)[0])
         rows.append({"map": name, "our best": float(best["best_cost"]),
                      "by": f"{best['optimizer']}/{best['param']}",
                      f"paper {', '.join(ref)}: our cost": float(prob.evaluate(dict(ref))["cost"]),

@@ -262,11 +262,3 @@ def test_slowest_reals_are_nan_for_loops_that_cannot_be_diagnosed():
     got = dg.slowest_reals([good, *bad, good])
     assert got[0] == got[-1] == -1.0 and np.isnan(got[1:-1]).all()
 
-
-def test_a_bound_closed_loop_function_is_the_hook():
-    zermelo = problems.make("zermelo", "default")
-    K = spd(np.random.default_rng(2), 2)
-    loop_of = dg.closed_loop_function(zermelo)
-    np.testing.assert_array_equal(loop_of({"K": K}).matrix,
-                                  dg.closed_loop_of(zermelo, {"K": K}).matrix)
-    assert dg.closed_loop_function(object()) is None

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from penaltyrun.dynamics.linear import sampled_loop
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.base import check_spd
 from penaltyrun.problems.lqr import margins
@@ -251,7 +252,7 @@ class Limits:
                 x = np.swapaxes(steps["x"], 0, 1).reshape(good.size, n_k, t.size, -1)
             else:
                 t = np.linspace(0.0, t_max, self.points)
-                x = margins.sample_linear(self.A - self.B @ K[good], X0, t)
+                x, _ = sampled_loop(self.A - self.B @ K[good], X0, t)
             settle[good], over[good] = margins.settling_overshoot(t, x @ self.outputs.T,
                                                                   self.band)
         with np.errstate(invalid="ignore"):

@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from penaltyrun.dynamics.linear import sampled_loop
-
 
 def frequency_grid(A: np.ndarray, dt: float | None, points: int) -> np.ndarray:
     """Log-spaced frequencies (rad per time unit): eight decades around the plant's scale
@@ -138,21 +136,5 @@ def settling_overshoot(t: np.ndarray, y: np.ndarray, band: float
     return settle.max(axis=-1), over.max(axis=-1)
 
 
-def sample_linear(A_cl: np.ndarray, X0: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """States of ẋ = A_cl x at uniform times ``t`` (exact: powers of e^{A_cl h}).
-
-    Parameters
-    ----------
-    A_cl : ndarray, shape (C, n, n)
-    X0 : ndarray, shape (k, n)
-    t : ndarray, shape (N,), uniform, t[0] = 0
-
-    Returns
-    -------
-    ndarray, shape (C, k, N, n)
-    """
-    return sampled_loop(A_cl, X0, t)[0]
-
-
 __all__ = ["alpha_for", "disk_gain_phase", "disk_margin", "disk_margin_curve", "frequency_grid",
-           "sample_linear", "settling_overshoot"]
+           "settling_overshoot"]

@@ -308,7 +308,39 @@ def _object_problem(name: str, value: object) -> str | None:
             return "held-out costs of -inf (no cost is)"
         if any(not isinstance(v, list) for k, v in value.items() if k not in HOLDOUT_SCALARS):
             return "held-out data whose per-scenario entries are not all lists"
+    if name == "scalars" and not all(_number(v, missing=False) for v in value.values()):
+        return "scalars that are not all numbers"
+    for key, kind in TYPED_ENTRIES.get(name, {}).items():
+        if key in value and not _of_kind(value[key], kind):
+            return f"a {name} entry {key!r} that is not {KIND_WORDS[kind]}"
     return None
+
+
+#: Kinds of the entries of :data:`TYPED_ENTRIES`: one number (JSON number or null), text
+#: or a true/false, or a list of them (one per held-out scenario).
+NUMBER, TEXT, FLAG = "number", "text", "flag"
+KIND_WORDS = {NUMBER: "a number", TEXT: "text", FLAG: "true or false",
+              (NUMBER,): "a list of numbers", (TEXT,): "a list of texts",
+              (FLAG,): "a list of true/false"}
+#: Entries of the JSON columns ``metrics`` and ``holdout`` that the report reads, with the
+#: kind each holds where present (any entry may be null): a file whose entry holds another
+#: kind is refused, so that text is never counted as a converged scenario or read as an
+#: energy. Other entries are the problem's own and are not read by the report.
+TYPED_ENTRIES = {
+    "metrics": {"cost": NUMBER, "energy": NUMBER, "arrival_time": NUMBER, "rho": NUMBER,
+                "optimum": NUMBER, "criterion": TEXT, "method": TEXT},
+    "holdout": {"converged": (FLAG,), "converged_by_deadline": (FLAG,),
+                "arrival_time": (NUMBER,), "kind": (TEXT,), "scenario": (TEXT,),
+                "status": (TEXT,), "horizon": NUMBER, "training_horizon": NUMBER}}
+
+
+def _of_kind(value: object, kind: str | tuple[str]) -> bool:
+    """Whether ``value`` (decoded JSON) is of ``kind`` (see :data:`TYPED_ENTRIES`)."""
+    if isinstance(kind, tuple):
+        return isinstance(value, list) and all(_of_kind(v, kind[0]) for v in value)
+    if value is None or kind == NUMBER:
+        return _number(value)
+    return isinstance(value, str) if kind == TEXT else isinstance(value, bool)
 
 
 def _number(value: object, missing: bool = True) -> bool:

@@ -98,6 +98,20 @@ def export_best(src: Path, out: Path) -> list[Path]:
     return [out / name for name in names]
 
 
+def strict_json(value: Any) -> Any:
+    """``value`` (decoded JSON and numbers) with every non-finite float (NaN, ±∞, which a
+    stored metric may hold) replaced by None: JSON has no token for them (Python writes
+    ``NaN``, which MATLAB's ``jsondecode`` and strict parsers refuse), so they are written
+    as ``null``."""
+    if isinstance(value, dict):
+        return {k: strict_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [strict_json(v) for v in value]
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
 def _write(best: pd.DataFrame, out: Path) -> list[str]:
     """Write the files of :func:`export_best` into ``out``; their names (JSON and .mat of
     each cell, then ``index.csv``)."""
@@ -116,7 +130,8 @@ def _write(best: pd.DataFrame, out: Path) -> list[str]:
                "problem_params": decode_json(row["problem_params"]),
                "git_commit": row["git_commit"], "package_version": row["package_version"]}
         json_path = out / f"{stem}.json"
-        json_path.write_text(json.dumps(doc, indent=1, default=str) + "\n", encoding="utf-8")
+        json_path.write_text(json.dumps(strict_json(doc), indent=1, default=str,
+                                        allow_nan=False) + "\n", encoding="utf-8")
         mdict: dict[str, Any] = {_matlab_name(k): v for k, v in mats.items()}
         mdict.update({_matlab_name(k): float(v) for k, v in scalars.items()})
         mdict.update({("case_name" if k == "case" else k): v for k, v in cell.items()})

@@ -118,7 +118,8 @@ CONTENT = {"minus infinite cost": (_with(best_cost=-np.inf), "column best_cost h
                                                    "usable JSON (JSON nested"),
            "deep metrics": (_with(metrics=DEEP), "column metrics holds text"),
            "matrices not JSON": (_with(matrices="{oops"), "column matrices holds text"),
-           "held-out costs not numbers": (_with(holdout={"cost": "cheap", "converged": [1]}),
+           "held-out costs not numbers": (_with(holdout={"cost": "cheap",
+                                                                  "converged": [True]}),
                                           "held-out costs that are not a list of numbers"),
            "held-out lists of two lengths": (_with(holdout={"cost": [1.0], "x0": [1, 2]}),
                                              "held-out lists of different lengths"),
@@ -140,7 +141,33 @@ CONTENT = {"minus infinite cost": (_with(best_cost=-np.inf), "column best_cost h
            "negative arrival time": (_with(t_final=-np.inf), "column t_final holds negative"),
            "negative wall time": (_with(wall_time_s=-1.0), "column wall_time_s holds negative"),
            "negative CPU trace": (_with(trace_evals=[1], trace_best=[1.0],
-                                        trace_cpu_s=[-0.5]), "trace_cpu_s holds negative")}
+                                        trace_cpu_s=[-0.5]), "trace_cpu_s holds negative"),
+           "scalar that is an object": (_with(scalars={"t_max": {"deep": [1]}}),
+                                        "scalars that are not all numbers"),
+           "scalar that is text": (_with(scalars={"w": "heavy"}),
+                                   "scalars that are not all numbers"),
+           "scalar that is null": (_with(scalars={"w": None}),
+                                   "scalars that are not all numbers"),
+           "energy that is text": (_with(metrics={"criterion": "time_energy", "rho": 1.0,
+                                                  "energy": "abc"}),
+                                   "a metrics entry 'energy' that is not a number"),
+           "optimum that is a list": (_with(metrics={"method": "care", "optimum": [1.0]}),
+                                      "a metrics entry 'optimum' that is not a number"),
+           "criterion that is a number": (_with(metrics={"criterion": 3}),
+                                          "a metrics entry 'criterion' that is not text"),
+           "held-out converged as text": (_with(holdout={"cost": [1.0, 2.0],
+                                                         "converged": ["yes", "no"]}),
+                                          "'converged' that is not a list of true/false"),
+           "held-out converged as numbers": (_with(holdout={"cost": [1.0],
+                                                            "converged": [1]}),
+                                             "'converged' that is not a list of true/false"),
+           "held-out arrival as text": (_with(holdout={"cost": [1.0],
+                                                       "arrival_time": ["late"]}),
+                                        "'arrival_time' that is not a list of numbers"),
+           "held-out status as numbers": (_with(holdout={"cost": [1.0], "status": [0]}),
+                                          "'status' that is not a list of texts"),
+           "held-out horizon as text": (_with(holdout={"cost": [1.0], "horizon": "long"}),
+                                        "'horizon' that is not a number")}
 
 HOSTILE = {**CONTENT,
            "null problem": (_null_problem, "column problem has 1 empty values"),
@@ -228,3 +255,15 @@ def test_a_folder_named_like_a_results_file_is_named_once(tmp_path, caplog):
         read.read_results(tmp_path)
     lines = [r.getMessage() for r in caplog.records if "not a regular file" in r.getMessage()]
     assert len(lines) == 1
+
+
+def test_entries_of_the_problems_own_beside_the_typed_ones_are_read(tmp_path):
+    """Only the entries the report reads are typed: a problem's own metrics and per-scenario
+    held-out data of any kind, and null where a typed entry is missing, are read."""
+    path = tmp_path / RESULTS_FILE
+    _with(metrics={"objective": "min_fuel", "energy": None, "limits": {"u": [1, 2]}},
+          holdout={"cost": [1.0, None], "converged": [True, None], "x0": [[1, 2], "a"],
+                   "horizon": 10.0, "training": {"converged": "yes"}},
+          scalars={"t_max": 3, "w": 1e300})(path)
+    df = read.read_results(path)
+    assert list(df["start"]) == [1] and not df.attrs.get("skipped_files")

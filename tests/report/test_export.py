@@ -60,3 +60,35 @@ def test_report_cli_export_option(results, tmp_path, capsys):
     assert "exported" in capsys.readouterr().out
     assert (tmp_path / "report" / "report.md").exists()
     assert len(list((tmp_path / "exp").glob("*.mat"))) == 3
+
+
+def test_a_metric_that_is_not_finite_is_exported_as_null(results, tmp_path):
+    """JSON has no NaN or infinity: a stored metric that is not finite is written as null,
+    and the file parses with a strict parser."""
+    df = io.read_results(results)
+    cell = df[(df["problem"] == "zermelo") & (df["param"] == "full")]
+    best = cell["best_cost"].idxmin()
+    metrics = decode_json(df.at[best, "metrics"])
+    metrics.update({"final_distance": float("nan"), "extra": [1.0, float("inf")]})
+    df.at[best, "metrics"] = json.dumps(metrics)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    df.to_parquet(folder / "results.parquet")
+    export_best(folder, tmp_path / "export")
+
+    def refuse(token):
+        raise ValueError(token)
+
+    text = (tmp_path / "export" / "zermelo_default_pso_full.json").read_text()
+    doc = json.loads(text, parse_constant=refuse)
+    assert doc["metrics"]["final_distance"] is None and doc["metrics"]["extra"] == [1.0, None]
+    assert doc["metrics"]["cost"] == metrics["cost"]
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), -float("inf"), 1.5, "a", None])
+def test_strict_json_keeps_finite_values_and_nulls_the_rest(value):
+    from penaltyrun.report.export import strict_json
+
+    out = strict_json({"a": [value, (value,)], "b": {"c": value}})
+    want = None if isinstance(value, float) and not np.isfinite(value) else value
+    assert out == {"a": [want, [want]], "b": {"c": want}}

@@ -20,6 +20,7 @@ local optimum for a convex neighbourhood), not that it is the global one; beside
 from __future__ import annotations
 
 import json
+from collections.abc import Hashable
 
 import numpy as np
 import pandas as pd
@@ -128,11 +129,35 @@ def _evidence(agree: list[str], n_at: int, n_starts: int, stationary: bool = Fal
 
 def best_rows(df: pd.DataFrame) -> dict[str, pd.Series]:
     """The converged start with the lowest cost of each map family, over every optimizer
-    (the baseline excluded): ``{"diagonal": row, "full": row}`` where present."""
-    ok = df[converged(df) & (df["optimizer"] != "baseline")]
-    out = {}
-    for fam, g in ok.groupby(ok["param"].map(family)):
-        out[str(fam)] = full_row(g, g["best_cost"].astype(float).idxmin())
+    (the baseline excluded): ``{"diagonal": row, "full": row}`` where present (the first
+    such row of ``df`` where costs tie)."""
+    return {fam: full_row(df, label) for fam, label in best_labels(df).get((), {}).items()}
+
+
+def best_labels(df: pd.DataFrame, keys: tuple[str, ...] = ()
+                ) -> dict[tuple, dict[str, Hashable]]:
+    """The index labels of :func:`best_rows` of each group of ``df`` by the columns ``keys``
+    (groups in sorted order, rows with a missing key left out; ``()``: the whole of
+    ``df``, under the key ``()``), from the columns they are chosen by alone: no copy of
+    the rows of ``df`` is made, whatever its size.
+
+    Returns
+    -------
+    dict
+        ``{group key: {family: label}}``, the families in sorted order; a group without a
+        converged start is absent.
+    """
+    cost = df["best_cost"].astype(float)
+    keep = (converged(df) & (df["optimizer"] != "baseline") & cost.notna()).to_numpy()
+    chosen = pd.DataFrame({**{k: df[k].to_numpy()[keep] for k in keys},
+                           "family": df["param"][keep].map(family).to_numpy(),
+                           "cost": cost.to_numpy()[keep]}, index=df.index[keep])
+    out: dict[tuple, dict[str, Hashable]] = {}
+    if chosen.empty:
+        return out
+    for key, label in chosen.groupby([*keys, "family"], sort=True)["cost"].idxmin().items():
+        key = key if isinstance(key, tuple) else (key,)
+        out.setdefault(tuple(key[:-1]), {})[str(key[-1])] = label
     return out
 
 

@@ -37,11 +37,17 @@ from penaltyrun.report import (
     tuning,
 )
 from penaltyrun.report.anytime import target_table
-from penaltyrun.report.bestknown import CERTIFY_RTOL, FIRST_ORDER_RTOL, best_known, shortfall
+from penaltyrun.report.bestknown import (
+    CERTIFY_RTOL,
+    FIRST_ORDER_RTOL,
+    best_known,
+    best_labels,
+    shortfall,
+)
 from penaltyrun.report.compare import FAMILY, NO_TEST, SPENT_RTOL, pairwise
 from penaltyrun.report.fitting import fitting_rows
 from penaltyrun.report.progress import Steps
-from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS, lazy, with_columns
+from penaltyrun.report.rows import FRAME_COLUMNS, REPORT_COLUMNS, full_row, lazy, with_columns
 from penaltyrun.report.stats import BCA_MAX_N, MIN_N_TEST, add_variant, cell_summary
 from penaltyrun.report.tables import (
     markdown,
@@ -160,8 +166,9 @@ def checks(df: pd.DataFrame) -> list[str]:
                          f"{md_text(param)}: {int(nf[g.index].sum())} of {int(total)} "
                          "evaluations were non-finite (replaced by a penalty) in "
                          f"{len(g)} start(s).")
-    for _, g in df.groupby(["problem", "case", "problem_variant"], sort=True):
-        lines += sections.active_bounds(g)
+    for best in best_labels(df, ("problem", "case", "problem_variant")).values():
+        lines += sections.active_bounds({fam: full_row(df, label)
+                                         for fam, label in best.items()})
     return lines
 
 
@@ -316,10 +323,11 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
     ctx = {"summary": summary, "comp": comp, "bk": bk, "held": held, "imps": imps,
            "basin_points": int(basin_points), "probe": bool(probe), "cache": sections_cache,
            "probes": stored if stored is not None else pd.DataFrame(),
-           "paper": sections.paper_rows(df) if paper else pd.DataFrame()}
+           "paper": sections.paper_rows(df) if paper else pd.DataFrame(),
+           "paper_matrices": sections.paper_matrix_tables(df) if paper else {}}
     _write_csv(ctx["paper"], out, "paper")
     if paper:
-        _write_csv(sections.paper_matrix_rows(df), out, "paper_matrices")
+        _write_csv(sections.paper_matrix_rows(ctx["paper_matrices"]), out, "paper_matrices")
     _write_csv(holdout.discretization_rows(df), out, "discretization")
     _write_csv(controllers.csv_rows(df), out, "controllers")
     lines = ["# penaltyrun report", "",

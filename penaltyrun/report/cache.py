@@ -157,6 +157,8 @@ def _case_rows(table: Any, problem: str, case: str) -> Any:
     is not a table of problem cases)."""
     if isinstance(table, pd.DataFrame) and {"problem", "case"} <= set(table.columns):
         return table[(table["problem"] == problem) & (table["case"] == case)]
+    if isinstance(table, dict) and all(isinstance(k, tuple) for k in table):  # by case
+        return {k: v for k, v in table.items() if k[:2] == (problem, case)}
     return table
 
 

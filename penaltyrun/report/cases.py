@@ -120,7 +120,8 @@ def case_lines(g: pd.DataFrame, ctx: dict, out: Path, paper: bool, stem: str) ->
               if ctx["basin_points"] > 0 else []),
              ("cliffs", lambda: cliffs.section(g, out, stem, ctx["probes"])
               if ctx["probe"] else []),
-             ("paper values", lambda: sections.paper_section(g, ctx["paper"])
+             ("paper values", lambda: sections.paper_section(g, ctx["paper"],
+                                                             ctx["paper_matrices"])
               if paper else []),
              ("held-out", lambda: holdout.problem_section(g, ctx["held"], ctx["imps"], out)
               if not variant or variant == first["problem_variant"] else [])]
@@ -161,8 +162,8 @@ def _figures(g: pd.DataFrame, bk: pd.DataFrame, out: Path, stem: str, title: str
 
 #: Tables and settings every section reads (built once by the report, sent once to each
 #: worker, part of the key of a cached section).
-SHARED = ("summary", "comp", "bk", "held", "imps", "paper", "basin_points", "probe",
-          "probes")
+SHARED = ("summary", "comp", "bk", "held", "imps", "paper", "paper_matrices",
+          "basin_points", "probe", "probes")
 
 
 def write_sections(df: pd.DataFrame, ctx: dict[str, Any], out: Path, paper: bool,

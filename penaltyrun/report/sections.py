@@ -107,10 +107,14 @@ def plots_section(g: pd.DataFrame, out: Path, stem: str) -> list[str]:
     return lines
 
 
-def paper_matrix_rows(df: pd.DataFrame) -> pd.DataFrame:
-    """:func:`paper_matrices` rows of every problem × case × variant of ``df`` (the
-    ``paper_matrices`` table), with ``problem``, ``case`` and ``variant`` columns."""
-    tables = []
+def paper_matrix_tables(df: pd.DataFrame) -> dict[tuple[str, str, str], pd.DataFrame]:
+    """Our best matrices against the published ones (:func:`_paper_matrix_table`) of each
+    problem × case × variant of ``df`` that has published matrices, keyed by
+    ``(problem, case, variant)``: computed once for the ``paper_matrices`` table
+    (:func:`paper_matrix_rows`) and the case sections (:func:`paper_section`). A case
+    whose stored parameters the problem accepts but cannot run is left out with one
+    warning."""
+    tables = {}
     df = narrow(df, ["problem", "case", "variant", "problem_params", "optimizer", "param",
                      "status", "best_converged", "best_cost", "matrices"])
     for (problem, case, variant), g in groups(df, ["problem", "case", "variant"]):
@@ -123,11 +127,16 @@ def paper_matrix_rows(df: pd.DataFrame) -> pd.DataFrame:
                           "their table is left out")
             continue
         if not rows.empty:
-            rows.insert(0, "variant", variant)
-            rows.insert(0, "case", case)
-            rows.insert(0, "problem", problem)
-            tables.append(rows)
-    return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+            tables[problem, case, variant] = rows
+    return tables
+
+
+def paper_matrix_rows(tables: Mapping[tuple[str, str, str], pd.DataFrame]) -> pd.DataFrame:
+    """The ``paper_matrices`` table: the :func:`paper_matrix_tables` ``tables`` one under
+    the other, with ``problem``, ``case`` and ``variant`` columns."""
+    rows = [table.assign(problem=key[0], case=key[1], variant=key[2])
+            [["problem", "case", "variant", *table.columns]] for key, table in tables.items()]
+    return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
 
 
 def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
@@ -161,11 +170,11 @@ def _paper_matrix_table(g: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def paper_matrices(g: pd.DataFrame) -> list[str]:
-    """Our best matrices vs the published ones: cost of the published matrix in our
+def paper_matrices(g: pd.DataFrame, table: pd.DataFrame | None) -> list[str]:
+    """Our best matrices vs the published ones (``table``, the case's
+    :func:`paper_matrix_tables` entry; None: none): cost of the published matrix in our
     implementation, distance of our best, starts that match it."""
-    table = _paper_matrix_table(g)
-    if table.empty:
+    if table is None or table.empty:
         return []
     info = protocol.info_of(g)
     return [f"Our best matrices vs the published ones ({info.paper.source}); costs in "
@@ -257,10 +266,13 @@ def _shown(table: pd.DataFrame) -> list[str]:
     return [c for c in PAPER_COLUMNS if c != "source"] + EVALUATION_COLUMNS
 
 
-def paper_section(g: pd.DataFrame, table: pd.DataFrame) -> list[str]:
-    """Lines of one case's paper comparison (the rows of ``table`` for it)."""
+def paper_section(g: pd.DataFrame, table: pd.DataFrame,
+                  matrices: Mapping[tuple[str, str, str], pd.DataFrame]) -> list[str]:
+    """Lines of one case's paper comparison (the rows of ``table`` for it, and its entry
+    of ``matrices``, see :func:`paper_matrix_tables`)."""
     first = g.iloc[0]
-    lines = paper_matrices(g)
+    lines = paper_matrices(g, matrices.get((first["problem"], first["case"],
+                                            first["variant"])))
     info = protocol.info_of(g)
     if not table.empty:
         sel = table[(table["problem"] == first["problem"]) & (table["case"] == first["case"])
@@ -277,11 +289,12 @@ def paper_section(g: pd.DataFrame, table: pd.DataFrame) -> list[str]:
     return (["### Paper values", ""] + lines) if lines else []
 
 
-def active_bounds(g: pd.DataFrame) -> list[str]:
-    """Warning lines for best matrices (one per family) at a bound of their box: a
+def active_bounds(best: Mapping[str, pd.Series]) -> list[str]:
+    """Warning lines for best matrices (``best``: one row per family, as
+    :func:`~penaltyrun.report.bestknown.best_rows` gives them) at a bound of their box: a
     diagonal entry or an eigenvalue within :data:`BOUND_RTOL` relative of it."""
     lines = []
-    for fam, row in best_rows(g).items():
+    for fam, row in best.items():
         bounds = protocol.bounds_of(row)
         if not bounds:
             continue
@@ -344,4 +357,5 @@ def contributed(df: pd.DataFrame, out: Path) -> list[str]:
 
 
 __all__ = ["active_bounds", "contributed", "deviations", "median_test", "paper_matrix_rows",
+           "paper_matrix_tables",
            "paper_rows", "paper_section", "plots_section", "render"]

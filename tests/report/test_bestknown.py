@@ -6,6 +6,8 @@ import json
 
 import pandas as pd
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from penaltyrun.report.bestknown import (
     best_known,
@@ -122,3 +124,40 @@ def test_agreement_notes_a_first_order_certificate():
             {**job("givens", "cmaes", 2.00001), "grad_norm": None}]
     f = bk_row(best_known(pd.DataFrame(rows)), "full")
     assert f["level"] == "agreement" and "first-order certified" in f["evidence"]
+
+
+def _best_rows_by_copy(df: pd.DataFrame) -> dict[str, pd.Series]:
+    """The former best_rows: a copy of the converged rows grouped by family (reference)."""
+    from penaltyrun.report.stats import converged
+
+    ok = df[converged(df) & (df["optimizer"] != "baseline")]
+    return {str(fam): g.loc[g["best_cost"].astype(float).idxmin()]
+            for fam, g in ok.groupby(ok["param"].map(family))}
+
+
+PARAMS = ["diagonal", "full", "geagsp", "givens"]
+
+
+@given(st.lists(st.tuples(st.sampled_from(PARAMS), st.sampled_from(["pso", "baseline"]),
+                          st.sampled_from([1.0, 2.0, 3.0]), st.sampled_from(["ok", "failed"]),
+                          st.sampled_from(["", "v2"])), max_size=25),
+       st.booleans())
+def test_best_rows_and_best_labels_equal_the_copying_reference(rows, categorical):
+    from penaltyrun.report.bestknown import best_labels, best_rows
+
+    df = pd.DataFrame([job(p, o, c, s, job_id=f"j{k}", pv=pv)
+                       for k, (p, o, c, s, pv) in enumerate(rows)],
+                      columns=list(job("diagonal", "pso", 1.0)))
+    df.index = df.index * 3 + 5  # labels that are not positions
+    if categorical:
+        df["param"] = df["param"].astype("category")
+    got, want = best_rows(df), _best_rows_by_copy(df)
+    assert list(got) == list(want)
+    for fam in want:
+        pd.testing.assert_series_equal(got[fam], want[fam])
+    by_group = best_labels(df, ("problem", "case", "problem_variant"))
+    for (_, _, pv), labels in by_group.items():
+        ref = _best_rows_by_copy(df[df["problem_variant"] == pv])
+        assert labels == {fam: row.name for fam, row in ref.items()}
+    assert len(by_group) == sum(bool(_best_rows_by_copy(df[df["problem_variant"] == pv]))
+                                for pv in df["problem_variant"].unique())

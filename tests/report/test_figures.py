@@ -128,3 +128,23 @@ def test_ecdf_without_any_start_at_a_target_is_a_sentence(frame, tmp_path):
     assert not (tmp_path / "e.png").exists()
     assert isinstance(figures.ecdf_figure(frame, best_known(frame), "toy",
                                           tmp_path / "e.png"), type(tmp_path))
+
+
+def test_a_box_of_many_starts_draws_a_random_sample_of_dots_over_every_start(
+        kept, tmp_path, monkeypatch):
+    """Above MAX_DOTS converged starts a box draws that many of them as dots (distinct
+    starts, said in the tick label); the box itself is of every start."""
+    monkeypatch.setattr(figures, "MAX_DOTS", 5)
+    costs = [1.0 + k for k in range(12)]
+    frame = pd.DataFrame([job("diagonal", "pso", c) for c in costs]
+                         + [job("full", "pso", c) for c in (2.0, 3.0)])
+    figures.cost_distribution(frame, "J", "toy", tmp_path / "c.png")
+    (fig,) = kept()
+    (ax,) = fig.axes
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["diagonal\n12/12\n(5 dots)",
+                                                            "full\n2/2"]
+    dots = [c.get_offsets()[:, 1] for c in ax.collections]
+    assert len(dots[0]) == 5 and len(set(dots[0])) == 5 and set(dots[0]) <= set(costs)
+    assert sorted(dots[1]) == [2.0, 3.0]
+    whiskers = sorted(y for line in ax.lines for y in line.get_ydata())
+    assert whiskers[0] == 1.0 and whiskers[-1] == 12.0  # the box's whiskers span all 12

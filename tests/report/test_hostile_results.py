@@ -388,14 +388,14 @@ def test_stored_parameters_of_the_wrong_kind_leave_the_problem_unbuilt_with_one_
     """B8: a start position stored as text is refused when the problem is rebuilt (one
     warning naming the parameter); the paper's-matrices table is left out."""
     from penaltyrun.report import protocol
-    from penaltyrun.report.sections import paper_matrix_rows
+    from penaltyrun.report.sections import paper_matrix_tables
 
     protocol.reset()
     frame = pd.DataFrame(rows(problem="zermelo", case="default", params={"x0": "far"}))
     frame["variant"] = ""
     for column in ("problem_params", "matrices"):
         frame[column] = [json.dumps(v) for v in frame[column]]
-    assert paper_matrix_rows(frame).empty
+    assert paper_matrix_tables(frame) == {}
     assert len([w for w in protocol.WARNINGS if "problem.params.x0" in w]) == 1
 
 
@@ -405,7 +405,7 @@ def test_stored_parameters_the_problem_accepts_but_cannot_run_cost_one_warning(
     paper's-matrices table is left out with one warning, nothing else is lost."""
     from penaltyrun.problems.zermelo import Zermelo
     from penaltyrun.report import protocol
-    from penaltyrun.report.sections import paper_matrix_rows
+    from penaltyrun.report.sections import paper_matrix_tables
 
     def fails(self, *args, **kwargs):
         raise ValueError("cannot run these parameters")
@@ -417,7 +417,7 @@ def test_stored_parameters_the_problem_accepts_but_cannot_run_cost_one_warning(
     frame["variant"] = ""
     for column in ("problem_params", "matrices"):
         frame[column] = [json.dumps(v) for v in frame[column]]
-    assert paper_matrix_rows(frame).empty
+    assert paper_matrix_tables(frame) == {}
     assert len([w for w in protocol.WARNINGS if "could not be evaluated" in w]) == 1
 
 

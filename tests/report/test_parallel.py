@@ -71,7 +71,8 @@ def test_sections_come_back_in_order_with_one_progress_call_each(tmp_path):
     df = add_variant(read_results(src))
     held, imps = holdout.holdout_rows(df)
     ctx = {"summary": cell_summary(df), "comp": pairwise(df), "bk": best_known(df),
-           "held": held, "imps": imps, "paper": pd.DataFrame(), "basin_points": 0,
+           "held": held, "imps": imps, "paper": pd.DataFrame(), "paper_matrices": {},
+           "basin_points": 0,
            "probe": False, "probes": pd.DataFrame()}
     done: list[str] = []
     with trust.reading_results():

@@ -9,6 +9,7 @@ import os
 import shutil
 from pathlib import Path
 
+import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
@@ -199,3 +200,18 @@ def test_a_stored_probe_of_the_case_is_part_of_its_key(tmp_path, drawn):
     assert "read from `probe.parquet`" in (stored / "report.md").read_text()
     build_report(src, tmp_path / "r2", cache_dir=tmp_path / "cache", **options)
     assert len(drawn) == 2
+
+
+def test_a_shared_table_by_case_keys_a_section_by_its_own_cases_only():
+    """The paper-matrix tables (keyed by problem, case, variant) enter a section's key
+    with the entries of its own problem case alone: another case's table leaves it."""
+    from penaltyrun.report.cache import _case_rows
+
+    one, other = pd.DataFrame({"map": ["K"]}), pd.DataFrame({"map": ["Q"]})
+    tables = {("zermelo", "default", ""): one, ("zermelo", "default", "iters=10"): one,
+              ("zermelo", "far", ""): other}
+    assert list(_case_rows(tables, "zermelo", "default")) == [("zermelo", "default", ""),
+                                                               ("zermelo", "default",
+                                                                "iters=10")]
+    assert _case_rows({}, "zermelo", "default") == {}
+    assert _case_rows({"basin": 3}, "zermelo", "default") == {"basin": 3}

@@ -49,6 +49,7 @@ from penaltyrun.jobrecord import NO_RESULT_STATUSES, OK
 from penaltyrun.problems import criteria
 from penaltyrun.report.compare import MAP_ORDER, NO_TEST, budget, equal_budget, map_order
 from penaltyrun.report.holdout import scenario_table
+from penaltyrun.report.rows import narrow
 from penaltyrun.report.stats import MIN_N_TEST, a12, a12_magnitude, holm
 
 #: The swept setting (the price of a second of ``time_energy``).
@@ -135,6 +136,11 @@ def _maybe_time_energy(df: pd.DataFrame) -> pd.Series:
     return df["problem_params"].map(lambda v: seen.get(v, False)).astype(bool)
 
 
+#: Columns a sweep's points are made of (the rows selected are copied with these alone).
+POINT_COLUMNS = ("problem", "case", "variant", "optimizer", "param", "start", "status",
+                 "best_converged", "best_cost", "metrics", "holdout", "max_evals", "n_evals")
+
+
 def sweep_points(df: pd.DataFrame) -> pd.DataFrame:
     """One row per finished start of a ``time_energy`` cell that belongs to a sweep (≥ 2
     values of ρ under one :data:`SWEEP` key): ``rho``, ``energy``, ``arrival_time`` and
@@ -142,7 +148,8 @@ def sweep_points(df: pd.DataFrame) -> pd.DataFrame:
     rows = []
     # Only rows whose recorded problem parameters may name time_energy are read further
     # (a lazily read frame fills their metrics and held-out data alone).
-    df = df[_maybe_time_energy(df) & ~df["status"].isin(NO_RESULT_STATUSES)]
+    keep = _maybe_time_energy(df) & ~df["status"].isin(NO_RESULT_STATUSES)
+    df = narrow(df, POINT_COLUMNS)[keep]
     if df.empty:
         return pd.DataFrame()
     df = fill_columns(df, ["metrics", "holdout"])

@@ -11,7 +11,7 @@ from typing import Any
 import matplotlib.pyplot as plt
 import numpy as np
 
-from penaltyrun.report.tables import save_figure
+from penaltyrun.report.tables import dot_sample, save_figure
 
 #: Most panels of the channel figure (one per history key).
 MAX_PANELS = 6
@@ -161,7 +161,9 @@ def channel_figure(sims: Mapping[str, Mapping[str, Any]], title: str,
 def cost_mode_scatter(modes: Any, title: str, path: Path, cost_label: str = "cost"
                       ) -> Path | None:
     """Every start's cost against its slowest closed-loop real part, one colour per map
-    (the diagonal first, as in :func:`pole_map`).
+    (the diagonal first, as in :func:`pole_map`); a map of more than
+    :data:`~penaltyrun.report.tables.MAX_DOTS` starts draws that many of them, at random
+    (its legend entry says so).
 
     Parameters
     ----------
@@ -182,10 +184,13 @@ def cost_mode_scatter(modes: Any, title: str, path: Path, cost_label: str = "cos
         return None
     fig, ax = plt.subplots(figsize=(7, 4.2))
     params = sorted(set(finite["param"]), key=lambda p: (p != "diagonal", p))
+    rng = np.random.default_rng(0)
     for k, param in enumerate(params):
         m = finite[finite["param"] == param]
-        ax.scatter(m["slowest"], m["cost"], s=24, color=f"C{k}", marker=MARKERS[k % 6],
-                   alpha=0.8, label=f"{param} ({len(m)})")
+        drawn = m.iloc[dot_sample(len(m), rng)]
+        shown = f"; {len(drawn)} drawn" if len(drawn) < len(m) else ""
+        ax.scatter(drawn["slowest"], drawn["cost"], s=24, color=f"C{k}",
+                   marker=MARKERS[k % 6], alpha=0.8, label=f"{param} ({len(m)}{shown})")
     ax.set_xlabel("slowest closed-loop real part max Re s (1 / time unit)")
     ax.set_ylabel(cost_label)
     if (finite["cost"] > 0).all() and finite["cost"].max() > 10 * finite["cost"].min():

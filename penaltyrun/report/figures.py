@@ -25,7 +25,7 @@ from penaltyrun.report.compare import (
 )
 from penaltyrun.report.rows import TRACE_COLUMNS, narrow  # noqa: E402
 from penaltyrun.report.stats import converged, paper_value  # noqa: E402
-from penaltyrun.report.tables import save_figure  # noqa: E402
+from penaltyrun.report.tables import dot_sample, save_figure  # noqa: E402
 
 #: Font sizes of the report figures (points).
 plt.rcParams.update({"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11,
@@ -44,8 +44,6 @@ ECDF_NONE_REACHED = ("Fixed-target ECDF: no start of any optimizer and map here 
                      "other settings among them), so every curve would be 0: no figure.")
 #: Colour of each published value (dashed lines).
 PAPER_COLORS = {"mean_cost": "k", "median_cost": "0.45"}
-#: Most converged starts of one box that :func:`cost_distribution` draws as dots.
-MAX_DOTS = 2000
 
 
 def _optimizers(df: pd.DataFrame) -> list[str]:
@@ -203,10 +201,9 @@ def cost_distribution(df: pd.DataFrame, label: str, title: str, path: Path,
     Diverged and failed starts are not plotted (a penalty is not a cost): the tick label
     gives converged / all starts. Published means / medians (a problem's
     :class:`~penaltyrun.problems.base.PaperValues`) are dashed lines of fixed colours. A log
-    axis when the costs span more than two decades. A box of more than :data:`MAX_DOTS`
-    converged starts shows that many of them as dots, drawn at random (its tick label says
-    so): the box is computed from every start, and a hundred thousand overlapping dots
-    would show no more than the box while costing memory and time in proportion.
+    axis when the costs span more than two decades. A box of more than
+    :data:`~penaltyrun.report.tables.MAX_DOTS` converged starts shows that many of them as
+    dots, drawn at random (its tick label says so); the box is computed from every start.
     """
     opts = sorted(df["optimizer"].unique())
     df = narrow(df, ("optimizer", "param", "best_cost", "status", "best_converged"))
@@ -225,14 +222,14 @@ def cost_distribution(df: pd.DataFrame, label: str, title: str, path: Path,
                 for p in params]
         if any(d.size for d in data):
             ax.boxplot([d if d.size else [np.nan] for d in data], showfliers=False)
+        drawn = [dot_sample(d.size, rng) for d in data]
         ticks = [f"{p}\n{d.size}/{int((g['param'] == p).sum())}"
-                 + (f"\n({MAX_DOTS} dots)" if d.size > MAX_DOTS else "")
-                 for p, d in zip(params, data)]
+                 + (f"\n({len(k)} dots)" if len(k) < d.size else "")
+                 for p, d, k in zip(params, data, drawn)]
         ax.set_xticks(range(1, len(params) + 1), ticks)
         shown: set[str] = set()
-        for i, (p, values) in enumerate(zip(params, data), start=1):
-            if values.size > MAX_DOTS:
-                values = values[np.sort(rng.choice(values.size, MAX_DOTS, replace=False))]
+        for i, (p, values, k) in enumerate(zip(params, data, drawn), start=1):
+            values = values[k]
             ax.scatter(i + rng.uniform(-0.12, 0.12, values.size), values, s=16,
                        color=colors[p], zorder=3)
             for kind, color in PAPER_COLORS.items():

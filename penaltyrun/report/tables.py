@@ -125,6 +125,20 @@ TIGHT_PAD = 0.15
 PNG_COMPRESS_LEVEL = 1
 
 
+#: Most points of one group (a box, a map) that a report scatter plot draws: above it, that
+#: many drawn at random (:func:`dot_sample`); the figure says so. A hundred thousand
+#: overlapping dots show no more than a few thousand and cost memory and time in proportion.
+MAX_DOTS = 2000
+
+
+def dot_sample(n: int, rng: np.random.Generator) -> np.ndarray:
+    """Sorted positions of the points of a group of ``n`` that a scatter plot draws: all of
+    them up to :data:`MAX_DOTS`, else that many drawn at random by ``rng`` (distinct)."""
+    if n <= MAX_DOTS:
+        return np.arange(n)
+    return np.sort(rng.choice(n, MAX_DOTS, replace=False))
+
+
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     """Lay out (no panel title over the panel above, every title, label and legend inside
     the figure), save and close.

@@ -134,7 +134,9 @@ def test_a_box_of_many_starts_draws_a_random_sample_of_dots_over_every_start(
         kept, tmp_path, monkeypatch):
     """Above MAX_DOTS converged starts a box draws that many of them as dots (distinct
     starts, said in the tick label); the box itself is of every start."""
-    monkeypatch.setattr(figures, "MAX_DOTS", 5)
+    from penaltyrun.report import tables
+
+    monkeypatch.setattr(tables, "MAX_DOTS", 5)
     costs = [1.0 + k for k in range(12)]
     frame = pd.DataFrame([job("diagonal", "pso", c) for c in costs]
                          + [job("full", "pso", c) for c in (2.0, 3.0)])
@@ -148,3 +150,33 @@ def test_a_box_of_many_starts_draws_a_random_sample_of_dots_over_every_start(
     assert sorted(dots[1]) == [2.0, 3.0]
     whiskers = sorted(y for line in ax.lines for y in line.get_ydata())
     assert whiskers[0] == 1.0 and whiskers[-1] == 12.0  # the box's whiskers span all 12
+
+
+@pytest.mark.parametrize("n", [0, 1, 5, 6, 40])
+def test_dot_sample_keeps_every_point_up_to_the_limit_and_distinct_ones_above(
+        monkeypatch, n):
+    from penaltyrun.report import tables
+
+    monkeypatch.setattr(tables, "MAX_DOTS", 5)
+    rng = np.random.default_rng(3)
+    state = rng.bit_generator.state
+    k = tables.dot_sample(n, rng)
+    if n <= 5:
+        assert list(k) == list(range(n))
+        assert rng.bit_generator.state == state  # small groups draw nothing: same pixels
+    else:
+        assert len(k) == 5 and len(set(k)) == 5 and list(k) == sorted(k) and k.max() < n
+
+
+def test_cost_against_mode_draws_a_sample_of_a_large_map_and_says_so(
+        kept, tmp_path, monkeypatch):
+    from penaltyrun.report import controller_plots, tables
+
+    monkeypatch.setattr(tables, "MAX_DOTS", 5)
+    modes = pd.DataFrame({"param": ["diagonal"] * 9 + ["full"] * 3,
+                          "cost": np.arange(1.0, 13.0), "slowest": -np.arange(1.0, 13.0)})
+    controller_plots.cost_mode_scatter(modes, "toy", tmp_path / "m.png")
+    (fig,) = kept()
+    (ax,) = fig.axes
+    assert legends(ax) == ["diagonal (9; 5 drawn)", "full (3)"]
+    assert [len(c.get_offsets()) for c in ax.collections] == [5, 3]

@@ -88,3 +88,13 @@ def test_generated_text_has_no_tracker_references(pages):
     for text in pages.values():
         assert "issue " not in text.lower().replace("tissue", "")
         assert "spec/" not in text
+
+
+def test_report_page_states_the_code_limits_it_names():
+    """The limits the report page states are the code's: the rows above which results are
+    read lazily and the dots a scatter draws of one group."""
+    from penaltyrun.report.build import STREAM_MIN_ROWS
+    from penaltyrun.report.tables import MAX_DOTS
+    text = " ".join((ROOT / "docs" / "reference" / "report.md").read_text().split())
+    assert f"Above {STREAM_MIN_ROWS:,} jobs".replace(",", " ") in text
+    assert f"draw at most {MAX_DOTS:,} starts".replace(",", " ") in text

@@ -312,16 +312,21 @@ def _object_problem(name: str, value: object) -> str | None:
         return "scalars that are not all numbers"
     for key, kind in TYPED_ENTRIES.get(name, {}).items():
         if key in value and not _of_kind(value[key], kind):
-            return f"a {name} entry {key!r} that is not {KIND_WORDS[kind]}"
+            words = "an object of the kinds it holds" if isinstance(kind, dict) \
+                else KIND_WORDS[kind]
+            return f"a {name} entry {key!r} that is not {words}"
     return None
 
 
 #: Kinds of the entries of :data:`TYPED_ENTRIES`: one number (JSON number or null), text
-#: or a true/false, or a list of them (one per held-out scenario).
+#: or a true/false, a list of them (one per held-out scenario), or an object whose own
+#: entries are typed (a dict of entry → kind).
 NUMBER, TEXT, FLAG = "number", "text", "flag"
 KIND_WORDS = {NUMBER: "a number", TEXT: "text", FLAG: "true or false",
               (NUMBER,): "a list of numbers", (TEXT,): "a list of texts",
               (FLAG,): "a list of true/false"}
+#: The nominal (training) scenario the held-out data of some problems carry.
+TRAINING_ENTRY = {"converged": FLAG, "cost": NUMBER}
 #: Entries of the JSON columns ``metrics`` and ``holdout`` that the report reads, with the
 #: kind each holds where present (any entry may be null): a file whose entry holds another
 #: kind is refused, so that text is never counted as a converged scenario or read as an
@@ -331,11 +336,15 @@ TYPED_ENTRIES = {
                 "optimum": NUMBER, "criterion": TEXT, "method": TEXT},
     "holdout": {"converged": (FLAG,), "converged_by_deadline": (FLAG,),
                 "arrival_time": (NUMBER,), "kind": (TEXT,), "scenario": (TEXT,),
-                "status": (TEXT,), "horizon": NUMBER, "training_horizon": NUMBER}}
+                "status": (TEXT,), "horizon": NUMBER, "training_horizon": NUMBER,
+                "training": TRAINING_ENTRY}}
 
 
-def _of_kind(value: object, kind: str | tuple[str]) -> bool:
+def _of_kind(value: object, kind: str | tuple[str] | dict[str, str]) -> bool:
     """Whether ``value`` (decoded JSON) is of ``kind`` (see :data:`TYPED_ENTRIES`)."""
+    if isinstance(kind, dict):
+        return value is None or (isinstance(value, dict) and all(
+            _of_kind(value[k], sub) for k, sub in kind.items() if k in value))
     if isinstance(kind, tuple):
         return isinstance(value, list) and all(_of_kind(v, kind[0]) for v in value)
     if value is None or kind == NUMBER:

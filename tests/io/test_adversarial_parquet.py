@@ -167,7 +167,13 @@ CONTENT = {"minus infinite cost": (_with(best_cost=-np.inf), "column best_cost h
            "held-out status as numbers": (_with(holdout={"cost": [1.0], "status": [0]}),
                                           "'status' that is not a list of texts"),
            "held-out horizon as text": (_with(holdout={"cost": [1.0], "horizon": "long"}),
-                                        "'horizon' that is not a number")}
+                                        "'horizon' that is not a number"),
+           "training scenario as text": (_with(holdout={"cost": [1.0], "training": "x"}),
+                                         "'training' that is not an object"),
+           "training cost as text": (_with(holdout={"cost": [1.0],
+                                                    "training": {"converged": True,
+                                                                 "cost": "low"}}),
+                                     "'training' that is not an object")}
 
 HOSTILE = {**CONTENT,
            "null problem": (_null_problem, "column problem has 1 empty values"),
@@ -263,7 +269,7 @@ def test_entries_of_the_problems_own_beside_the_typed_ones_are_read(tmp_path):
     path = tmp_path / RESULTS_FILE
     _with(metrics={"objective": "min_fuel", "energy": None, "limits": {"u": [1, 2]}},
           holdout={"cost": [1.0, None], "converged": [True, None], "x0": [[1, 2], "a"],
-                   "horizon": 10.0, "training": {"converged": "yes"}},
+                   "horizon": 10.0, "training": {"scenario": 3, "converged": None}},
           scalars={"t_max": 3, "w": 1e300})(path)
     df = read.read_results(path)
     assert list(df["start"]) == [1] and not df.attrs.get("skipped_files")

@@ -347,7 +347,9 @@ def _of_kind(value: object, kind: str | tuple[str] | dict[str, str]) -> bool:
             _of_kind(value[k], sub) for k, sub in kind.items() if k in value))
     if isinstance(kind, tuple):
         return isinstance(value, list) and all(_of_kind(v, kind[0]) for v in value)
-    if value is None or kind == NUMBER:
+    if value is None:  # missing: allowed for every kind
+        return True
+    if kind == NUMBER:
         return _number(value)
     return isinstance(value, str) if kind == TEXT else isinstance(value, bool)
 

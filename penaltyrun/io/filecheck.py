@@ -195,11 +195,12 @@ def decoded_size(table: pa.Table) -> int:
     return size
 
 
-def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = None
-                ) -> pd.DataFrame:
+def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = None,
+                rejudged: pd.DataFrame | str | None = longholdout.BESIDE) -> pd.DataFrame:
     """A table read from the results file (or job-record folder) ``path`` as a frame of the
     schema's columns (or of ``columns``): checked, upgraded from older schema versions, its
-    re-judged held-out data applied, and each row's :data:`SOURCE` and :data:`ROW`.
+    re-judged held-out data applied (``rejudged``: see :func:`penaltyrun.io.longholdout.apply`),
+    and each row's :data:`SOURCE` and :data:`ROW`.
 
     Raises
     ------
@@ -228,7 +229,7 @@ def table_frame(table: pa.Table, path: Path, columns: tuple[str, ...] | None = N
     problem = check_content(frame)
     if problem:
         raise ValueError(problem)
-    frame = longholdout.apply(frame[names], path)
+    frame = longholdout.apply(frame[names], path, rejudged)
     frame.attrs = {}
     frame[SOURCE] = str(path)
     frame[ROW] = np.arange(len(frame), dtype=np.int64)

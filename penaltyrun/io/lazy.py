@@ -54,7 +54,9 @@ def read_compact(path: Path, columns: tuple[str, ...],
     The columns of ``checked`` left in the file (those the caller may read later) are
     checked as they would be when read whole (one row group at a time, then dropped), so
     a file with damaged rows is refused here, where the reader skips it with one warning,
-    not in the middle of a report that needs them.
+    not in the middle of a report that needs them. Beside a usable re-judged held-out file
+    (:mod:`penaltyrun.io.longholdout`) the stored ``holdout`` column, which it replaces, is
+    neither read nor checked.
 
     Raises
     ------
@@ -65,9 +67,12 @@ def read_compact(path: Path, columns: tuple[str, ...],
     if refused:
         raise ValueError(refused)
     schema = pq.read_schema(path)
-    wanted = [n for n in schema.names if n in columns]
+    rejudged = longholdout.read_beside(path) \
+        if "holdout" in set(columns) | set(checked) else None
+    unused = ("holdout",) if rejudged is not None else ()  # replaced by the re-judged data
+    wanted = [n for n in schema.names if n in columns and n not in unused]
     checkable = set(checked) & set(COLUMNS)
-    left = [n for n in schema.names if n in checkable and n not in wanted]
+    left = [n for n in schema.names if n in checkable and n not in wanted and n not in unused]
     parquet = pq.ParquetFile(path, read_dictionary=text_columns(schema, wanted))
     left_file = pq.ParquetFile(path, read_dictionary=text_columns(schema, left))
     pieces, used, first = [], 0, 0
@@ -81,14 +86,14 @@ def read_compact(path: Path, columns: tuple[str, ...],
             del rest
         table = parquet.read_row_group(g, columns=wanted)
         size = decoded_size(table)
-        frame = table_frame(decoded(table, used), path, columns)
+        frame = table_frame(decoded(table, used), path, columns, rejudged)
         used += size
         frame[ROW] += first
         first += len(frame)
         pieces.append(compact(frame))
     if not pieces:
         return compact(table_frame(decoded(parquet.schema_arrow.empty_table().select(wanted)),
-                               path, columns))
+                               path, columns, rejudged))
     return concat_compact(pieces)
 
 
@@ -110,7 +115,9 @@ def read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Data
     """
     wanted = tuple(n for n in COLUMNS if n in set(columns) | set(KEEP_COLUMNS))
     schema = pq.read_schema(path)
-    present = [n for n in schema.names if n in wanted]
+    rejudged = longholdout.read_beside(path) if "holdout" in wanted else None
+    unused = ("holdout",) if rejudged is not None else ()  # replaced by the re-judged data
+    present = [n for n in schema.names if n in wanted and n not in unused]
     parquet = pq.ParquetFile(path, read_dictionary=text_columns(schema, present))
     meta = parquet.metadata
     bounds = np.cumsum([0] + [meta.row_group(i).num_rows for i in range(meta.num_row_groups)])
@@ -129,7 +136,7 @@ def read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Data
         decoded(parquet.schema_arrow.empty_table().select(present))
     with _Quiet(longholdout.logger):
         try:
-            frame = table_frame(table, path, wanted)
+            frame = table_frame(table, path, wanted, rejudged)
         except ValueError as exc:  # checked when read (read_compact): changed since
             raise ResultsUnreadableError(
                 f"{path}: {exc}; its rows were checked when the results were read, so the "

@@ -62,31 +62,51 @@ def _read_checked(path: Path) -> pd.DataFrame:
     return long
 
 
-def apply(frame: pd.DataFrame, results: Path) -> pd.DataFrame:
-    """``frame`` (read from ``results``) with the ``holdout`` column of the re-judged file
-    beside it, matched by ``job_id`` and ``config_hash``; ``frame`` unchanged without one.
-    """
+#: ``rejudged`` of :func:`apply`: look for :data:`LONG_FILE` beside the results file.
+BESIDE = "beside"
+
+
+def read_beside(results: Path) -> pd.DataFrame | None:
+    """The re-judged held-out table beside the results file ``results`` (its columns
+    ``job_id``, ``config_hash``, ``holdout``, checked), or None: there is none, or it
+    cannot be used (one warning: the held-out data stored in ``results`` are reported)."""
     path = Path(results).parent / LONG_FILE
-    if not path.is_file() or "holdout" not in frame:
-        return frame
+    if not path.is_file():
+        return None
     try:
-        long = _read_checked(path)
+        return _read_checked(path)
     except (OSError, pa.ArrowException, ValueError, KeyError, MemoryError) as exc:
         text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         logger.warning("skipped re-judged held-out file %s: %s (the held-out data stored "
                        "in %s are reported)", path, text, results)
+        return None
+
+
+def apply(frame: pd.DataFrame, results: Path,
+          rejudged: pd.DataFrame | str | None = BESIDE) -> pd.DataFrame:
+    """``frame`` (read from ``results``) with the ``holdout`` column of the re-judged file
+    beside it, matched by ``job_id`` and ``config_hash``; ``frame`` unchanged without one.
+
+    ``rejudged``: that file's table as :func:`read_beside` gives it (a caller that read it
+    first need not read the stored held-out column, which it replaces), None (the caller
+    found none), or :data:`BESIDE` (read it here).
+    """
+    if isinstance(rejudged, str):
+        rejudged = read_beside(results) if "holdout" in frame else None
+    if rejudged is None or "holdout" not in frame:
         return frame
-    table = {(str(j), config_key(h)): v for j, h, v in zip(long["job_id"], long["config_hash"],
-                                                     long["holdout"])}
+    table = {(str(j), config_key(h)): v for j, h, v in zip(
+        rejudged["job_id"], rejudged["config_hash"], rejudged["holdout"])}
     out = frame.copy()
     out["holdout"] = [table.get((str(j), config_key(h))) for j, h in zip(frame["job_id"],
                                                                    frame["config_hash"])]
     missing = int(out["holdout"].isna().sum() - frame["holdout"].isna().sum())
     if missing > 0:
-        logger.info("%s: %d job(s) not re-judged carry no held-out data", path, missing)
+        logger.info("%s: %d job(s) not re-judged carry no held-out data",
+                    Path(results).parent / LONG_FILE, missing)
     out.attrs = dict(frame.attrs)
-    out.attrs["holdout_source"] = str(path)
+    out.attrs["holdout_source"] = str(Path(results).parent / LONG_FILE)
     return out
 
 
-__all__ = ["LONG_COLUMNS", "LONG_FILE", "LONG_PROVENANCE", "apply"]
+__all__ = ["BESIDE", "LONG_COLUMNS", "LONG_FILE", "LONG_PROVENANCE", "apply", "read_beside"]

@@ -50,6 +50,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from penaltyrun.errors import ResultsUnreadableError
+from penaltyrun.io import longholdout
 from penaltyrun.io.filecheck import (
     KEEP_COLUMNS,
     ROW,
@@ -78,7 +79,8 @@ PROGRESS_LOG_S = 5.0
 
 def _read_one(path: Path, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
     """One results file as a frame of exactly :data:`COLUMNS` (older versions upgraded),
-    or of ``columns`` (in :data:`COLUMNS` order) when given: only those are read.
+    or of ``columns`` (in :data:`COLUMNS` order) when given: only those are read (not the
+    stored ``holdout`` column beside a usable re-judged held-out file, which replaces it).
 
     Raises
     ------
@@ -90,7 +92,12 @@ def _read_one(path: Path, columns: tuple[str, ...] | None = None) -> pd.DataFram
     refused = check_footer(path)
     if refused:
         raise ValueError(refused)
-    return table_frame(read_bounded(path, columns), path, columns)
+    names = COLUMNS if columns is None else columns
+    rejudged = longholdout.read_beside(path) if "holdout" in names else None
+    if rejudged is not None:  # replaces the stored held-out column: not read
+        return table_frame(read_bounded(path, tuple(n for n in names if n != "holdout")),
+                           path, columns, rejudged)
+    return table_frame(read_bounded(path, columns), path, columns, None)
 
 
 def declared_rows(path: Path | Iterable[Path]) -> int:

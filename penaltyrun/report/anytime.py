@@ -17,7 +17,7 @@ import pandas as pd
 
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.bestknown import family, reference, with_problem_variant
-from penaltyrun.report.rows import TRACE_COLUMNS, batches, has, narrow
+from penaltyrun.report.rows import TRACE_COLUMNS, batches, groups, has, narrow
 
 EPSILONS = (1e-2, 1e-3)
 #: Most best-so-far values (starts × grid points) :func:`anytime_band` holds at once; the
@@ -100,7 +100,7 @@ def target_table(df: pd.DataFrame, bk: pd.DataFrame,
     """
     df = narrow(with_problem_variant(df), [*CELL, "status", "n_evals", *TRACE_COLUMNS])
     rows = []
-    for key, g in df[df["optimizer"] != "baseline"].groupby(CELL, sort=True):
+    for key, g in groups(df[df["optimizer"] != "baseline"], CELL):
         traces = cell_traces(g)
         ref = reference(bk, key[0], key[1], key[2], family(key[5]))
         if not traces or not np.isfinite(ref):

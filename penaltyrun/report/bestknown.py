@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from penaltyrun.io import decode_json
-from penaltyrun.report.rows import full_row, narrow
+from penaltyrun.report.rows import full_row, groups, narrow
 from penaltyrun.report.stats import converged
 
 #: Relative tolerance within which two optimizers "agree" on a best-known value.
@@ -71,15 +71,15 @@ def best_known(df: pd.DataFrame) -> pd.DataFrame:
     ``matrices`` (JSON, 6 decimals), ``certified`` and ``certified_by`` (the optimizers
     whose best is within :data:`CERTIFY_RTOL`), and per-optimizer bests (``best_<opt>``).
     """
-    df = narrow(with_problem_variant(df), [*KEY, "param", "optimizer", "status",
-                                           "best_converged", "best_cost", "job_id",
-                                           "grad_norm", "matrices"])
-    tuned = df[df["optimizer"] != "baseline"]
-    n_starts = tuned.groupby(KEY + [tuned["param"].map(family).rename("family")]).size()
-    ok = df[converged(df) & (df["optimizer"] != "baseline")]
+    whole = with_problem_variant(df)  # the best starts' other columns are read from it
+    df = narrow(whole, [*KEY, "param", "optimizer", "status", "best_converged", "best_cost"])
+    tuned = (df["optimizer"] != "baseline").to_numpy()
+    fam = df["param"].map(family).rename("family")
+    n_starts = fam[tuned].groupby([df[k][tuned] for k in KEY] + [fam[tuned]]).size()
+    ok = df[converged(df).to_numpy() & tuned].assign(family=fam)
     rows = []
-    for key, g in ok.groupby(KEY + [ok["param"].map(family).rename("family")], sort=True):
-        top = full_row(g, g["best_cost"].astype(float).idxmin())
+    for key, g in groups(ok, [*KEY, "family"]):
+        top = full_row(whole, g["best_cost"].astype(float).idxmin())
         ref = float(top["best_cost"])
         per_opt = g.groupby("optimizer")["best_cost"].min().astype(float)
         agree = [o for o, v in per_opt.items() if within(v, ref)]
@@ -149,7 +149,8 @@ def best_labels(df: pd.DataFrame, keys: tuple[str, ...] = ()
     """
     cost = df["best_cost"].astype(float)
     keep = (converged(df) & (df["optimizer"] != "baseline") & cost.notna()).to_numpy()
-    chosen = pd.DataFrame({**{k: df[k].to_numpy()[keep] for k in keys},
+    # the keys as stored (categories of a lazily read frame stay codes, no text a row)
+    chosen = pd.DataFrame({**{k: df[k].array[keep] for k in keys},
                            "family": df["param"][keep].map(family).to_numpy(),
                            "cost": cost.to_numpy()[keep]}, index=df.index[keep])
     out: dict[tuple, dict[str, Hashable]] = {}
@@ -182,7 +183,7 @@ def shortfall(df: pd.DataFrame, bk: pd.DataFrame) -> pd.DataFrame:
     ok_mask = converged(df)
     rows = []
     cell = ["problem", "case", "problem_variant", "variant", "optimizer", "param"]
-    for key, g in df[df["optimizer"] != "baseline"].groupby(cell, sort=True):
+    for key, g in groups(df[df["optimizer"] != "baseline"], cell):
         cost = g.loc[ok_mask[g.index], "best_cost"].astype(float).to_numpy()
         ref = reference(bk, key[0], key[1], key[2], family(key[5]))
         best = float(cost.min()) if cost.size else np.nan

@@ -283,6 +283,8 @@ def stored_probes(df: pd.DataFrame) -> pd.DataFrame:
     column; :mod:`penaltyrun.io.storedprobe`) of starts in ``df``, with each start's
     ``problem`` and ``case`` (so that a cached section's key holds its own case's)."""
     stored = storedprobe.read_beside(df[SOURCE].dropna().unique())
+    if stored.empty:  # none beside these files: no copy of the frame's keys
+        return stored.assign(problem=pd.Series(dtype=object), case=pd.Series(dtype=object))
     starts = df[["job_id", "config_hash", "problem", "case"]].copy()
     starts["config_hash"] = [config_key(h) for h in starts["config_hash"]]
     return stored.merge(starts.drop_duplicates(["job_id", "config_hash"]),

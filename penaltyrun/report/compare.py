@@ -18,6 +18,7 @@ import pandas as pd
 from scipy import stats
 
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
+from penaltyrun.report.rows import groups
 from penaltyrun.report.stats import MIN_N_TEST, a12, a12_magnitude, converged, holm
 
 GROUP = ["problem", "case", "variant", "optimizer"]
@@ -109,7 +110,7 @@ def pairwise(df: pd.DataFrame) -> pd.DataFrame:
     if "variant" not in df:
         df = df.assign(variant="")
     rows = []
-    for key, g in df[df["optimizer"] != "baseline"].groupby(GROUP, sort=True):
+    for key, g in groups(df[df["optimizer"] != "baseline"], GROUP):
         for a, b in itertools.combinations(map_order(g["param"].unique()), 2):
             xa, na = _costs(g, a)
             xb, nb = _costs(g, b)
@@ -201,7 +202,7 @@ def a12_intervals(df: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:
     if "variant" not in df:
         df = df.assign(variant="")
     rows = []
-    for key, g in df[df["optimizer"] != "baseline"].groupby(GROUP, sort=True):
+    for key, g in groups(df[df["optimizer"] != "baseline"], GROUP):
         for a, b in itertools.combinations(map_order(g["param"].unique()), 2):
             if not equal_budget(budget(g[g["param"] == a]), budget(g[g["param"] == b])):
                 continue

@@ -42,7 +42,7 @@ from penaltyrun.io import decode_json  # noqa: E402
 from penaltyrun.jobrecord import NO_RESULT_STATUSES  # noqa: E402
 from penaltyrun.report import protocol  # noqa: E402
 from penaltyrun.report.bestknown import best_rows, with_problem_variant  # noqa: E402
-from penaltyrun.report.rows import batches, full_row, has, narrow, present  # noqa: E402
+from penaltyrun.report.rows import batches, full_row, groups, has, narrow, present  # noqa: E402
 from penaltyrun.report.stats import holm, signed_rank_p  # noqa: E402
 from penaltyrun.report.tables import (  # noqa: E402
     alt_text,
@@ -245,8 +245,8 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
     if "variant" not in df:
         df = df.assign(variant=df["problem_variant"])
     rows = []
-    for (problem, case, pvar, variant, optimizer), g in df.groupby(
-            ["problem", "case", "problem_variant", "variant", "optimizer"], sort=True):
+    for (problem, case, pvar, variant, optimizer), g in groups(
+            df, ["problem", "case", "problem_variant", "variant", "optimizer"]):
         drop = protocol.info_of(g).discretization_kinds
         g = g[present(g, "holdout")]  # the rows with held-out data, read once here
         dg = g[g["param"] == "diagonal"]
@@ -261,8 +261,7 @@ def holdout_rows(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, np.ndarray]]
                 rows.append({**res, "problem_variant": pvar,
                              "diag_conv_all_starts": _rate_all(dg, drop),
                              "full_conv_all_starts": _rate_all(fg, drop)})
-    for (problem, case, pvar), g in df.groupby(["problem", "case", "problem_variant"],
-                                               sort=True):
+    for (problem, case, pvar), g in groups(df, ["problem", "case", "problem_variant"]):
         best = best_rows(g[present(g, "holdout")])
         if set(best) >= {"diagonal", "full"}:
             drop = protocol.info_of(g).discretization_kinds
@@ -331,8 +330,8 @@ def discretization_rows(df: pd.DataFrame) -> pd.DataFrame:
     rows = []
     if not has(df, "holdout"):
         return pd.DataFrame(rows)
-    for (problem, case, variant, optimizer), g in df.groupby(
-            ["problem", "case", "variant", "optimizer"], sort=True):
+    for (problem, case, variant, optimizer), g in groups(
+            df, ["problem", "case", "variant", "optimizer"]):
         kinds = protocol.info_of(g).discretization_kinds
         drow = best_start(g[g["param"] == "diagonal"]) if kinds else None
         if drow is None:

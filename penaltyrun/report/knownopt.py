@@ -26,7 +26,7 @@ from penaltyrun.io.schema import decode_json
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.report.anytime import CELL
 from penaltyrun.report.bestknown import with_problem_variant
-from penaltyrun.report.rows import TRACE_COLUMNS, batches, full_row, has
+from penaltyrun.report.rows import TRACE_COLUMNS, batches, full_row, groups, has
 
 #: Relative tolerance of "reached the known optimum".
 RTOL = 1e-6
@@ -150,7 +150,7 @@ def reach_table(df: pd.DataFrame, rtol: float = RTOL) -> pd.DataFrame:
     df = with_problem_variant(df)
     df = df[(df["optimizer"] != "baseline") & ~df["status"].isin(NO_RESULT_STATUSES)]
     rows = []
-    for key, g in df.groupby(CELL, sort=True):
+    for key, g in groups(df, CELL):
         first = full_row(g, g.index[0])  # one row: a cell without J* reads no more
         ref = known_optimum(first)
         if not np.isfinite(ref):

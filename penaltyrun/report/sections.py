@@ -201,8 +201,9 @@ def paper_rows(df: pd.DataFrame) -> pd.DataFrame:
     """Our cells beside the published mean / median / four-number summaries, with a median
     test where the number of published runs is known (Holm over :data:`PAPER_FAMILY`)."""
     rows = []
-    for (problem, case, variant, optimizer, param), g in df[df["optimizer"] != "baseline"] \
-            .groupby(["problem", "case", "variant", "optimizer", "param"], sort=True):
+    cell = ["problem", "case", "variant", "optimizer", "param"]
+    for (problem, case, variant, optimizer, param), g in groups(
+            df[df["optimizer"] != "baseline"], cell):
         paper = protocol.info_of(g).paper
         if paper is None:
             continue
@@ -336,12 +337,12 @@ def contributed(df: pd.DataFrame, out: Path) -> list[str]:
     """The sections each problem contributes (``report_sections`` hook), problem by
     problem; a failing hook costs one line."""
     lines: list[str] = []
-    for problem, g in df.groupby("problem", sort=True):
+    for problem in sorted(df["problem"].dropna().unique()):
         mod = protocol.module(problem)
         if getattr(mod, "report_sections", None) is None:  # also: module not imported
             continue
-        try:
-            found = report_hooks.sections(mod, protocol.jobs_of(g))
+        try:  # only this problem's rows copied (a groupby would sort a copy of them all)
+            found = report_hooks.sections(mod, protocol.jobs_of(df[df["problem"] == problem]))
         except Exception as exc:  # one problem's hook must not lose the report
             logger.warning("report_sections of %s failed: %s", problem, exc)
             lines += [md_line(f"({problem}: its report sections failed: {exc!r})"), ""]

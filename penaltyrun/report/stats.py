@@ -19,6 +19,7 @@ from scipy import stats
 
 from penaltyrun.io import decode_json
 from penaltyrun.jobrecord import DIVERGED, NO_RESULT_STATUSES, OK
+from penaltyrun.report.rows import groups
 
 CELL = ["problem", "case", "variant", "optimizer", "param"]
 #: Per-group size below which a rank test is reported as underpowered.
@@ -127,7 +128,8 @@ def _join_warm_diagonals(df: pd.DataFrame) -> pd.DataFrame:
     diagonal = (df["param"] == "diagonal") & (df["variant"] == df["problem_variant"])
     variant = df["variant"].copy()
     keys = [df["problem"], df["case"], df["problem_variant"], df["optimizer"], settings]
-    for _, g in df.groupby(keys, sort=False):
+    used = df[["param", "variant", "problem_variant"]]  # a groupby copies what it groups
+    for _, g in used.groupby(keys, sort=False):
         labels = set(g.loc[g["param"] != "diagonal", "variant"])
         own = diagonal[g.index]
         if own.any() and len(labels) == 1 and labels != {g["problem_variant"].iloc[0]}:
@@ -425,7 +427,7 @@ def cell_summary(df: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
         df = df.assign(variant="")
     ok_mask = converged(df)
     rows = []
-    for key, g in df.groupby(CELL, sort=True):
+    for key, g in groups(df, CELL):
         cost = g.loc[ok_mask[g.index], "best_cost"].astype(float).to_numpy()
         mlo, mhi, note = bca_ci(cost, "median", seed=seed)
         alo, ahi, _ = bca_ci(cost, "mean", seed=seed)

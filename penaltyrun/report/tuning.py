@@ -24,7 +24,7 @@ import pandas as pd
 
 from penaltyrun.io import decode_json
 from penaltyrun.report import holdout
-from penaltyrun.report.rows import has
+from penaltyrun.report.rows import groups, has
 from penaltyrun.report.tables import markdown
 
 #: Problem parameters that define the training set (multi-scenario tuning).
@@ -167,7 +167,7 @@ def comparison(df: pd.DataFrame) -> pd.DataFrame:
     m = with_modes(df)
     rows = []
     keys = ["problem", "case", "setting_key", "optimizer"]
-    for (problem, case, _, optimizer), g in m.groupby(keys, sort=True, observed=True):
+    for (problem, case, _, optimizer), g in groups(m, keys):
         modes = sorted(g["tuning"].unique(), key=lambda t: (t != SINGLE, t))
         if SINGLE not in modes or len(modes) < 2:
             continue

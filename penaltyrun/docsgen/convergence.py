@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from penaltyrun.docsgen.layout import fmt
+from penaltyrun.io import decode_json
 from penaltyrun.jobrecord import OK
 
 #: What names one cell of a study: a cell run at two budgets is two cells.
@@ -29,19 +30,19 @@ BUDGET_CHECK_MAIN = tuple(c for c in BUDGET_CHECK_COLUMNS if c != "starts")
 def late_gain(frame: pd.DataFrame, share: float = 0.5) -> float:
     """How far the searches of ``frame``'s records were from converged: the median over
     the finished starts of the relative fall of the best-so-far cost over the last
-    ``1 - share`` of each start's search, (best at ``share`` · S − best at S) / |best at S|
-    in %, S the search's evaluations (``n_evals`` less the polish's ``polish_evals``: a
-    polish ends on its own criteria, and what it gains is not a search still improving).
-    From the anytime trace; 0 where nothing improved; NaN without finished starts."""
+    ``1 - share`` of each start's search, (best at its ``share`` point − best at its end)
+    / |best at its end| in %, the search's window given by :func:`search_window` (a polish
+    ends on its own criteria, and what it gains is not a search still improving; a
+    warm-started start is judged on its full-map search). From the anytime trace; 0 where
+    nothing improved; NaN without finished starts."""
     frame = frame[frame["status"] == OK]
-    polish = frame["polish_evals"] if "polish_evals" in frame else [0] * len(frame)
     gains = []
-    for evals, best, spent, polished in zip(frame["trace_evals"], frame["trace_best"],
-                                            frame["n_evals"], polish):
-        evals, best = np.asarray(evals, float), np.asarray(best, float)
-        search = float(spent) - (float(polished) if np.isfinite(polished) else 0.0)
-        at_end = evals <= search
-        before = evals <= share * search
+    for row in frame.to_dict("records"):
+        evals = np.asarray(row["trace_evals"], float)
+        best = np.asarray(row["trace_best"], float)
+        first, last = search_window(row)
+        at_end = evals <= last
+        before = evals <= first + share * (last - first)
         if not before.any():
             continue
         final = float(best[at_end][-1])
@@ -49,6 +50,58 @@ def late_gain(frame: pd.DataFrame, share: float = 0.5) -> float:
             continue
         gains.append(100.0 * (float(best[before][-1]) - final) / abs(final))
     return float(np.median(gains)) if gains else float("nan")
+
+
+def search_window(row: dict[str, Any]) -> tuple[float, float]:
+    """Where a start's search lies on its evaluation count (that of its anytime trace):
+    ``(0, n_evals − polish_evals)``, the polish after the search left out.
+
+    A warm-started start (``warm_start`` holds the diagonal stage: its ``n_evals`` and, in
+    records that have it, its ``polish_evals``) ran two searches: the diagonal stage, then
+    the full-map search from the diagonal best, each followed by its polish. The window is
+    the full-map search's: from the diagonal stage's last evaluation to the full stage's
+    polish. Where the record lacks the diagonal stage's polish, it is what the stage spent
+    beyond its search's share of its budget (``warm_start_share · max_evals`` less the
+    ``polish_share``; a search of the budgeted optimizers spends its share).
+    """
+    spent = float(row["n_evals"])
+    polish = _number(row.get("polish_evals"))
+    warm = _warm(row.get("warm_start"))
+    if warm is None:
+        return 0.0, spent - polish
+    stage = float(warm["n_evals"])
+    stage_polish = _number(warm.get("polish_evals"), float("nan"))
+    if not np.isfinite(stage_polish):
+        stage_polish = max(0.0, stage - _stage_search(row, float(warm.get("share", 0.0))))
+    return stage, spent - max(0.0, polish - stage_polish)
+
+
+def _stage_search(row: dict[str, Any], share: float) -> float:
+    """The evaluations the diagonal stage's search may spend: its budget less the polish
+    share (all of it without a polish, or without a recorded budget: nothing inferred)."""
+    budget = _number(row.get("max_evals"), float("nan"))
+    settings = decode_json(row.get("optimizer_settings")) or {}
+    if not np.isfinite(budget) or not isinstance(settings, dict):
+        return float("inf")
+    stage = max(1, int(share * budget))
+    if settings.get("polish", "none") == "none":
+        return float(stage)
+    return float(max(1, stage - int(float(settings.get("polish_share", 0.1)) * stage)))
+
+
+def _warm(value: Any) -> dict[str, Any] | None:
+    """The diagonal stage of a warm-started record (None for a cold start)."""
+    warm = decode_json(value) if isinstance(value, str) else value
+    return warm if isinstance(warm, dict) and "n_evals" in warm else None
+
+
+def _number(value: Any, missing: float = 0.0) -> float:
+    """``value`` as a float; ``missing`` for None, NaN or text."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return missing
+    return number if np.isfinite(number) else missing
 
 
 def cells(frame: pd.DataFrame) -> list[dict[str, Any]]:
@@ -159,4 +212,4 @@ def _converged(frame: pd.DataFrame) -> pd.DataFrame:
 
 __all__ = ["BUDGET_CHECK_COLUMNS", "BUDGET_CHECK_MAIN", "CELL_KEYS", "at_largest_budget",
            "budget_check", "budget_effect", "budgets", "cells", "largest_late_gain",
-           "late_gain", "rows_of"]
+           "late_gain", "rows_of", "search_window"]

@@ -203,7 +203,8 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
     OptimResult
         The whole job: both stages' evaluations, one anytime trace, the full stage's best.
     dict
-        The diagonal stage (share, evaluations, best cost, matrices) for the record.
+        The diagonal stage (share, evaluations and those of its polish, best cost,
+        matrices) for the record.
     """
     budget = settings.max_evals
     diag_layout = build_layout(prob, "diagonal", job.param_options)
@@ -236,6 +237,7 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
         polish_evals=diag.polish_evals + full.polish_evals,
         grad_cost=full.grad_cost if full.grad_cost is not None else diag.grad_cost)
     warm = {"share": job.warm_start_share, "n_evals": diag.n_evals,
+            "polish_evals": diag.polish_evals,
             "best_cost": diag.best_cost, "stop_reason": diag.stop_reason,
             "matrices": _jsonable(diag_mats), "scalars": diag_scalars}
     return result, warm

@@ -70,6 +70,38 @@ def test_late_gain_leaves_out_what_the_polish_gained(tmp_path):
     assert _context(tmp_path / "b", stalled).late_gain("s", {"param": "diagonal"}) == 0.0
 
 
+def _warm_frame(stage: dict) -> pd.DataFrame:
+    """One warm-started start of 1 000 evaluations (max_evals 1 000, share 0.3, polish
+    share 0.2): a diagonal stage of 300 (240 search, then 60 of polish), then the
+    full-map search from 300 to 860 and its polish to 1 000."""
+    return pd.DataFrame({
+        "param": ["givens"], "status": ["ok"], "best_converged": [True],
+        # the diagonal stage falls 9 → 5; the full search 5 → 2 by 500, 2 → 1.6 at 800;
+        # the full polish gains 1.6 → 1.0 at 950 (not the search's)
+        "trace_evals": [np.array([1, 100, 280, 320, 500, 800, 950])],
+        "trace_best": [np.array([9.0, 7.0, 5.0, 4.0, 2.0, 1.6, 1.0])],
+        "n_evals": [1000], "polish_evals": [200], "max_evals": [1000],
+        "optimizer_settings": [json.dumps({"polish": "gradient", "polish_share": 0.2})],
+        "warm_start": [json.dumps({"share": 0.3, **stage})]})
+
+
+@pytest.mark.parametrize("stage", [{"n_evals": 300, "polish_evals": 60},
+                                   {"n_evals": 300}])  # older records: inferred
+def test_a_warm_started_start_is_judged_on_its_full_map_search(tmp_path, stage):
+    """The window is the full-map search, 300 to 860 (the diagonal stage and both
+    polishes left out): best 2.0 at its middle (580), 1.6 at its end: 25 %. Judged as a
+    cold start's search (0 to 800: best 4.0 at its middle, 1.6 at its end: 150 %), the
+    full search's early fall would count as a late one."""
+    from penaltyrun.docsgen.convergence import search_window
+
+    frame = _warm_frame(stage)
+    assert search_window(frame.to_dict("records")[0]) == (300.0, 860.0)
+    assert _context(tmp_path, frame).late_gain("s") == pytest.approx(25.0)
+    cold = frame.assign(warm_start=None)
+    assert search_window(cold.to_dict("records")[0]) == (0.0, 800.0)
+    assert _context(tmp_path / "cold", cold).late_gain("s") == pytest.approx(150.0)
+
+
 def test_largest_late_gain_over_every_cell_or_the_best_known_cells(tmp_path):
     frame = _frame().assign(case="c", optimizer="cmaes", job_id=["d1", "d2", "g1", "g2"],
                             max_evals=100)

@@ -43,6 +43,7 @@ def test_warm_started_full_job_is_never_worse_than_its_diagonal_stage(tmp_path, 
     record = json.loads(runner.execute(jobs, tmp_path)[0].read_text())
     warm = record["warm_start"]
     assert warm["share"] == 0.4 and warm["n_evals"] == 200
+    assert 0 <= warm["polish_evals"] <= record["polish_evals"]  # the diagonal stage's polish
     assert np.asarray(warm["matrices"]["K"])[0, 1] == 0.0  # the diagonal stage's best
     assert record["best_cost"] <= warm["best_cost"] * (1 + 1e-12)
     assert record["n_evals"] <= 500 and record["trace_evals"][-1] == record["n_evals"]

@@ -16,6 +16,8 @@ import pandas as pd
 from penaltyrun.docsgen.layout import fmt
 from penaltyrun.io import decode_json
 from penaltyrun.jobrecord import OK
+from penaltyrun.optim.base import CommonSettings, main_budget_of
+from penaltyrun.runner.plan import warm_stage_budget
 
 #: What names one cell of a study: a cell run at two budgets is two cells.
 CELL_KEYS = ("problem", "case", "param", "optimizer", "max_evals")
@@ -77,16 +79,16 @@ def search_window(row: dict[str, Any]) -> tuple[float, float]:
 
 
 def _stage_search(row: dict[str, Any], share: float) -> float:
-    """The evaluations the diagonal stage's search may spend: its budget less the polish
-    share (all of it without a polish, or without a recorded budget: nothing inferred)."""
+    """The evaluations the diagonal stage's search may spend, as the runner budgets it:
+    the stage's budget less the polish share (infinite without a recorded budget: no
+    polish inferred)."""
     budget = _number(row.get("max_evals"), float("nan"))
     settings = decode_json(row.get("optimizer_settings")) or {}
     if not np.isfinite(budget) or not isinstance(settings, dict):
         return float("inf")
-    stage = max(1, int(share * budget))
-    if settings.get("polish", "none") == "none":
-        return float(stage)
-    return float(max(1, stage - int(float(settings.get("polish_share", 0.1)) * stage)))
+    return float(main_budget_of(warm_stage_budget(share, int(budget)),
+                                settings.get("polish", CommonSettings.polish),
+                                float(settings.get("polish_share", CommonSettings.polish_share))))
 
 
 def _warm(value: Any) -> dict[str, Any] | None:

@@ -385,9 +385,15 @@ def main_budget(settings: CommonSettings) -> int | None:
     """Evaluations the main search may spend (``max_evals`` minus the polish share)."""
     if settings.max_evals is None:
         return None
-    if settings.polish == "none":
-        return settings.max_evals
-    return max(1, settings.max_evals - int(settings.polish_share * settings.max_evals))
+    return main_budget_of(settings.max_evals, settings.polish, settings.polish_share)
+
+
+def main_budget_of(max_evals: int, polish: str, polish_share: float) -> int:
+    """:func:`main_budget` of a budget ``max_evals`` and the settings ``polish`` and
+    ``polish_share`` (e.g. as a results record stores them)."""
+    if polish == "none":
+        return max_evals
+    return max(1, max_evals - int(polish_share * max_evals))
 
 
 def planned_evals(settings: CommonSettings, dim: int) -> int | None:

@@ -39,7 +39,7 @@ from penaltyrun import optim
 from penaltyrun.optim.base import uniform_box
 from penaltyrun.problems.hooks import hooks
 from penaltyrun.runner.options import available_cores
-from penaltyrun.runner.plan import Job, job_seed
+from penaltyrun.runner.plan import Job, job_seed, warm_stage_budget
 from penaltyrun.runner.setup import build, build_layout
 
 logger = logging.getLogger(__name__)
@@ -201,7 +201,7 @@ def job_evals(job: Job, problem: Any, settings: Any, dim: int) -> int | None:
     if not job.warm_start_share or settings.max_evals is None:
         return optim.planned_evals(settings, dim)
     diag_dim = build_layout(problem, "diagonal", job.param_options).dim
-    diag_cap = max(1, int(job.warm_start_share * settings.max_evals))
+    diag_cap = warm_stage_budget(job.warm_start_share, settings.max_evals)
     diag = optim.planned_evals(replace(settings, max_evals=diag_cap), diag_dim)
     full = optim.planned_evals(settings, dim)
     return min(settings.max_evals, (diag or diag_cap) + (full or settings.max_evals))

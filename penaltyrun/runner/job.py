@@ -19,7 +19,7 @@ from penaltyrun.optim.gradient import first_order, z_gradient
 from penaltyrun.problems import diagnostics
 from penaltyrun.problems.base import CUTOFF_STATUS, gradient_support
 from penaltyrun.runner import interrupts
-from penaltyrun.runner.plan import Job
+from penaltyrun.runner.plan import Job, warm_stage_budget
 from penaltyrun.runner.setup import build, build_layout
 from penaltyrun.runner.swarm import LocalEvaluation
 
@@ -208,7 +208,7 @@ def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: A
     """
     budget = settings.max_evals
     diag_layout = build_layout(prob, "diagonal", job.param_options)
-    diag_budget = max(1, int(job.warm_start_share * budget))
+    diag_budget = warm_stage_budget(job.warm_start_share, budget)
     dlb, dub = diag_layout.bounds()
     diag_settings = replace(settings, max_evals=diag_budget)
     diag = optim.minimize(job.optimizer, _objective(evaluation, job, prob, diag_layout,

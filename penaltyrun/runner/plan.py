@@ -107,6 +107,12 @@ class Job:
         return asdict(self)
 
 
+def warm_stage_budget(share: float, max_evals: int) -> int:
+    """Evaluations of the diagonal stage of a job of ``max_evals`` warm-started with
+    ``share`` (``runner.warm_start_share``): that share of them, at least one."""
+    return max(1, int(share * max_evals))
+
+
 def job_seed(root_seed: int, key: str) -> int:
     """Seed of one job from the root seed and the job key (stable across runs/machines)."""
     digest = int.from_bytes(hashlib.sha256(key.encode()).digest()[:8], "little")

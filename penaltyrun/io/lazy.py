@@ -67,9 +67,7 @@ def read_compact(path: Path, columns: tuple[str, ...],
     if refused:
         raise ValueError(refused)
     schema = pq.read_schema(path)
-    rejudged = longholdout.read_beside(path) \
-        if "holdout" in set(columns) | set(checked) else None
-    unused = ("holdout",) if rejudged is not None else ()  # replaced by the re-judged data
+    rejudged, unused = longholdout.replacing(path, {*columns, *checked})
     wanted = [n for n in schema.names if n in columns and n not in unused]
     checkable = set(checked) & set(COLUMNS)
     left = [n for n in schema.names if n in checkable and n not in wanted and n not in unused]
@@ -115,8 +113,7 @@ def read_rows(path: Path, rows: np.ndarray, columns: tuple[str, ...]) -> pd.Data
     """
     wanted = tuple(n for n in COLUMNS if n in set(columns) | set(KEEP_COLUMNS))
     schema = pq.read_schema(path)
-    rejudged = longholdout.read_beside(path) if "holdout" in wanted else None
-    unused = ("holdout",) if rejudged is not None else ()  # replaced by the re-judged data
+    rejudged, unused = longholdout.replacing(path, wanted)
     present = [n for n in schema.names if n in wanted and n not in unused]
     parquet = pq.ParquetFile(path, read_dictionary=text_columns(schema, present))
     meta = parquet.metadata

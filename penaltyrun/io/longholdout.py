@@ -16,6 +16,7 @@ the held-out tables pair) get no held-out data, so no table mixes the two horizo
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterable
 from pathlib import Path
 
 import pandas as pd
@@ -82,6 +83,15 @@ def read_beside(results: Path) -> pd.DataFrame | None:
         return None
 
 
+def replacing(results: Path, needed: Iterable[str]) -> tuple[pd.DataFrame | None,
+                                                              tuple[str, ...]]:
+    """The re-judged table beside ``results`` (:func:`read_beside`) when the columns
+    ``needed`` include ``holdout``, and the stored columns it replaces, which a reader
+    need neither read nor check (``("holdout",)`` with a usable table, else none)."""
+    rejudged = read_beside(results) if "holdout" in needed else None
+    return rejudged, ("holdout",) if rejudged is not None else ()
+
+
 def apply(frame: pd.DataFrame, results: Path,
           rejudged: pd.DataFrame | str | None = BESIDE) -> pd.DataFrame:
     """``frame`` (read from ``results``) with the ``holdout`` column of the re-judged file
@@ -95,6 +105,7 @@ def apply(frame: pd.DataFrame, results: Path,
         rejudged = read_beside(results) if "holdout" in frame else None
     if rejudged is None or "holdout" not in frame:
         return frame
+    path = Path(results).parent / LONG_FILE
     table = {(str(j), config_key(h)): v for j, h, v in zip(
         rejudged["job_id"], rejudged["config_hash"], rejudged["holdout"])}
     out = frame.copy()
@@ -102,11 +113,11 @@ def apply(frame: pd.DataFrame, results: Path,
                                                                    frame["config_hash"])]
     missing = int(out["holdout"].isna().sum() - frame["holdout"].isna().sum())
     if missing > 0:
-        logger.info("%s: %d job(s) not re-judged carry no held-out data",
-                    Path(results).parent / LONG_FILE, missing)
+        logger.info("%s: %d job(s) not re-judged carry no held-out data", path, missing)
     out.attrs = dict(frame.attrs)
-    out.attrs["holdout_source"] = str(Path(results).parent / LONG_FILE)
+    out.attrs["holdout_source"] = str(path)
     return out
 
 
-__all__ = ["BESIDE", "LONG_COLUMNS", "LONG_FILE", "LONG_PROVENANCE", "apply", "read_beside"]
+__all__ = ["BESIDE", "LONG_COLUMNS", "LONG_FILE", "LONG_PROVENANCE", "apply", "read_beside",
+           "replacing"]

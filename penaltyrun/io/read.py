@@ -93,11 +93,9 @@ def _read_one(path: Path, columns: tuple[str, ...] | None = None) -> pd.DataFram
     if refused:
         raise ValueError(refused)
     names = COLUMNS if columns is None else columns
-    rejudged = longholdout.read_beside(path) if "holdout" in names else None
-    if rejudged is not None:  # replaces the stored held-out column: not read
-        return table_frame(read_bounded(path, tuple(n for n in names if n != "holdout")),
-                           path, columns, rejudged)
-    return table_frame(read_bounded(path, columns), path, columns, None)
+    rejudged, unused = longholdout.replacing(path, names)
+    read = columns if not unused else tuple(n for n in names if n not in unused)
+    return table_frame(read_bounded(path, read), path, columns, rejudged)
 
 
 def declared_rows(path: Path | Iterable[Path]) -> int:

@@ -185,7 +185,8 @@ FIELDS: dict[str, Field] = {
                                   "point of trace_evals"),
     "max_evals": Field(INT, "evaluation budget of the job (null: none)"),
     "warm_start": Field(JSON, "JSON: the diagonal stage of a warm-started full job (share, "
-                              "evaluations, best cost, best diagonal matrices), or null"),
+                              "evaluations and those of its polish, best cost, best diagonal "
+                              "matrices), or null"),
     "wall_time_s": Field(NUMBER, "wall time of the job"),
     "optimizer_settings": Field(JSON, "JSON: optimizer settings"),
     "problem_params": Field(JSON, "JSON: problem parameter overrides"),

@@ -185,8 +185,11 @@ check-docs: install-dev  ## fail if a generated number in docs/results or the RE
 study-list:  ## list the studies (studies/<name>/study.yaml)
 	@$(PYTHON) -m penaltyrun.docsgen study list
 
-study-%: $(STUDY_INSTALL)  ## run study <name> (resumable: RESUME=true), merge into studies/<name>/
-	$(PYTHON) -m penaltyrun.docsgen study run $* --workers $(WORKERS) --resume $(RESUME)
+ONLY ?=
+EXTEND ?= false
+study-%: $(STUDY_INSTALL)  ## run study <name> (resumable: RESUME=true; ONLY=<subdir> EXTEND=true: one command added to the committed data), merge into studies/<name>/
+	$(PYTHON) -m penaltyrun.docsgen study run $* --workers $(WORKERS) --resume $(RESUME) \
+		$(foreach s,$(ONLY),--only $(s)) $(if $(filter true,$(EXTEND)),--extend)
 
 clean:  ## remove outputs and caches (not the virtual environment: `rm -rf .venv`)
 	rm -rf outputs site .pytest_cache .ruff_cache .hypothesis

@@ -12,7 +12,9 @@ Commands (every one takes ``--root``, the repository root, default the current f
   path starts with ``PREFIX`` (e.g. ``docs/explanation``; ``check`` then leaves the study
   tables out);
 * ``study list`` / ``study run NAME`` / ``study merge NAME``: run a study (resumable) and
-  merge its data and tables into ``studies/NAME`` (``make study-NAME``);
+  merge its data and tables into ``studies/NAME`` (``make study-NAME``); ``--only SUBDIR``
+  runs one of its commands, ``--extend`` keeps the records already merged (a command
+  added to a committed study, run alone);
 * ``study rejudge NAME``: re-evaluate the study's stored best matrices on the held-out set at
   the held-out horizon, write ``studies/NAME/holdout_long.parquet`` and the tables
   (:mod:`penaltyrun.docsgen.rejudge`; ``--jobs paired`` re-judges only the paired starts);
@@ -71,6 +73,12 @@ def main(argv: list[str] | None = None) -> int:
     study.add_argument("--dest", type=Path, help="where results and tables go "
                        "(default studies/NAME)")
     study.add_argument("--no-tables", action="store_true", help="skip the report tables")
+    study.add_argument("--only", action="append", default=[], metavar="SUBDIR", dest="subdirs",
+                       help="run: only the command of this subdir (repeatable)")
+    study.add_argument("--extend", action="store_true",
+                       help="run/merge: keep the records already merged in the study "
+                       "folder beside the run directory's (a command added to a committed "
+                       "study, run alone)")
     study.add_argument("--jobs", default="all", choices=rejudge.SELECTIONS,
                        help="rejudge: every job with held-out data, or only the starts the "
                        "held-out tables pair")
@@ -112,7 +120,8 @@ def main(argv: list[str] | None = None) -> int:
             studies.run_study(root, args.name, run_dir=args.run_dir,
                               resume=args.resume == "true", workers=workers,
                               reduced=args.reduced, extra=args.set, dest=args.dest,
-                              tables=not args.no_tables)
+                              tables=not args.no_tables, only=args.subdirs,
+                              extend=args.extend)
         elif args.action == "tables":
             studies.rebuild_tables(root, args.name)
         elif args.action == "rejudge":
@@ -124,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
             probe.store_probes(root, args.name, workers=workers)
         else:
             studies.merge_study(root, args.name, run_dir=args.run_dir, dest=args.dest,
-                                tables=not args.no_tables)
+                                tables=not args.no_tables, extend=args.extend)
     except (studies.StudyError, ConfigError) as exc:
         print(f"penaltyrun: error: {exc}", file=sys.stderr)
         return 2

@@ -179,9 +179,28 @@ def run_command(command: Command, run_dir: Path, *, resume: bool, workers: int |
     return argv[3:]
 
 
+def selected_commands(study: Study, only: list[str] | None) -> list[Command]:
+    """The commands of ``study`` whose subdir is in ``only`` (every command without it).
+
+    Raises
+    ------
+    StudyError
+        If ``only`` names a subdir the study does not have.
+    """
+    if not only:
+        return list(study.commands)
+    known = [c.subdir for c in study.commands]
+    unknown = [s for s in only if s not in known]
+    if unknown:
+        raise StudyError(f"study {study.name!r} has no command {', '.join(map(repr, unknown))}"
+                         f" (its commands: {', '.join(known)})")
+    return [c for c in study.commands if c.subdir in only]
+
+
 def run_study(root: Path, name: str, *, run_dir: Path | None = None, resume: bool = False,
               workers: int | str = "auto", reduced: bool = False, extra: list[str] | None = None,
-              dest: Path | None = None, tables: bool = True) -> Path:
+              dest: Path | None = None, tables: bool = True, only: list[str] | None = None,
+              extend: bool = False) -> Path:
     """Run a study's commands in order, then :func:`merge_study`; return the merged file.
 
     Parameters
@@ -197,18 +216,34 @@ def run_study(root: Path, name: str, *, run_dir: Path | None = None, resume: boo
         Overrides appended to every command.
     dest : Path, optional
         Where the merged results and tables go (default the study's folder).
+    only : list of str, optional
+        Run only the commands of these subdirs (default every command).
+    extend : bool
+        Keep the records already merged in ``dest`` beside the ones run now (see
+        :func:`merge_study`): a command added to a committed study is run alone and its
+        cells join the study's data without running the others again.
     """
     study = load_study(root, name)
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
     ran = [run_command(c, run_dir, resume=resume, workers=workers, reduced=reduced,
-                       extra=list(extra or [])) for c in study.commands]
-    return merge_study(root, name, run_dir=run_dir, dest=dest, commands=ran, tables=tables)
+                       extra=list(extra or [])) for c in selected_commands(study, only)]
+    return merge_study(root, name, run_dir=run_dir, dest=dest, commands=ran, tables=tables,
+                       extend=extend)
 
 
 def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Path | None = None,
-                commands: list[list[str]] | None = None, tables: bool = True) -> Path:
+                commands: list[list[str]] | None = None, tables: bool = True,
+                extend: bool = False) -> Path:
     """Merge every record under the run directory into ``<dest>/results.parquet`` (zstd),
-    write the report's tables into ``<dest>/tables`` and ``<dest>/provenance.json``."""
+    write the report's tables into ``<dest>/tables`` and ``<dest>/provenance.json``.
+
+    With ``extend`` the records already in ``<dest>/results.parquet`` are kept beside the
+    run directory's (a job in both is taken from the run directory), and the provenance
+    keeps the commands recorded before, each replaced by the one run now into the same
+    subdir. A re-judged held-out file beside the results is removed either way: it judged
+    the records it was written for, not the new ones (``study rejudge`` writes it again).
+    """
+    import pandas as pd
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -217,12 +252,20 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
     dest = Path(dest) if dest else study.folder
     dest.mkdir(parents=True, exist_ok=True)
+    previous = _previous_commands(dest) if extend else None
     for stale in (LONG_FILE, LONG_PROVENANCE):  # re-judged data of the records replaced
         if (dest / stale).is_file():
             logger.info("study %s: removing %s (it re-judged the previous records)", name,
                         stale)
             (dest / stale).unlink()
     frame = read_results(run_dir)
+    if extend and (dest / RESULTS).is_file():
+        ran = len(frame)
+        both = pd.concat([frame, read_results(dest / RESULTS)], ignore_index=True)
+        frame = both[~both.duplicated(subset=["job_id", "config_hash"], keep="first")]
+        logger.info("study %s: %d records from %s, %d more kept from %s", name, ran,
+                    run_dir, len(frame) - ran, dest / RESULTS)
+        commands = _extended_commands(previous, commands, study)
     frame = frame.drop(columns=[c for c in study.drop_columns if c in frame.columns])
     frame = frame.sort_values(["problem", "case", "param", "optimizer", "job_id"],
                               kind="stable").reset_index(drop=True)
@@ -259,6 +302,32 @@ def rebuild_tables(root: Path, name: str) -> Path:
         write_tables(results, Path(tmp), study.folder / TABLES,
                      label=_display_path(results, root))
     return study.folder / TABLES
+
+
+def _previous_commands(dest: Path) -> list[list[str]]:
+    """The commands recorded in ``<dest>/provenance.json`` (none without one)."""
+    path = dest / "provenance.json"
+    if not path.is_file():
+        return []
+    return list(json.loads(path.read_text(encoding="utf-8")).get("commands") or [])
+
+
+def _command_subdir(argv: list[str]) -> str:
+    """The subdir a recorded command ran into (the last part of its ``hydra.sweep.dir``)."""
+    for arg in argv:
+        if arg.startswith("hydra.sweep.dir="):
+            return Path(arg.split("=", 1)[1]).name
+    return ""
+
+
+def _extended_commands(previous: list[list[str]] | None, ran: list[list[str]] | None,
+                       study: Study) -> list[list[str]]:
+    """The recorded commands with each of ``ran`` in place of the one of its subdir, in the
+    order of the study's commands (commands of subdirs it no longer has last)."""
+    by_subdir = {_command_subdir(c): c for c in previous or []}
+    by_subdir.update({_command_subdir(c): c for c in ran or []})
+    order = {c.subdir: k for k, c in enumerate(study.commands)}
+    return [by_subdir[s] for s in sorted(by_subdir, key=lambda s: order.get(s, len(order)))]
 
 
 def write_tables(results: Path, report_dir: Path, tables_dir: Path,

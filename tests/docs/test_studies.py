@@ -210,3 +210,57 @@ def test_a_study_file_beyond_the_yaml_limits_is_a_study_error(tmp_path):
         f"c{i}: &c{i} [{', '.join([f'*c{i - 1}' if i else '*t'] * 10)}]\n" for i in range(8)))
     with pytest.raises(studies.StudyError, match="study.yaml: aliases expand to more than"):
         studies.load_study(tmp_path, "bomb")
+
+
+def _tiny_study(root: Path) -> None:
+    folder = root / "studies" / "tiny"
+    folder.mkdir(parents=True)
+    (folder / "study.yaml").write_text(
+        "title: tiny\nquestion: q\ncommands:\n"
+        "- subdir: first\n  args: [problem=zermelo]\n"
+        "- subdir: added\n  args: [problem=zermelo, param=geagsp]\n")
+
+
+def _zermelo_jobs(run_dir: Path, param: str) -> list[str]:
+    from penaltyrun import io, runner
+    jobs = runner.plan_jobs("zermelo", "default", param, "pso", n_starts=2, root_seed=7,
+                            optimizer_options={"max_evals": 24, "n_particles": 4, "iters": 6})
+    runner.execute(jobs, run_dir)
+    io.collect(run_dir)
+    return ["-m", f"param={param}", f"hydra.sweep.dir={run_dir}"]
+
+
+def test_a_command_added_to_a_merged_study_extends_its_data_and_provenance(tmp_path):
+    """``--only`` runs one command; ``extend`` keeps the records merged before beside the
+    new ones (a job in both once, from the run), and the provenance lists both commands in
+    the study's order; without ``extend`` the merge holds the run directory's alone."""
+    _tiny_study(tmp_path)
+    dest = tmp_path / "studies" / "tiny"
+    first = _zermelo_jobs(tmp_path / "run" / "first", "diagonal")
+    studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "run", dest=dest,
+                        commands=[first], tables=False)
+    (dest / "holdout_long.parquet").write_bytes(b"re-judged the records merged before")
+    added = _zermelo_jobs(tmp_path / "later" / "added", "geagsp")
+    _zermelo_jobs(tmp_path / "later" / "again", "diagonal")  # the same jobs run again
+    merged = studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "later", dest=dest,
+                                 commands=[added], tables=False, extend=True)
+    frame = pq.read_table(merged).to_pandas()
+    assert sorted(frame["param"]) == ["diagonal", "diagonal", "geagsp", "geagsp"]
+    assert frame["job_id"].is_unique
+    info = json.loads((dest / "provenance.json").read_text())
+    assert info["commands"] == [first, added] and info["jobs"] == 4
+    assert not (dest / "holdout_long.parquet").exists()
+    alone = studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "later" / "added",
+                                dest=tmp_path / "alone", commands=[added], tables=False)
+    assert set(pq.read_table(alone).to_pandas()["param"]) == {"geagsp"}
+
+
+def test_only_names_a_command_of_the_study(tmp_path):
+    from penaltyrun.docsgen.__main__ import main
+    _tiny_study(tmp_path)
+    study = studies.load_study(tmp_path, "tiny")
+    assert [c.subdir for c in studies.selected_commands(study, ["added"])] == ["added"]
+    assert [c.subdir for c in studies.selected_commands(study, [])] == ["first", "added"]
+    with pytest.raises(studies.StudyError, match="no command 'nope' .*first, added"):
+        studies.selected_commands(study, ["nope"])
+    assert main(["--root", str(tmp_path), "study", "run", "tiny", "--only", "nope"]) == 2

@@ -138,9 +138,21 @@ def largest_late_gain(frame: pd.DataFrame, best_jobs: pd.Series | None = None) -
     """The largest :func:`late_gain` of the cells of ``frame``, each problem × case × map
     × optimizer at its largest budget (a cell run again with more evaluations is judged
     there), or, given ``best_jobs`` (the job ids of the best-known values), of the cells
-    holding them; 0 where no cell has one."""
-    judged = cells(frame[frame["job_id"].isin(best_jobs)]) if best_jobs is not None \
-        else cells(at_largest_budget(frame))
+    holding them, judged the same way; 0 where no cell has one.
+
+    A best-known value found at a smaller budget of a cell that ran again is judged by
+    the run at the larger budget: whether more evaluations lower the value is what that
+    run measures (its searches' late gain), and a lower value found there would be the
+    best-known value instead (the pages give by how much the larger budgets lowered a
+    best-known value, :func:`budget_effect`)."""
+    if best_jobs is not None:
+        holding = cells(frame[frame["job_id"].isin(best_jobs)].drop(
+            columns=["max_evals"], errors="ignore"))
+        keep = np.zeros(len(frame), dtype=bool)
+        for cell in holding:
+            keep |= frame.index.isin(rows_of(frame, cell).index)
+        frame = frame[keep]
+    judged = cells(at_largest_budget(frame))
     gains = [late_gain(rows_of(frame, cell)) for cell in judged]
     return max([0.0, *(g for g in gains if g == g)])  # NaN: a cell without finished starts
 

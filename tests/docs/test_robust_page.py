@@ -128,8 +128,18 @@ def test_a_cell_run_again_at_a_larger_budget_is_a_cell_of_its_own(tmp_path):
     assert ctx.late_gain("s", ctx.cells("s")[0]) == pytest.approx(100.0)
     assert ctx.late_gain("s", ctx.cells("s")[1]) == 0.0
     assert ctx.largest_late_gain("s") == 0.0  # the 100-evaluation diagonal cell ran again
+    # a best-known value found at 100 evaluations: judged by the run at 400, whose
+    # searches had stopped improving (more evaluations would not lower the value)
     ctx.study("s").table = lambda stem: pd.DataFrame({"job_id": ["d2"]})
-    assert ctx.largest_late_gain("s", best_known=True) == pytest.approx(100.0)
+    assert ctx.largest_late_gain("s", best_known=True) == 0.0
+    ctx.study("s").table = lambda stem: pd.DataFrame({"job_id": ["g1"]})  # ran once
+    assert ctx.largest_late_gain("s", best_known=True) == 0.0
+    still = pd.concat([small, again.assign(trace_best=[np.array([2.0, 0.5])] * 2,
+                                           trace_evals=[np.array([10, 300])] * 2)],
+                      ignore_index=True)
+    ctx = _context(tmp_path / "still", still)  # the 400 run still fell 2.0 → 0.5 late
+    ctx.study("s").table = lambda stem: pd.DataFrame({"job_id": ["d2"]})
+    assert ctx.largest_late_gain("s", best_known=True) == pytest.approx(300.0)
     assert ctx.budgets("s") == "100 (400 in 1 of 3 cells)"
     assert _context(tmp_path / "one", small).budgets("s") == "100"
 

@@ -238,10 +238,12 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     write the report's tables into ``<dest>/tables`` and ``<dest>/provenance.json``.
 
     With ``extend`` the records already in ``<dest>/results.parquet`` are kept beside the
-    run directory's (a job in both is taken from the run directory), and the provenance
-    keeps the commands recorded before, each replaced by the one run now into the same
-    subdir. A re-judged held-out file beside the results is removed either way: it judged
-    the records it was written for, not the new ones (``study rejudge`` writes it again).
+    run directory's (a job in both is taken from the run directory; a run directory without
+    records adds none, so the merge writes the committed records again, e.g. after a
+    change of ``drop_columns``), and the provenance keeps the commands recorded before,
+    each replaced by the one run now into the same subdir. A re-judged held-out file
+    beside the results is removed either way: it judged the records it was written for, not
+    the new ones (``study rejudge`` writes it again).
     """
     import pandas as pd
     import pyarrow as pa
@@ -258,10 +260,17 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
             logger.info("study %s: removing %s (it re-judged the previous records)", name,
                         stale)
             (dest / stale).unlink()
-    frame = read_results(run_dir)
-    if extend and (dest / RESULTS).is_file():
-        ran = len(frame)
-        both = pd.concat([frame, read_results(dest / RESULTS)], ignore_index=True)
+    kept = dest / RESULTS if extend and (dest / RESULTS).is_file() else None
+    try:
+        frame = read_results(run_dir)
+    except FileNotFoundError:
+        if kept is None:
+            raise
+        frame = None  # nothing run: the merged records alone (e.g. with new drop_columns)
+    if kept is not None:
+        ran = 0 if frame is None else len(frame)
+        both = pd.concat([f for f in (frame, read_results(kept)) if f is not None],
+                         ignore_index=True)
         frame = both[~both.duplicated(subset=["job_id", "config_hash"], keep="first")]
         logger.info("study %s: %d records from %s, %d more kept from %s", name, ran,
                     run_dir, len(frame) - ran, dest / RESULTS)

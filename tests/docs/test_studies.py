@@ -250,6 +250,16 @@ def test_a_command_added_to_a_merged_study_extends_its_data_and_provenance(tmp_p
     info = json.loads((dest / "provenance.json").read_text())
     assert info["commands"] == [first, added] and info["jobs"] == 4
     assert not (dest / "holdout_long.parquet").exists()
+    study_file = dest / "study.yaml"
+    study_file.write_text(study_file.read_text() + "drop_columns: [history]\n")
+    again = studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "nothing", dest=dest,
+                                tables=False, extend=True)  # nothing run: written again
+    table = pq.read_table(again)
+    assert table.num_rows == 4 and "history" not in table.column_names
+    assert json.loads((dest / "provenance.json").read_text())["commands"] == [first, added]
+    with pytest.raises(FileNotFoundError):
+        studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "nothing", dest=dest,
+                            tables=False)
     alone = studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "later" / "added",
                                 dest=tmp_path / "alone", commands=[added], tables=False)
     assert set(pq.read_table(alone).to_pandas()["param"]) == {"geagsp"}

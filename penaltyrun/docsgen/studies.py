@@ -46,6 +46,7 @@ logger = logging.getLogger(__name__)
 STUDY_FILE = "study.yaml"
 RESULTS = "results.parquet"
 TABLES = "tables"
+PROVENANCE = "provenance.json"
 LOCK_FILE = "requirements.lock"
 #: Packages whose versions the provenance file records.
 PACKAGES = ("numpy", "scipy", "numba", "pyswarms", "pandas", "pyarrow", "hydra-core",
@@ -254,7 +255,6 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
     dest = Path(dest) if dest else study.folder
     dest.mkdir(parents=True, exist_ok=True)
-    previous = _previous_commands(dest) if extend else None
     for stale in (LONG_FILE, LONG_PROVENANCE):  # re-judged data of the records replaced
         if (dest / stale).is_file():
             logger.info("study %s: removing %s (it re-judged the previous records)", name,
@@ -274,7 +274,7 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
         frame = both[~both.duplicated(subset=["job_id", "config_hash"], keep="first")]
         logger.info("study %s: %d records from %s, %d more kept from %s", name, ran,
                     run_dir, len(frame) - ran, dest / RESULTS)
-        commands = _extended_commands(previous, commands, study)
+        commands = _extended_commands(_previous_commands(dest), commands, study)
     frame = frame.drop(columns=[c for c in study.drop_columns if c in frame.columns])
     frame = frame.sort_values(["problem", "case", "param", "optimizer", "job_id"],
                               kind="stable").reset_index(drop=True)
@@ -315,7 +315,7 @@ def rebuild_tables(root: Path, name: str) -> Path:
 
 def _previous_commands(dest: Path) -> list[list[str]]:
     """The commands recorded in ``<dest>/provenance.json`` (none without one)."""
-    path = dest / "provenance.json"
+    path = dest / PROVENANCE
     if not path.is_file():
         return []
     return list(json.loads(path.read_text(encoding="utf-8")).get("commands") or [])
@@ -329,11 +329,11 @@ def _command_subdir(argv: list[str]) -> str:
     return ""
 
 
-def _extended_commands(previous: list[list[str]] | None, ran: list[list[str]] | None,
+def _extended_commands(previous: list[list[str]], ran: list[list[str]] | None,
                        study: Study) -> list[list[str]]:
     """The recorded commands with each of ``ran`` in place of the one of its subdir, in the
     order of the study's commands (commands of subdirs it no longer has last)."""
-    by_subdir = {_command_subdir(c): c for c in previous or []}
+    by_subdir = {_command_subdir(c): c for c in previous}
     by_subdir.update({_command_subdir(c): c for c in ran or []})
     order = {c.subdir: k for k, c in enumerate(study.commands)}
     return [by_subdir[s] for s in sorted(by_subdir, key=lambda s: order.get(s, len(order)))]
@@ -403,7 +403,6 @@ def write_provenance(root: Path, dest: Path, frame: Any,
             "jobs": int(len(frame)),
             "status": {str(k): int(v) for k, v in frame["status"].value_counts().items()},
             "commands": commands}
-    previous = dest / "provenance.json"
-    if commands is None and previous.is_file():
-        info["commands"] = json.loads(previous.read_text()).get("commands")
-    previous.write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")
+    if commands is None:
+        info["commands"] = _previous_commands(dest) or None
+    (dest / PROVENANCE).write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")

@@ -39,6 +39,7 @@ from penaltyrun.docsgen.studies import (
     StudyError,
     _display_path,
     load_study,
+    machine,
     package_versions,
     write_tables,
 )
@@ -219,6 +220,7 @@ def rejudge_study(root: Path, name: str, *, jobs: str = "all", workers: int | st
     os.replace(tmp, study.folder / LONG_FILE)
     status = frame["status"].str.split(":").str[0].value_counts()
     info = {"git_commit": git_commit(root), "packages": package_versions(), "jobs": jobs,
+            "machine": machine(),
             "rejudged": int(len(frame)), "records": int(len(df)),
             "status": {str(k): int(v) for k, v in status.items()},
             "cpu_s": round(float(frame["wall_time_s"].sum()), 1),

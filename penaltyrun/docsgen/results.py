@@ -400,10 +400,12 @@ class Context:
         versions = ", ".join(f"{k} {v}" for k, v in sorted(packages.items()))
         if len(in_records) > 1:
             versions += f" (the records carry {len(in_records)} different version sets)"
-        host = info.get("machine", {})
+        hosts = info.get("machines") or [info.get("machine", {})]
+        where = "; ".join(f"{h.get('cpu')}, {h.get('cores')} cores, {h.get('os')}"
+                          for h in hosts)
         statuses = ", ".join(f"{v} {k}" for k, v in sorted(info.get("status", {}).items()))
         return (f"Data: {info.get('jobs')} jobs ({statuses}); "
-                f"machine: {host.get('cpu')}, {host.get('cores')} cores, {host.get('os')}; "
+                f"{'machines' if len(hosts) > 1 else 'machine'}: {where}; "
                 f"versions: {versions}; git commits of the records: "
                 f"{len(info.get('git_commits', []))} (`studies/{name}/provenance.json`).")
 

@@ -242,9 +242,10 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     run directory's (a job in both is taken from the run directory; a run directory without
     records adds none, so the merge writes the committed records again, e.g. after a
     change of ``drop_columns``), and the provenance keeps the commands recorded before,
-    each replaced by the one run now into the same subdir. A re-judged held-out file
-    beside the results is removed either way: it judged the records it was written for, not
-    the new ones (``study rejudge`` writes it again).
+    each replaced by the one run now into the same subdir, and the machines the records ran
+    on. A re-judged held-out file beside the results is removed where records were merged:
+    it judged the records it was written for, not the new ones (``study rejudge`` writes it
+    again); an extended merge with nothing new keeps it.
     """
     import pandas as pd
     import pyarrow as pa
@@ -255,12 +256,9 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
     dest = Path(dest) if dest else study.folder
     dest.mkdir(parents=True, exist_ok=True)
-    for stale in (LONG_FILE, LONG_PROVENANCE):  # re-judged data of the records replaced
-        if (dest / stale).is_file():
-            logger.info("study %s: removing %s (it re-judged the previous records)", name,
-                        stale)
-            (dest / stale).unlink()
     kept = dest / RESULTS if extend and (dest / RESULTS).is_file() else None
+    machines = None  # without extend: the records are this run's, on this machine
+    ran = 0
     try:
         frame = read_results(run_dir)
     except FileNotFoundError:
@@ -275,6 +273,13 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
         logger.info("study %s: %d records from %s, %d more kept from %s", name, ran,
                     run_dir, len(frame) - ran, dest / RESULTS)
         commands = _extended_commands(_previous_commands(dest), commands, study)
+        machines = _extended_machines(_previous_machines(dest), ran_here=ran > 0)
+    if kept is None or ran:  # the re-judged data judged the records replaced
+        for stale in (LONG_FILE, LONG_PROVENANCE):
+            if (dest / stale).is_file():
+                logger.info("study %s: removing %s (it re-judged the previous records)",
+                            name, stale)
+                (dest / stale).unlink()
     frame = frame.drop(columns=[c for c in study.drop_columns if c in frame.columns])
     frame = frame.sort_values(["problem", "case", "param", "optimizer", "job_id"],
                               kind="stable").reset_index(drop=True)
@@ -286,7 +291,8 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     if tables:
         write_tables(dest / RESULTS, run_dir / "report", dest / TABLES,
                      label=_display_path(dest / RESULTS, root))
-    write_provenance(root, dest, frame, commands)
+    write_provenance(root, dest, frame, commands, machines,
+                     rewritten=kept is not None and not ran)
     logger.info("study %s: %d records, %.1f MB", name, len(frame),
                 (dest / RESULTS).stat().st_size / 1e6)
     return dest / RESULTS
@@ -319,6 +325,26 @@ def _previous_commands(dest: Path) -> list[list[str]]:
     if not path.is_file():
         return []
     return list(json.loads(path.read_text(encoding="utf-8")).get("commands") or [])
+
+
+def _previous_machines(dest: Path) -> list[dict[str, Any]]:
+    """The machines recorded in ``<dest>/provenance.json`` (none without one)."""
+    path = dest / PROVENANCE
+    if not path.is_file():
+        return []
+    info = json.loads(path.read_text(encoding="utf-8"))
+    return list(info.get("machines") or ([info["machine"]] if info.get("machine") else []))
+
+
+def _extended_machines(previous: list[dict[str, Any]], *,
+                       ran_here: bool) -> list[dict[str, Any]]:
+    """The machines of an extended merge's records: those recorded before, and this one
+    where records were run here (a machine counted once by CPU model and cores)."""
+    here = machine()
+    known = {(m.get("cpu"), m.get("cores")) for m in previous}
+    if not previous or (ran_here and (here["cpu"], here["cores"]) not in known):
+        return [*previous, here]
+    return previous
 
 
 def _command_subdir(argv: list[str]) -> str:
@@ -390,10 +416,18 @@ def package_versions() -> dict[str, str]:
 
 
 def write_provenance(root: Path, dest: Path, frame: Any,
-                     commands: list[list[str]] | None) -> None:
-    """``provenance.json``: machine, versions, lock-file hash, commits in the data, counts."""
+                     commands: list[list[str]] | None,
+                     machines: list[dict[str, Any]] | None = None, *,
+                     rewritten: bool = False) -> None:
+    """``provenance.json``: machines, versions, lock-file hash, commits in the data, counts.
+
+    ``machines`` are those the records ran on, for an extended merge (default: this one);
+    ``machine`` is the first of them. ``rewritten``: the records are those merged before
+    (nothing run), so the recorded versions and lock-file hash are kept.
+    """
     lock = Path(root) / LOCK_FILE
-    info = {"machine": machine(), "packages": package_versions(),
+    machines = machines or [machine()]
+    info = {"machine": machines[0], "machines": machines, "packages": package_versions(),
             "lock_sha256": hashlib.sha256(lock.read_bytes()).hexdigest()
             if lock.is_file() else None,
             "git_commits": sorted({str(c) for c in frame["git_commit"].dropna()}),
@@ -405,4 +439,7 @@ def write_provenance(root: Path, dest: Path, frame: Any,
             "commands": commands}
     if commands is None:
         info["commands"] = _previous_commands(dest) or None
+    if rewritten and (dest / PROVENANCE).is_file():
+        before = json.loads((dest / PROVENANCE).read_text(encoding="utf-8"))
+        info.update({k: before[k] for k in ("packages", "lock_sha256") if k in before})
     (dest / PROVENANCE).write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")

@@ -23,6 +23,14 @@ def test_paragraph_counts_commits_and_names_none(monkeypatch):
     assert not re.search(r"\b[0-9a-f]{40}\b", text)
 
 
+def test_records_from_two_machines_name_both(monkeypatch):
+    hosts = [{"cpu": "cpu A", "cores": 2, "os": "os"}, {"cpu": "cpu B", "cores": 4, "os": "os"}]
+    text = paragraph({"jobs": 2, "status": {"ok": 2}, "machine": hosts[0], "machines": hosts,
+                      "packages": {}, "packages_in_records": [], "git_commits": []},
+                     monkeypatch)
+    assert "machines: cpu A, 2 cores, os; cpu B, 4 cores, os;" in text
+
+
 def test_versions_from_the_records_leave_their_commit_out(monkeypatch):
     record = '{"numpy": "2.0", "git_commit": "' + "c" * 40 + '"}'
     text = paragraph({"jobs": 1, "status": {"ok": 1}, "machine": {}, "packages": {},

@@ -265,6 +265,35 @@ def test_a_command_added_to_a_merged_study_extends_its_data_and_provenance(tmp_p
     assert set(pq.read_table(alone).to_pandas()["param"]) == {"geagsp"}
 
 
+def test_an_extended_merge_records_the_machines_its_records_ran_on(tmp_path, monkeypatch):
+    """Records merged before keep their machine beside the one an added command ran on; a
+    rewrite with nothing run keeps the machines, versions, lock hash and re-judged data."""
+    _tiny_study(tmp_path)
+    dest = tmp_path / "studies" / "tiny"
+    before = {"cpu": "cpu A", "cores": 2, "os": "os", "python": "3.11"}
+    later = {"cpu": "cpu B", "cores": 4, "os": "os", "python": "3.11"}
+    monkeypatch.setattr(studies, "machine", lambda: dict(before))
+    first = _zermelo_jobs(tmp_path / "run" / "first", "diagonal")
+    studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "run", dest=dest,
+                        commands=[first], tables=False)
+    monkeypatch.setattr(studies, "machine", lambda: dict(later))
+    added = _zermelo_jobs(tmp_path / "later" / "added", "geagsp")
+    studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "later", dest=dest,
+                        commands=[added], tables=False, extend=True)
+    info = json.loads((dest / "provenance.json").read_text())
+    assert info["machines"] == [before, later] and info["machine"] == before
+    info["packages"], info["lock_sha256"] = {"numpy": "0.0-recorded"}, "recorded"
+    (dest / "provenance.json").write_text(json.dumps(info))
+    (dest / "holdout_long.parquet").write_bytes(b"re-judged these very records")
+    monkeypatch.setattr(studies, "machine", lambda: {"cpu": "cpu C", "cores": 8})
+    studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "nothing", dest=dest,
+                        tables=False, extend=True)
+    again = json.loads((dest / "provenance.json").read_text())
+    assert again["machines"] == [before, later]
+    assert again["packages"] == {"numpy": "0.0-recorded"} and again["lock_sha256"] == "recorded"
+    assert (dest / "holdout_long.parquet").read_bytes() == b"re-judged these very records"
+
+
 def test_only_names_a_command_of_the_study(tmp_path):
     from penaltyrun.docsgen.__main__ import main
     _tiny_study(tmp_path)

@@ -4,7 +4,12 @@ The method is DOP853 (Hairer, Nørsett & Wanner, *Solving ODEs I*, II.10): order
 blended 5th/3rd-order error estimate and the order-7 dense output (three extra stages,
 computed only for the steps that need it). The integrator is specialized to one closed loop by
 :func:`make_dop853` (a closure over numba-compiled functions, so its compiled callers are
-cached on disk):
+cached on disk). The closures themselves are compiled but not cached: numba keeps the
+machine code of every closure made by one factory in one index file, which two processes
+compiling different loops at once (a cold cache, two workers or test processes) update
+without a lock, so one could load the code of another loop. The cached caller holds the
+code it needs; a closure called from Python is compiled once per process. The loop's
+functions:
 
 ``rhs(t, y, p, dydt)``
     Writes dy/dt. For a piecewise-smooth loop it must use the *frozen* piece stored in ``p``
@@ -131,7 +136,7 @@ def make_event_newton(rhs, event):
         ``v`` are work arrays of the state's size.
     """
 
-    @njit(cache=True)
+    @njit
     def newton(t, tau, h, y_tau, p, f_buf, v):
         n = y_tau.shape[0]
         e_val = event(t + tau, y_tau, p)
@@ -170,7 +175,7 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
 
     newton = make_event_newton(rhs, event)
 
-    @njit(cache=True)
+    @njit
     def _bisect(y, F, h, t, p, x_lo, x_hi, use_event, y_probe):
         """Shrink [x_lo, x_hi] around the first sign change of the event or the switch."""
         for _ in range(60):
@@ -188,7 +193,7 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
                 x_lo = x_mid
         return x_hi
 
-    @njit(cache=True)
+    @njit
     def _step_to(y, K, t, tau, p, y_tmp, out):
         """One DOP853 step of length tau from (t, y) into ``out`` (K[0] = f(t, y) kept)."""
         for s in range(1, 12):
@@ -200,7 +205,7 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
                 return False
         return True
 
-    @njit(cache=True)
+    @njit
     def _refine_event(y, K, t, h, x_hit, p, y_tmp, y_probe, v):
         """Event time t + tau on the method itself (Newton from the interpolant's x_hit).
 
@@ -222,7 +227,7 @@ def make_dop853(rhs, event, event_slope, switch=no_switch, switch_slope=no_slope
             return -1.0
         return tau
 
-    @njit(cache=True)
+    @njit
     def integrate(y0, p, t_max, rtol, atol, max_step, event_spacing, n_samples, max_steps,
                   cut_index=-1, cut_value=np.inf):
         n = y0.shape[0]

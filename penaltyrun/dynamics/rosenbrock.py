@@ -9,7 +9,8 @@ and factors (1/(γh)) I − J once (LU with partial pivoting, in place; no alloc
 solves it six times. Autonomous right-hand sides only (no ∂f/∂t term).
 
 The integrator is specialized to one closed loop by :func:`make_rodas` (a closure over
-numba-compiled functions, so its compiled callers are cached on disk):
+numba-compiled functions, so its compiled callers are cached on disk; the closures are not
+cached themselves, for the reason given in :mod:`penaltyrun.dynamics.dop853`):
 
 ``rhs(t, y, p, dydt)``, ``event(t, y, p)``, ``event_slope(v, p)``
     As for :func:`penaltyrun.dynamics.dop853.make_dop853` (a smooth loop: no switch points).
@@ -148,7 +149,7 @@ def make_rodas(rhs, jac, event, event_slope, guard=no_guard):
     """
     newton = make_event_newton(rhs, event)
 
-    @njit(cache=True)
+    @njit
     def _step(y, f0, Jm, p, t, h, W, piv, K, y_tmp, y_out, err):
         """One RODAS4 step of length h from (t, y) with f0 = f(y) and Jm = J(y): writes the
         solution in ``y_out`` and the error estimate in ``err``; False when the iteration
@@ -187,7 +188,7 @@ def make_rodas(rhs, jac, event, event_slope, guard=no_guard):
             err[i] = K[5, i]
         return True
 
-    @njit(cache=True)
+    @njit
     def integrate(y0, p, t_max, rtol, atol, max_step, event_spacing, n_samples, max_steps,
                   cut_index=-1, cut_value=np.inf):
         n = y0.shape[0]

@@ -13,12 +13,13 @@ gain entries g = vec(G) (row-major: g[6 i + j] = G[i, j], N·m per unit of x_j):
 
 F_y = ∂f/∂y the Jacobian of the right-hand side (exact: ½Ω(ω) and ½Ξ(q) for the kinematics,
 I⁻¹(∂u/∂ω − [ω]×I + [Iω]×) for Euler's equation), ∂u/∂g = −I₃ ⊗ xᵀ and F_g = [0; I⁻¹∂u/∂g].
-The 8 + 8·18 = 152 equations are integrated together by :func:`scipy.integrate.solve_ivp`
-(DOP853; BDF with the block Jacobian of :func:`augmented_jacobian` for the stiff gains that
-the compiled kernel integrates by RODAS4: of scipy's implicit methods the cheapest on these
-152 equations), with the
-step bounded so that a dip of the weighted event distance d under ``tol`` is not stepped
-over, as in the kernel's reference runs.
+The 8 + 8·18 = 152 equations are integrated together by the compiled DOP853 of
+:mod:`penaltyrun.dynamics.attitude_sens_kernel` (the default) or by
+:func:`scipy.integrate.solve_ivp` (DOP853, ``compiled=False``: the reference the compiled
+run is tested against; BDF with the block Jacobian of :func:`augmented_jacobian` for the
+stiff gains that the compiled kernel integrates by RODAS4: of scipy's implicit methods the
+cheapest on these 152 equations), with the step bounded so that a dip of the weighted event
+distance d under ``tol`` is not stepped over, as in the kernel's reference runs.
 
 Events located on the way (``sensitivity_run``):
 
@@ -226,8 +227,15 @@ class SensitivityRun:
 def sensitivity_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray, t_end: float,
                     weights: tuple[float, float, float], tol: float | None,
                     u_max: float = np.inf, rtol: float = 1e-10, atol: float = 1e-10,
-                    max_step: float = 0.2) -> SensitivityRun:
+                    max_step: float = 0.2, *, compiled: bool = True,
+                    event_spacing: float = 0.05, n_samples: int = 4,
+                    max_steps: int = 10**6) -> SensitivityRun:
     """Integrate the closed loop and its gain sensitivities from ``y0``.
+
+    A loop that is not stiff is integrated by the compiled DOP853 of
+    :mod:`penaltyrun.dynamics.attitude_sens_kernel` (``compiled``, the default) or by
+    scipy's (``compiled=False``, the reference it is checked against); a stiff one by scipy's
+    BDF.
 
     Parameters
     ----------
@@ -249,6 +257,11 @@ def sensitivity_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray, t_end: f
         solve_ivp tolerances (applied to the states and their sensitivities).
     max_step : float
         Largest step (s).
+    compiled : bool
+        The compiled integrator for a loop that is not stiff.
+    event_spacing, n_samples, max_steps
+        The compiled integrator's probe spacing of the events (s), probes per step near
+        them and step cap (:func:`penaltyrun.dynamics.dop853.make_dop853`).
 
     Returns
     -------
@@ -259,6 +272,10 @@ def sensitivity_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray, t_end: f
     G = np.ascontiguousarray(G, dtype=float)
     inertia = np.ascontiguousarray(inertia, dtype=float)
     inertia_inv = np.linalg.inv(inertia)
+    stiff = stiffness(G, inertia_inv) > STIFF_RATE
+    if compiled and not stiff:
+        return _compiled_run(G, y0, inertia, inertia_inv, t_end, weights, tol, u_max, rtol,
+                             atol, max_step, event_spacing, n_samples, max_steps)
     rhs = augmented_rhs(G, inertia, inertia_inv)
 
     def dip(t: float, z: np.ndarray) -> float:
@@ -286,7 +303,6 @@ def sensitivity_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray, t_end: f
         events.append(limit)
     z0 = np.zeros(8 + 8 * N_GAIN)
     z0[:7] = y0
-    stiff = stiffness(G, inertia_inv) > STIFF_RATE
     implicit = {"jac": augmented_jacobian(G, inertia, inertia_inv)} if stiff else {}
     sol = solve_ivp(rhs, (0.0, float(t_end)), z0, method="BDF" if stiff else "DOP853",
                     rtol=rtol, atol=atol, max_step=max_step, events=events or None,
@@ -305,6 +321,33 @@ def sensitivity_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray, t_end: f
     return SensitivityRun(status, float(sol.t[-1]), z[:7].copy(), float(z[7]),
                           z[8:8 + 7 * N_GAIN].reshape(7, N_GAIN).copy(),
                           z[8 + 7 * N_GAIN:].copy(), f, dips, str(sol.message))
+
+
+def _compiled_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray,
+                  inertia_inv: np.ndarray, t_end: float, weights: tuple[float, float, float],
+                  tol: float | None, u_max: float, rtol: float, atol: float, max_step: float,
+                  event_spacing: float, n_samples: int, max_steps: int) -> SensitivityRun:
+    """:func:`sensitivity_run` by the compiled integrator."""
+    from penaltyrun.dynamics import attitude_sens_kernel as kernel
+    from penaltyrun.dynamics.integrate import EVENT, HORIZON, STATUS_NAMES
+
+    y0 = np.asarray(y0, dtype=float)
+    saturated_at_start = np.isfinite(u_max) and np.max(np.abs(G @ y0[1:7])) >= u_max
+    t, z, code, steps, dips = kernel.integrate(
+        G, y0, inertia, inertia_inv, t_end, weights, tol, u_max, rtol, atol, max_step,
+        event_spacing, n_samples, max_steps)
+    if code == EVENT:
+        arrived = tol is not None and distance(z[:7], weights) <= tol * (1.0 + 1e-9)
+        status = "arrived" if arrived else "saturated"
+    else:
+        status = "horizon" if code == HORIZON else "failed"
+    if saturated_at_start:
+        status = "saturated"
+    f = rhs_parts(z[:7], G, inertia, inertia_inv)[0]
+    return SensitivityRun(status, t, z[:7].copy(), float(z[7]),
+                          z[8:8 + 7 * N_GAIN].reshape(7, N_GAIN).copy(),
+                          z[8 + 7 * N_GAIN:].copy(), f, dips,
+                          f"compiled DOP853: {STATUS_NAMES[code]} after {steps} steps")
 
 
 def adjoint_gradient(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray, t_end: float,

@@ -101,7 +101,9 @@ def gain_sensitivity(problem: AttitudeProblem, G: np.ndarray, t_final: float
         G, problem.y0, problem.inertia, float(p.t_max if terminal else p.free_time_cap),
         weights, None if terminal else float(p.tol), p.saturation(),
         rtol=min(float(p.rtol), 1e-10), atol=min(float(p.atol), 1e-10),
-        max_step=reference_max_step(p) if bounded else np.inf)
+        max_step=reference_max_step(p) if bounded else np.inf,
+        event_spacing=float(p.event_spacing), n_samples=int(p.n_event_samples),
+        max_steps=int(p.max_steps))
     if run.status == "saturated":
         return None, "the torque reaches u_max on the way (a kink of the cost)", float("nan")
     if run.status == "failed":

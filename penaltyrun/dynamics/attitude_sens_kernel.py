@@ -53,49 +53,9 @@ def rhs(t, z, p, out):
     """Right-hand side of the 152 augmented equations into ``out`` (one small work array;
     the same equations as :func:`~penaltyrun.dynamics.attitude_sens.augmented`)."""
     loop.rhs(t, z, p, out)  # (q̇, ω̇, Ė) of the closed loop, unsaturated (u_max = inf)
-    q0, q1, q2, q3 = z[0], z[1], z[2], z[3]
-    w0, w1, w2 = z[4], z[5], z[6]
-    fy = np.zeros((8, 7))  # ∂f/∂y
-    fy[0, 1], fy[0, 2], fy[0, 3] = -0.5 * w0, -0.5 * w1, -0.5 * w2
-    fy[1, 0], fy[1, 2], fy[1, 3] = 0.5 * w0, 0.5 * w2, -0.5 * w1
-    fy[2, 0], fy[2, 1], fy[2, 3] = 0.5 * w1, -0.5 * w2, 0.5 * w0
-    fy[3, 0], fy[3, 1], fy[3, 2] = 0.5 * w2, 0.5 * w1, -0.5 * w0
-    fy[0, 4], fy[0, 5], fy[0, 6] = -0.5 * q1, -0.5 * q2, -0.5 * q3
-    fy[1, 4], fy[1, 5], fy[1, 6] = 0.5 * q0, -0.5 * q3, 0.5 * q2
-    fy[2, 4], fy[2, 5], fy[2, 6] = 0.5 * q3, 0.5 * q0, -0.5 * q1
-    fy[3, 4], fy[3, 5], fy[3, 6] = -0.5 * q2, 0.5 * q1, 0.5 * q0
-    inertia = p[0:9]
+    fy = np.empty((8, 8))
+    loop.jacobian(t, z, p, fy)  # ∂f/∂y; its last column (∂f/∂E) is zero
     inv = p[9:18]
-    gain = p[18:36]
-    h0 = inertia[0] * w0 + inertia[1] * w1 + inertia[2] * w2
-    h1 = inertia[3] * w0 + inertia[4] * w1 + inertia[5] * w2
-    h2 = inertia[6] * w0 + inertia[7] * w1 + inertia[8] * w2
-    u = np.empty(3)
-    for i in range(3):
-        u[i] = loop._linear(z, p, i)
-    # M = ∂(u − ω × Iω)/∂y (3 × 7): −G on (q_v, ω), minus ∂(ω × Iω)/∂ω = [ω]× I − [Iω]×
-    m = np.zeros((3, 7))
-    for i in range(3):
-        for j in range(6):
-            m[i, 1 + j] = -gain[6 * i + j]
-    for j in range(3):
-        c0, c1, c2 = inertia[j], inertia[3 + j], inertia[6 + j]
-        m[0, 4 + j] -= w1 * c2 - w2 * c1
-        m[1, 4 + j] -= w2 * c0 - w0 * c2
-        m[2, 4 + j] -= w0 * c1 - w1 * c0
-    m[0, 5] -= h2
-    m[0, 6] += h1
-    m[1, 4] += h2
-    m[1, 6] -= h0
-    m[2, 4] -= h1
-    m[2, 5] += h0
-    for k in range(3):
-        for j in range(7):
-            fy[4 + k, j] = inv[3 * k] * m[0, j] + inv[3 * k + 1] * m[1, j] \
-                + inv[3 * k + 2] * m[2, j]
-    for j in range(1, 7):  # ∂Ė/∂y = uᵀ ∂u/∂y
-        fy[7, j] = -(u[0] * gain[j - 1] + u[1] * gain[5 + j] + u[2] * gain[11 + j])
-    x = z[1:7]
     for r in range(8):
         for c in range(N_GAIN):
             acc = 0.0
@@ -103,11 +63,12 @@ def rhs(t, z, p, out):
                 acc += fy[r, k] * z[8 + N_GAIN * k + c]
             out[8 + N_GAIN * r + c] = acc
     for i in range(3):  # ∂f/∂g: ω̇ rows −I⁻¹[k, i] x_j, Ė row −u_i x_j
+        u = loop._linear(z, p, i)
         for j in range(6):
             c = 6 * i + j
             for k in range(3):
-                out[8 + N_GAIN * (4 + k) + c] -= inv[3 * k + i] * x[j]
-            out[8 + N_GAIN * 7 + c] -= u[i] * x[j]
+                out[8 + N_GAIN * (4 + k) + c] -= inv[3 * k + i] * z[1 + j]
+            out[8 + N_GAIN * 7 + c] -= u * z[1 + j]
 
 
 @njit(cache=True)

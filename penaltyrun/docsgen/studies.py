@@ -319,20 +319,20 @@ def rebuild_tables(root: Path, name: str) -> Path:
     return study.folder / TABLES
 
 
+def _recorded(dest: Path) -> dict[str, Any]:
+    """``<dest>/provenance.json`` as written (empty without one)."""
+    path = dest / PROVENANCE
+    return json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+
+
 def _previous_commands(dest: Path) -> list[list[str]]:
     """The commands recorded in ``<dest>/provenance.json`` (none without one)."""
-    path = dest / PROVENANCE
-    if not path.is_file():
-        return []
-    return list(json.loads(path.read_text(encoding="utf-8")).get("commands") or [])
+    return list(_recorded(dest).get("commands") or [])
 
 
 def _previous_machines(dest: Path) -> list[dict[str, Any]]:
     """The machines recorded in ``<dest>/provenance.json`` (none without one)."""
-    path = dest / PROVENANCE
-    if not path.is_file():
-        return []
-    info = json.loads(path.read_text(encoding="utf-8"))
+    info = _recorded(dest)
     return list(info.get("machines") or ([info["machine"]] if info.get("machine") else []))
 
 
@@ -439,7 +439,7 @@ def write_provenance(root: Path, dest: Path, frame: Any,
             "commands": commands}
     if commands is None:
         info["commands"] = _previous_commands(dest) or None
-    if rewritten and (dest / PROVENANCE).is_file():
-        before = json.loads((dest / PROVENANCE).read_text(encoding="utf-8"))
+    if rewritten:
+        before = _recorded(dest)
         info.update({k: before[k] for k in ("packages", "lock_sha256") if k in before})
     (dest / PROVENANCE).write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")

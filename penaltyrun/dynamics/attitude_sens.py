@@ -315,12 +315,21 @@ def sensitivity_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray, t_end: f
         status = "arrived" if named.get("arrival", np.empty(0)).size else "saturated"
     dips = np.asarray([distance(v[:7], weights) for v in sol.y_events[0]]) \
         if tol is not None and sol.y_events[0].size else np.empty(0)
-    if np.isfinite(u_max) and np.max(np.abs(G @ y0[1:7])) >= u_max:
+    return _run_end(status, float(sol.t[-1]), z, G, y0, inertia, inertia_inv, u_max, dips,
+                    str(sol.message))
+
+
+def _run_end(status: str, t: float, z: np.ndarray, G: np.ndarray, y0: np.ndarray,
+             inertia: np.ndarray, inertia_inv: np.ndarray, u_max: float, dips: np.ndarray,
+             message: str) -> SensitivityRun:
+    """The :class:`SensitivityRun` of an augmented state ``z`` at the end time ``t`` (either
+    integrator); a torque over ``u_max`` at the start is ``saturated`` whatever the run."""
+    if np.isfinite(u_max) and np.max(np.abs(G @ np.asarray(y0, float)[1:7])) >= u_max:
         status = "saturated"
     f = rhs_parts(z[:7], G, inertia, inertia_inv)[0]
-    return SensitivityRun(status, float(sol.t[-1]), z[:7].copy(), float(z[7]),
+    return SensitivityRun(status, t, z[:7].copy(), float(z[7]),
                           z[8:8 + 7 * N_GAIN].reshape(7, N_GAIN).copy(),
-                          z[8 + 7 * N_GAIN:].copy(), f, dips, str(sol.message))
+                          z[8 + 7 * N_GAIN:].copy(), f, dips, message)
 
 
 def _compiled_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray,
@@ -332,7 +341,6 @@ def _compiled_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray,
     from penaltyrun.dynamics.integrate import EVENT, HORIZON, STATUS_NAMES
 
     y0 = np.asarray(y0, dtype=float)
-    saturated_at_start = np.isfinite(u_max) and np.max(np.abs(G @ y0[1:7])) >= u_max
     t, z, code, steps, dips = kernel.integrate(
         G, y0, inertia, inertia_inv, t_end, weights, tol, u_max, rtol, atol, max_step,
         event_spacing, n_samples, max_steps)
@@ -341,13 +349,8 @@ def _compiled_run(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray,
         status = "arrived" if arrived else "saturated"
     else:
         status = "horizon" if code == HORIZON else "failed"
-    if saturated_at_start:
-        status = "saturated"
-    f = rhs_parts(z[:7], G, inertia, inertia_inv)[0]
-    return SensitivityRun(status, t, z[:7].copy(), float(z[7]),
-                          z[8:8 + 7 * N_GAIN].reshape(7, N_GAIN).copy(),
-                          z[8 + 7 * N_GAIN:].copy(), f, dips,
-                          f"compiled DOP853: {STATUS_NAMES[code]} after {steps} steps")
+    return _run_end(status, t, z, G, y0, inertia, inertia_inv, u_max, dips,
+                    f"compiled DOP853: {STATUS_NAMES[code]} after {steps} steps")
 
 
 def adjoint_gradient(G: np.ndarray, y0: np.ndarray, inertia: np.ndarray, t_end: float,

@@ -226,8 +226,9 @@ def run_study(root: Path, name: str, *, run_dir: Path | None = None, resume: boo
     """
     study = load_study(root, name)
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
-    ran = [run_command(c, run_dir, resume=resume, workers=workers, reduced=reduced,
-                       extra=list(extra or [])) for c in selected_commands(study, only)]
+    ran = [_portable(run_command(c, run_dir, resume=resume, workers=workers, reduced=reduced,
+                                 extra=list(extra or [])), root)
+           for c in selected_commands(study, only)]
     return merge_study(root, name, run_dir=run_dir, dest=dest, commands=ran, tables=tables,
                        extend=extend)
 
@@ -243,7 +244,9 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     records adds none, so the merge writes the committed records again, e.g. after a
     change of ``drop_columns``), and the provenance keeps the commands recorded before,
     each replaced by the one run now into the same subdir, and the machines the records ran
-    on. A re-judged held-out file beside the results is removed where records were merged:
+    on. Without ``commands`` (a merge of runs made before) each subdir of the run directory
+    that holds a Hydra ``multirun.yaml`` is recorded as the command it ran. A re-judged
+    held-out file beside the results is removed where records were merged:
     it judged the records it was written for, not the new ones (``study rejudge`` writes it
     again); an extended merge with nothing new keeps it.
     """
@@ -265,6 +268,8 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
         if kept is None:
             raise
         frame = None  # nothing run: the merged records alone (e.g. with new drop_columns)
+    if commands is None and frame is not None:
+        commands = commands_in_run_dir(run_dir, root) or None
     if kept is not None:
         ran = 0 if frame is None else len(frame)
         both = pd.concat([f for f in (frame, read_results(kept)) if f is not None],
@@ -345,6 +350,29 @@ def _extended_machines(previous: list[dict[str, Any]], *,
     if not previous or (ran_here and (here["cpu"], here["cores"]) not in known):
         return [*previous, here]
     return previous
+
+
+def commands_in_run_dir(run_dir: Path, root: Path) -> list[list[str]]:
+    """The commands that ran into the subdirs of ``run_dir``, read from each subdir's Hydra
+    ``multirun.yaml`` (its task overrides; the sweep directory relative to ``root``)."""
+    import yaml
+
+    commands = []
+    for path in sorted(Path(run_dir).glob("*/multirun.yaml")):
+        try:
+            task = yamlsafe.load_file(path)["hydra"]["overrides"]["task"]
+        except (yamlsafe.YamlLimitError, yaml.YAMLError, KeyError, TypeError) as exc:
+            raise StudyError(f"{path}: not a Hydra multirun record ({exc}); "
+                             "repair or remove its folder") from None
+        task = [str(a) for a in task or []]
+        commands.append(["-m", *task, f"hydra.sweep.dir={_display_path(path.parent, root)}"])
+    return commands
+
+
+def _portable(argv: list[str], root: Path) -> list[str]:
+    """``argv`` with its ``hydra.sweep.dir`` relative to ``root`` where it lies inside it."""
+    return [f"hydra.sweep.dir={_display_path(Path(a.split('=', 1)[1]), root)}"
+            if a.startswith("hydra.sweep.dir=") else a for a in argv]
 
 
 def _command_subdir(argv: list[str]) -> str:

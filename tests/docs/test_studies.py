@@ -265,6 +265,36 @@ def test_a_command_added_to_a_merged_study_extends_its_data_and_provenance(tmp_p
     assert set(pq.read_table(alone).to_pandas()["param"]) == {"geagsp"}
 
 
+def test_a_merge_records_the_commands_hydra_recorded_in_the_run_directory(tmp_path):
+    """Without commands given (runs made before the merge) each run subdir's
+    ``multirun.yaml`` names the command that ran into it, its sweep directory relative to
+    the repository; an extended merge puts it beside the commands recorded before. A
+    damaged record is one study error."""
+    _tiny_study(tmp_path)
+    dest = tmp_path / "studies" / "tiny"
+    first = _zermelo_jobs(tmp_path / "run" / "first", "diagonal")
+    studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "run", dest=dest,
+                        commands=[first], tables=False)
+    run = tmp_path / "outputs" / "added"
+    _zermelo_jobs(run / "added", "geagsp")
+    (run / "added" / "multirun.yaml").write_text(
+        "hydra:\n  overrides:\n    hydra: [hydra.mode=MULTIRUN]\n"
+        "    task: [param=geagsp, runner.workers=2]\n")
+    studies.merge_study(tmp_path, "tiny", run_dir=run, dest=dest, tables=False, extend=True)
+    added = ["-m", "param=geagsp", "runner.workers=2", "hydra.sweep.dir=outputs/added/added"]
+    assert json.loads((dest / "provenance.json").read_text())["commands"] == [first, added]
+    (run / "added" / "multirun.yaml").write_text("hydra: [not, a, record]\n")
+    with pytest.raises(studies.StudyError, match="not a Hydra multirun record"):
+        studies.merge_study(tmp_path, "tiny", run_dir=run, dest=dest, tables=False)
+
+
+def test_a_run_study_records_its_sweep_directories_relative_to_the_repository(tmp_path):
+    argv = ["-m", "param=full", f"hydra.sweep.dir={tmp_path / 'outputs' / 'studies' / 'x'}"]
+    assert studies._portable(argv, tmp_path) == ["-m", "param=full",
+                                                 "hydra.sweep.dir=outputs/studies/x"]
+    assert studies._portable(argv, tmp_path / "elsewhere") == argv
+
+
 def test_an_extended_merge_records_the_machines_its_records_ran_on(tmp_path, monkeypatch):
     """Records merged before keep their machine beside the one an added command ran on; a
     rewrite with nothing run keeps the machines, versions, lock hash and re-judged data."""

@@ -34,14 +34,9 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from penaltyrun.docsgen.provenance import display_path, package_versions
 from penaltyrun.docsgen.rejudge import git_commit
-from penaltyrun.docsgen.studies import (
-    RESULTS,
-    StudyError,
-    _display_path,
-    load_study,
-    package_versions,
-)
+from penaltyrun.docsgen.studies import RESULTS, StudyError, load_study
 from penaltyrun.optim.probe import CLIFF, STEPS
 from penaltyrun.runner.options import resolve_workers
 
@@ -134,7 +129,7 @@ def probe_study(root: Path, name: str, *, workers: int | str = "auto",
     tmp = study.folder / (PROBE_PROVENANCE + ".tmp")
     tmp.write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")
     os.replace(tmp, study.folder / PROBE_PROVENANCE)
-    logger.info("probe %s: wrote %s", name, _display_path(path, root))
+    logger.info("probe %s: wrote %s", name, display_path(path, root))
     return path
 
 
@@ -186,7 +181,7 @@ def store_probes(root: Path, name: str, *, workers: int | str = "auto",
     info = {"git_commit": git_commit(root), "packages": package_versions(),
             "steps": list(steps), "points": len(rows)}
     path = storedprobe.write(study.folder / storedprobe.PROBE_FILE, rows, info)
-    logger.info("store-probes %s: wrote %s", name, _display_path(path, root))
+    logger.info("store-probes %s: wrote %s", name, display_path(path, root))
     return path
 
 

@@ -33,16 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from penaltyrun.docsgen.studies import (
-    RESULTS,
-    TABLES,
-    StudyError,
-    _display_path,
-    load_study,
-    machine,
-    package_versions,
-    write_tables,
-)
+from penaltyrun.docsgen.provenance import display_path, machine, package_versions
+from penaltyrun.docsgen.studies import RESULTS, TABLES, StudyError, load_study, write_tables
 from penaltyrun.io.longholdout import LONG_FILE, LONG_PROVENANCE
 from penaltyrun.problems.hooks import hooks
 from penaltyrun.runner.options import resolve_workers
@@ -233,9 +225,9 @@ def rejudge_study(root: Path, name: str, *, jobs: str = "all", workers: int | st
     if tables:
         with tempfile.TemporaryDirectory(prefix="rejudge-") as tmpdir:
             write_tables(results, Path(tmpdir), study.folder / TABLES,
-                         label=_display_path(results, root))
+                         label=display_path(results, root))
     logger.info("rejudge %s: wrote %s (%d jobs, %d failed, %.0f CPU s)", name,
-                _display_path(study.folder / LONG_FILE, root), len(frame), len(failed),
+                display_path(study.folder / LONG_FILE, root), len(frame), len(failed),
                 info["cpu_s"])
     return study.folder / LONG_FILE
 

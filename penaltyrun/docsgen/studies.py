@@ -25,12 +25,9 @@ the tests run to prove that every study can still be regenerated.
 
 from __future__ import annotations
 
-import hashlib
-import importlib.metadata
 import json
 import logging
 import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -39,6 +36,15 @@ from pathlib import Path
 from typing import Any
 
 from penaltyrun import yamlsafe
+from penaltyrun.docsgen.provenance import (
+    display_path,
+    extended_commands,
+    extended_machines,
+    portable,
+    previous_commands,
+    previous_machines,
+    write_provenance,
+)
 from penaltyrun.io.longholdout import LONG_FILE, LONG_PROVENANCE
 
 logger = logging.getLogger(__name__)
@@ -46,11 +52,6 @@ logger = logging.getLogger(__name__)
 STUDY_FILE = "study.yaml"
 RESULTS = "results.parquet"
 TABLES = "tables"
-PROVENANCE = "provenance.json"
-LOCK_FILE = "requirements.lock"
-#: Packages whose versions the provenance file records.
-PACKAGES = ("numpy", "scipy", "numba", "pyswarms", "pandas", "pyarrow", "hydra-core",
-            "omegaconf", "matplotlib", "dask", "distributed")
 
 
 class StudyError(RuntimeError):
@@ -226,7 +227,7 @@ def run_study(root: Path, name: str, *, run_dir: Path | None = None, resume: boo
     """
     study = load_study(root, name)
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
-    ran = [_portable(run_command(c, run_dir, resume=resume, workers=workers, reduced=reduced,
+    ran = [portable(run_command(c, run_dir, resume=resume, workers=workers, reduced=reduced,
                                  extra=list(extra or [])), root)
            for c in selected_commands(study, only)]
     return merge_study(root, name, run_dir=run_dir, dest=dest, commands=ran, tables=tables,
@@ -277,8 +278,9 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
         frame = both[~both.duplicated(subset=["job_id", "config_hash"], keep="first")]
         logger.info("study %s: %d records from %s, %d more kept from %s", name, ran,
                     run_dir, len(frame) - ran, dest / RESULTS)
-        commands = _extended_commands(_previous_commands(dest), commands, study)
-        machines = _extended_machines(_previous_machines(dest), ran_here=ran > 0)
+        commands = extended_commands(previous_commands(dest), commands,
+                                     [c.subdir for c in study.commands])
+        machines = extended_machines(previous_machines(dest), ran_here=ran > 0)
     if kept is None or ran:  # the re-judged data judged the records replaced
         for stale in (LONG_FILE, LONG_PROVENANCE):
             if (dest / stale).is_file():
@@ -295,7 +297,7 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     os.replace(tmp, dest / RESULTS)
     if tables:
         write_tables(dest / RESULTS, run_dir / "report", dest / TABLES,
-                     label=_display_path(dest / RESULTS, root))
+                     label=display_path(dest / RESULTS, root))
     write_provenance(root, dest, frame, commands, machines,
                      rewritten=kept is not None and not ran)
     logger.info("study %s: %d records, %.1f MB", name, len(frame),
@@ -320,36 +322,8 @@ def rebuild_tables(root: Path, name: str) -> Path:
         raise StudyError(f"study {name!r} has no {RESULTS} (run `{study.make_target}`)")
     with tempfile.TemporaryDirectory(prefix="tables-") as tmp:
         write_tables(results, Path(tmp), study.folder / TABLES,
-                     label=_display_path(results, root))
+                     label=display_path(results, root))
     return study.folder / TABLES
-
-
-def _recorded(dest: Path) -> dict[str, Any]:
-    """``<dest>/provenance.json`` as written (empty without one)."""
-    path = dest / PROVENANCE
-    return json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
-
-
-def _previous_commands(dest: Path) -> list[list[str]]:
-    """The commands recorded in ``<dest>/provenance.json`` (none without one)."""
-    return list(_recorded(dest).get("commands") or [])
-
-
-def _previous_machines(dest: Path) -> list[dict[str, Any]]:
-    """The machines recorded in ``<dest>/provenance.json`` (none without one)."""
-    info = _recorded(dest)
-    return list(info.get("machines") or ([info["machine"]] if info.get("machine") else []))
-
-
-def _extended_machines(previous: list[dict[str, Any]], *,
-                       ran_here: bool) -> list[dict[str, Any]]:
-    """The machines of an extended merge's records: those recorded before, and this one
-    where records were run here (a machine counted once by CPU model and cores)."""
-    here = machine()
-    known = {(m.get("cpu"), m.get("cores")) for m in previous}
-    if not previous or (ran_here and (here["cpu"], here["cores"]) not in known):
-        return [*previous, here]
-    return previous
 
 
 def commands_in_run_dir(run_dir: Path, root: Path) -> list[list[str]]:
@@ -365,32 +339,8 @@ def commands_in_run_dir(run_dir: Path, root: Path) -> list[list[str]]:
             raise StudyError(f"{path}: not a Hydra multirun record ({exc}); "
                              "repair or remove its folder") from None
         task = [str(a) for a in task or []]
-        commands.append(["-m", *task, f"hydra.sweep.dir={_display_path(path.parent, root)}"])
+        commands.append(["-m", *task, f"hydra.sweep.dir={display_path(path.parent, root)}"])
     return commands
-
-
-def _portable(argv: list[str], root: Path) -> list[str]:
-    """``argv`` with its ``hydra.sweep.dir`` relative to ``root`` where it lies inside it."""
-    return [f"hydra.sweep.dir={_display_path(Path(a.split('=', 1)[1]), root)}"
-            if a.startswith("hydra.sweep.dir=") else a for a in argv]
-
-
-def _command_subdir(argv: list[str]) -> str:
-    """The subdir a recorded command ran into (the last part of its ``hydra.sweep.dir``)."""
-    for arg in argv:
-        if arg.startswith("hydra.sweep.dir="):
-            return Path(arg.split("=", 1)[1]).name
-    return ""
-
-
-def _extended_commands(previous: list[list[str]], ran: list[list[str]] | None,
-                       study: Study) -> list[list[str]]:
-    """The recorded commands with each of ``ran`` in place of the one of its subdir, in the
-    order of the study's commands (commands of subdirs it no longer has last)."""
-    by_subdir = {_command_subdir(c): c for c in previous}
-    by_subdir.update({_command_subdir(c): c for c in ran or []})
-    order = {c.subdir: k for k, c in enumerate(study.commands)}
-    return [by_subdir[s] for s in sorted(by_subdir, key=lambda s: order.get(s, len(order)))]
 
 
 def write_tables(results: Path, report_dir: Path, tables_dir: Path,
@@ -407,67 +357,3 @@ def write_tables(results: Path, report_dir: Path, tables_dir: Path,
     for path in sorted(report_dir.iterdir()):
         if path.suffix in (".csv", ".md") and path.is_file():
             shutil.copy2(path, tables_dir / path.name)
-
-
-def _display_path(path: Path, root: Path) -> str:
-    """``path`` relative to the repository ``root`` when it lies inside it, else as given."""
-    try:
-        return Path(path).resolve().relative_to(Path(root).resolve()).as_posix()
-    except ValueError:
-        return str(path)
-
-
-def machine() -> dict[str, Any]:
-    """The machine a study ran on: CPU model, cores, OS, Python."""
-    model = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    from penaltyrun.runner.options import available_cores
-    return {"cpu": model, "cores": available_cores(), "os": platform.platform(),
-            "python": platform.python_version()}
-
-
-def package_versions() -> dict[str, str]:
-    """Installed versions of :data:`PACKAGES` (absent ones left out) and penaltyrun's."""
-    out = {}
-    for name in ("penaltyrun", *PACKAGES):
-        try:
-            out[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            continue
-    return out
-
-
-def write_provenance(root: Path, dest: Path, frame: Any,
-                     commands: list[list[str]] | None,
-                     machines: list[dict[str, Any]] | None = None, *,
-                     rewritten: bool = False) -> None:
-    """``provenance.json``: machines, versions, lock-file hash, commits in the data, counts.
-
-    ``machines`` are those the records ran on, for an extended merge (default: this one);
-    ``machine`` is the first of them. ``rewritten``: the records are those merged before
-    (nothing run), so the recorded versions and lock-file hash are kept.
-    """
-    lock = Path(root) / LOCK_FILE
-    machines = machines or [machine()]
-    info = {"machine": machines[0], "machines": machines, "packages": package_versions(),
-            "lock_sha256": hashlib.sha256(lock.read_bytes()).hexdigest()
-            if lock.is_file() else None,
-            "git_commits": sorted({str(c) for c in frame["git_commit"].dropna()}),
-            # the versions each record carries, where the schema has a packages column
-            "packages_in_records": sorted({str(p) for p in frame["packages"].dropna()})
-            if "packages" in frame else [],
-            "jobs": int(len(frame)),
-            "status": {str(k): int(v) for k, v in frame["status"].value_counts().items()},
-            "commands": commands}
-    if commands is None:
-        info["commands"] = _previous_commands(dest) or None
-    if rewritten:
-        before = _recorded(dest)
-        info.update({k: before[k] for k in ("packages", "lock_sha256") if k in before})
-    (dest / PROVENANCE).write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")

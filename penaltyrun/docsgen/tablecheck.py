@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from penaltyrun.docsgen.studies import RESULTS, TABLES, _display_path, list_studies, load_study
+from penaltyrun.docsgen.provenance import display_path
+from penaltyrun.docsgen.studies import RESULTS, TABLES, list_studies, load_study
 
 #: Relative tolerance of the numbers in a recomputed table.
 RTOL = 1e-9
@@ -81,11 +82,11 @@ def check_study(root: Path, name: str) -> list[str]:
     results, tables = study.folder / RESULTS, study.folder / TABLES
     if not results.is_file() or not tables.is_dir():
         return []
-    label = _display_path(results, root)
+    label = display_path(results, root)
     with tempfile.TemporaryDirectory(prefix="check-tables-") as tmp:
         fresh = Path(tmp) / TABLES
         write_tables(results, Path(tmp) / "report", fresh, label=label)
-        shown = _display_path(tables, root)
+        shown = display_path(tables, root)
         problems = []
         committed_csv = {p.name for p in tables.glob("*.csv")}
         fresh_csv = {p.name for p in fresh.glob("*.csv")}

@@ -11,7 +11,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from penaltyrun.docsgen import resultpages, studies, studydata
+from penaltyrun.docsgen import provenance, resultpages, studies, studydata
 
 ROOT = Path(__file__).resolve().parents[2]
 CONF = ROOT / "penaltyrun" / "conf"
@@ -51,9 +51,9 @@ def test_committed_reports_name_their_source_inside_the_repository():
 
 def test_display_path_is_repository_relative_inside_and_unchanged_outside(tmp_path):
     inside = ROOT / "studies" / "x" / "results.parquet"
-    assert studies._display_path(inside, ROOT) == "studies/x/results.parquet"
+    assert provenance.display_path(inside, ROOT) == "studies/x/results.parquet"
     outside = tmp_path / "results.parquet"
-    assert studies._display_path(outside, ROOT) == str(outside)
+    assert provenance.display_path(outside, ROOT) == str(outside)
 
 
 def test_unknown_study_is_one_clear_error():
@@ -290,9 +290,9 @@ def test_a_merge_records_the_commands_hydra_recorded_in_the_run_directory(tmp_pa
 
 def test_a_run_study_records_its_sweep_directories_relative_to_the_repository(tmp_path):
     argv = ["-m", "param=full", f"hydra.sweep.dir={tmp_path / 'outputs' / 'studies' / 'x'}"]
-    assert studies._portable(argv, tmp_path) == ["-m", "param=full",
+    assert provenance.portable(argv, tmp_path) == ["-m", "param=full",
                                                  "hydra.sweep.dir=outputs/studies/x"]
-    assert studies._portable(argv, tmp_path / "elsewhere") == argv
+    assert provenance.portable(argv, tmp_path / "elsewhere") == argv
 
 
 def test_an_extended_merge_records_the_machines_its_records_ran_on(tmp_path, monkeypatch):
@@ -302,11 +302,11 @@ def test_an_extended_merge_records_the_machines_its_records_ran_on(tmp_path, mon
     dest = tmp_path / "studies" / "tiny"
     before = {"cpu": "cpu A", "cores": 2, "os": "os", "python": "3.11"}
     later = {"cpu": "cpu B", "cores": 4, "os": "os", "python": "3.11"}
-    monkeypatch.setattr(studies, "machine", lambda: dict(before))
+    monkeypatch.setattr(provenance, "machine", lambda: dict(before))
     first = _zermelo_jobs(tmp_path / "run" / "first", "diagonal")
     studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "run", dest=dest,
                         commands=[first], tables=False)
-    monkeypatch.setattr(studies, "machine", lambda: dict(later))
+    monkeypatch.setattr(provenance, "machine", lambda: dict(later))
     added = _zermelo_jobs(tmp_path / "later" / "added", "geagsp")
     studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "later", dest=dest,
                         commands=[added], tables=False, extend=True)
@@ -315,7 +315,7 @@ def test_an_extended_merge_records_the_machines_its_records_ran_on(tmp_path, mon
     info["packages"], info["lock_sha256"] = {"numpy": "0.0-recorded"}, "recorded"
     (dest / "provenance.json").write_text(json.dumps(info))
     (dest / "holdout_long.parquet").write_bytes(b"re-judged these very records")
-    monkeypatch.setattr(studies, "machine", lambda: {"cpu": "cpu C", "cores": 8})
+    monkeypatch.setattr(provenance, "machine", lambda: {"cpu": "cpu C", "cores": 8})
     studies.merge_study(tmp_path, "tiny", run_dir=tmp_path / "nothing", dest=dest,
                         tables=False, extend=True)
     again = json.loads((dest / "provenance.json").read_text())

@@ -27,6 +27,10 @@ BUDGET_CHECK_COLUMNS = ["problem", "case", "map", "optimizer", "evaluations per 
                         "median: change (%)", "late gain (%)"]
 #: Columns of :func:`budget_check` shown outside a fold on the results pages.
 BUDGET_CHECK_MAIN = tuple(c for c in BUDGET_CHECK_COLUMNS if c != "starts")
+#: Columns of :func:`holdout_by_budget`.
+HOLDOUT_BY_BUDGET_COLUMNS = ["problem", "case", "variant", "full records up to", "full cost",
+                             "scenarios", "full cheaper", "median J_full/J_diag", "Holm p",
+                             "verdict"]
 
 
 def late_gain(frame: pd.DataFrame, share: float = 0.5) -> float:
@@ -219,11 +223,76 @@ def budget_effect(frame: pd.DataFrame) -> float:
     return float((100.0 * (first - every) / every.abs()).max())
 
 
+def holdout_by_budget(frame: pd.DataFrame, alpha: float = 0.05) -> pd.DataFrame:
+    """The held-out verdict had the study stopped at each budget its full cells ran at.
+
+    For each problem × case × problem variant whose full-map records ran at more than one
+    budget, and each such budget b: the best-known full start among the full records at
+    budgets up to b (every optimizer) against the best-known diagonal start (every
+    record), paired over the held-out scenarios as the best-known row of the results
+    pages: full cheaper on k of n, the median of J_full / J_diag, the two-sided Wilcoxon
+    signed-rank test of the log ratios with Holm's correction over the rows of this table,
+    and the verdict at ``alpha`` ("full cheaper", "diagonal cheaper" or "no evidence of a
+    difference"). Empty (:data:`HOLDOUT_BY_BUDGET_COLUMNS`) where no full map ran at two
+    budgets or the records carry no held-out data.
+    """
+    from penaltyrun.report import protocol
+    from penaltyrun.report.bestknown import best_rows
+    from penaltyrun.report.holdout import ratio_stats, scenario_table
+    from penaltyrun.report.stats import add_variant, holm
+
+    rows = []
+    if "max_evals" in frame and "holdout" in frame:
+        frame = add_variant(frame[frame["holdout"].notna()])
+        for (problem, case, variant), g in frame.groupby(
+                ["problem", "case", "problem_variant"], sort=True):
+            full = g[g["param"] != "diagonal"]
+            budgets_run = sorted(full["max_evals"].dropna().unique())
+            diagonal = best_rows(g[g["param"] == "diagonal"]).get("diagonal")
+            if len(budgets_run) < 2 or diagonal is None:
+                continue
+            drop = protocol.info_of(g).discretization_kinds
+            dtab = scenario_table(diagonal["holdout"], drop)
+            for budget in budgets_run:
+                best = best_rows(full[full["max_evals"] <= budget]).get("full")
+                ftab = None if best is None else scenario_table(best["holdout"], drop)
+                if dtab is None or ftab is None:
+                    continue
+                common = dtab.index.intersection(ftab.index)
+                stats = ratio_stats(dtab.loc[common, "cost"].to_numpy(float),
+                                    ftab.loc[common, "cost"].to_numpy(float))
+                rows.append({"problem": problem, "case": case, "variant": variant,
+                             "full records up to": f"{budget:.0f}",
+                             "full cost": float(best["best_cost"]),
+                             "scenarios": len(common),
+                             "full cheaper": f"{stats['full_cheaper']}/{len(common)}",
+                             "median J_full/J_diag": stats["ratio_median"],
+                             "Holm p": stats["ratio_p"]})
+    table = pd.DataFrame(rows, columns=HOLDOUT_BY_BUDGET_COLUMNS)
+    if not table.empty:
+        table["Holm p"] = holm(table["Holm p"].to_numpy(float))
+        table["verdict"] = [
+            "no evidence of a difference" if not p < alpha
+            else ("full cheaper" if ratio < 1 else "diagonal cheaper")
+            for p, ratio in zip(table["Holm p"], table["median J_full/J_diag"])]
+    return table
+
+
+def verdict_stability(table: pd.DataFrame) -> tuple[int, int]:
+    """(cases whose verdict is the same at every budget, cases) of a
+    :func:`holdout_by_budget` table, a case being one problem × case × variant."""
+    if table.empty:
+        return 0, 0
+    verdicts = table.groupby(["problem", "case", "variant"], sort=True)["verdict"].nunique()
+    return int((verdicts == 1).sum()), int(len(verdicts))
+
+
 def _converged(frame: pd.DataFrame) -> pd.DataFrame:
     """The finished starts of ``frame`` that converged."""
     return frame[(frame["status"] == OK) & frame["best_converged"].astype(bool)]
 
 
-__all__ = ["BUDGET_CHECK_COLUMNS", "BUDGET_CHECK_MAIN", "CELL_KEYS", "at_largest_budget",
-           "budget_check", "budget_effect", "budgets", "cells", "largest_late_gain",
-           "late_gain", "rows_of", "search_window"]
+__all__ = ["BUDGET_CHECK_COLUMNS", "BUDGET_CHECK_MAIN", "CELL_KEYS",
+           "HOLDOUT_BY_BUDGET_COLUMNS", "at_largest_budget", "budget_check", "budget_effect",
+           "budgets", "cells", "holdout_by_budget", "largest_late_gain",
+           "late_gain", "rows_of", "search_window", "verdict_stability"]

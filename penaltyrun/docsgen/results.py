@@ -332,6 +332,18 @@ class Context:
             frame, ".4g", main=list(convergence.BUDGET_CHECK_MAIN),
             keys=list(convergence.BUDGET_CHECK_COLUMNS[:5]))
 
+    def holdout_by_budget(self, name: str) -> dict[str, Any]:
+        """:func:`.convergence.holdout_by_budget` of the study's records: ``table``
+        (Markdown, the variant and scenario count behind a fold; empty without such
+        cases), ``same`` and ``cases`` (:func:`.convergence.verdict_stability`)."""
+        frame = convergence.holdout_by_budget(self.study(name).df)
+        same, cases = convergence.verdict_stability(frame)
+        main = [c for c in convergence.HOLDOUT_BY_BUDGET_COLUMNS
+                if c not in ("variant", "scenarios")]
+        table = "" if frame.empty else narrow_table(
+            frame, ".4g", main=main, keys=["problem", "case", "full records up to"])
+        return {"table": table, "same": same, "cases": cases}
+
     def budget_effect(self, name: str) -> float:
         """:func:`.convergence.budget_effect` of the study's records."""
         return convergence.budget_effect(self.study(name).df)

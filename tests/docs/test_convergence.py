@@ -69,3 +69,37 @@ def test_the_late_gain_of_a_best_known_cell_is_over_all_its_starts():
     frame["trace_best"] = [np.array([2.0, 1.0]), np.array([1.2]), np.array([1.4])]
     assert convergence.largest_late_gain(frame, frame["job_id"].iloc[:1]) == 0.0
     assert convergence.largest_late_gain(frame) == 0.0
+
+
+def _held_out(costs: list[float]) -> str:
+    import json
+    return json.dumps({"scenario": [f"s{k}" for k in range(len(costs))], "cost": costs,
+                       "converged": [True] * len(costs), "horizon": 50.0})
+
+
+def test_holdout_by_budget_judges_the_best_full_point_of_each_budget():
+    """Each budget's row pairs the best full start of the records up to that budget with
+    the best diagonal start over the held-out scenarios; a later, better-trained full
+    point that costs more off the training set turns the verdict, which the stability
+    count reports."""
+    n = 12
+    rows = [("diagonal", 100, 2.0, [1.0] * n), ("givens", 100, 1.5, [0.5] * n),
+            ("givens", 100, 1.8, [3.0] * n), ("givens", 400, 1.2, [2.0] * n)]
+    frame = pd.concat([_records(param, budget, [cost]).assign(
+        problem="zermelo", case="default", problem_params="{}", job_id=f"j{k}",
+        holdout=_held_out(held)) for k, (param, budget, cost, held) in enumerate(rows)],
+        ignore_index=True)
+    table = convergence.holdout_by_budget(frame)
+    assert list(table.columns) == convergence.HOLDOUT_BY_BUDGET_COLUMNS
+    assert table["full records up to"].tolist() == ["100", "400"]
+    assert table["full cost"].tolist() == [1.5, 1.2]
+    assert table["full cheaper"].tolist() == [f"{n}/{n}", f"0/{n}"]
+    assert table["median J_full/J_diag"].tolist() == pytest.approx([0.5, 2.0])
+    # twelve equal signs: exact two-sided signed-rank p = 2 / 2**12, Holm over two rows
+    assert table["Holm p"].tolist() == pytest.approx([2 * 2 / 2 ** n] * 2)
+    assert table["verdict"].tolist() == ["full cheaper", "diagonal cheaper"]
+    assert convergence.verdict_stability(table) == (0, 1)
+    same = frame.assign(holdout=[_held_out(h) for h in ([1.0] * n, [0.5] * n, [3.0] * n,
+                                                        [0.6] * n)])
+    assert convergence.verdict_stability(convergence.holdout_by_budget(same)) == (1, 1)
+    assert convergence.holdout_by_budget(frame[frame["max_evals"] == 100]).empty

@@ -278,8 +278,8 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
         frame = both[~both.duplicated(subset=["job_id", "config_hash"], keep="first")]
         logger.info("study %s: %d records from %s, %d more kept from %s", name, ran,
                     run_dir, len(frame) - ran, dest / RESULTS)
-        commands = extended_commands(previous_commands(dest), commands,
-                                     [c.subdir for c in study.commands])
+        commands = [portable(c, root) for c in extended_commands(
+            previous_commands(dest), commands, [c.subdir for c in study.commands])]
         machines = extended_machines(previous_machines(dest), ran_here=ran > 0)
     if kept is None or ran:  # the re-judged data judged the records replaced
         for stale in (LONG_FILE, LONG_PROVENANCE):

@@ -248,6 +248,9 @@ def test_a_command_added_to_a_merged_study_extends_its_data_and_provenance(tmp_p
     assert sorted(frame["param"]) == ["diagonal", "diagonal", "geagsp", "geagsp"]
     assert frame["job_id"].is_unique
     info = json.loads((dest / "provenance.json").read_text())
+    # sweep directories inside the repository are recorded relative to it
+    first, added = ([*c[:-1], f"hydra.sweep.dir={d}"] for c, d in
+                    ((first, "run/first"), (added, "later/added")))
     assert info["commands"] == [first, added] and info["jobs"] == 4
     assert not (dest / "holdout_long.parquet").exists()
     study_file = dest / "study.yaml"
@@ -282,6 +285,8 @@ def test_a_merge_records_the_commands_hydra_recorded_in_the_run_directory(tmp_pa
         "    task: [param=geagsp, runner.workers=2]\n")
     studies.merge_study(tmp_path, "tiny", run_dir=run, dest=dest, tables=False, extend=True)
     added = ["-m", "param=geagsp", "runner.workers=2", "hydra.sweep.dir=outputs/added/added"]
+    # the command recorded before, with its absolute sweep directory, now relative too
+    first = [*first[:-1], "hydra.sweep.dir=run/first"]
     assert json.loads((dest / "provenance.json").read_text())["commands"] == [first, added]
     (run / "added" / "multirun.yaml").write_text("hydra: [not, a, record]\n")
     with pytest.raises(studies.StudyError, match="not a Hydra multirun record"):

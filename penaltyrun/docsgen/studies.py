@@ -227,9 +227,8 @@ def run_study(root: Path, name: str, *, run_dir: Path | None = None, resume: boo
     """
     study = load_study(root, name)
     run_dir = Path(run_dir) if run_dir else Path(root) / "outputs" / "studies" / name
-    ran = [portable(run_command(c, run_dir, resume=resume, workers=workers, reduced=reduced,
-                                 extra=list(extra or [])), root)
-           for c in selected_commands(study, only)]
+    ran = [run_command(c, run_dir, resume=resume, workers=workers, reduced=reduced,
+                       extra=list(extra or [])) for c in selected_commands(study, only)]
     return merge_study(root, name, run_dir=run_dir, dest=dest, commands=ran, tables=tables,
                        extend=extend)
 
@@ -270,7 +269,7 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
             raise
         frame = None  # nothing run: the merged records alone (e.g. with new drop_columns)
     if commands is None and frame is not None:
-        commands = commands_in_run_dir(run_dir, root) or None
+        commands = commands_in_run_dir(run_dir) or None
     if kept is not None:
         ran = 0 if frame is None else len(frame)
         both = pd.concat([f for f in (frame, read_results(kept)) if f is not None],
@@ -278,8 +277,8 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
         frame = both[~both.duplicated(subset=["job_id", "config_hash"], keep="first")]
         logger.info("study %s: %d records from %s, %d more kept from %s", name, ran,
                     run_dir, len(frame) - ran, dest / RESULTS)
-        commands = [portable(c, root) for c in extended_commands(
-            previous_commands(dest), commands, [c.subdir for c in study.commands])]
+        commands = extended_commands(previous_commands(dest), commands,
+                                     [c.subdir for c in study.commands])
         machines = extended_machines(previous_machines(dest), ran_here=ran > 0)
     if kept is None or ran:  # the re-judged data judged the records replaced
         for stale in (LONG_FILE, LONG_PROVENANCE):
@@ -298,6 +297,8 @@ def merge_study(root: Path, name: str, *, run_dir: Path | None = None, dest: Pat
     if tables:
         write_tables(dest / RESULTS, run_dir / "report", dest / TABLES,
                      label=display_path(dest / RESULTS, root))
+    if commands is not None:  # sweep directories recorded relative to the repository
+        commands = [portable(c, root) for c in commands]
     write_provenance(root, dest, frame, commands, machines,
                      rewritten=kept is not None and not ran)
     logger.info("study %s: %d records, %.1f MB", name, len(frame),
@@ -326,9 +327,9 @@ def rebuild_tables(root: Path, name: str) -> Path:
     return study.folder / TABLES
 
 
-def commands_in_run_dir(run_dir: Path, root: Path) -> list[list[str]]:
+def commands_in_run_dir(run_dir: Path) -> list[list[str]]:
     """The commands that ran into the subdirs of ``run_dir``, read from each subdir's Hydra
-    ``multirun.yaml`` (its task overrides; the sweep directory relative to ``root``)."""
+    ``multirun.yaml`` (its task overrides and sweep directory)."""
     import yaml
 
     commands = []
@@ -339,7 +340,7 @@ def commands_in_run_dir(run_dir: Path, root: Path) -> list[list[str]]:
             raise StudyError(f"{path}: not a Hydra multirun record ({exc}); "
                              "repair or remove its folder") from None
         task = [str(a) for a in task or []]
-        commands.append(["-m", *task, f"hydra.sweep.dir={display_path(path.parent, root)}"])
+        commands.append(["-m", *task, f"hydra.sweep.dir={path.parent}"])
     return commands
 
 

@@ -61,7 +61,10 @@ class TrainingParams:
     train_aggregate : str
         ``"mean"``, ``"max"`` or ``"quantile"`` of the per-scenario costs.
     train_sample : int
-        Further training scenarios drawn by the problem's ``sample_training`` (0: none).
+        Further training scenarios drawn by the problem's ``sample_training`` (0: none),
+        some problems with the sizes of their held-out set (attitude: the case's state
+        perturbed by ``holdout_perturb_deg``, ``holdout_rate_rel``; MPC: starts on the
+        held-out sphere); reports then split cells by those held-out parameters too.
     train_seed : int
         Seed of that sample (different from the held-out seeds).
     train_quantile : float or None

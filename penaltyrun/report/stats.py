@@ -56,6 +56,11 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     :func:`_join_warm_diagonals`) and, within one optimizer, other optimizer settings
     (budgets).
 
+    A problem's ``VARIANT_IGNORE`` names parameters of its held-out evaluation, which do
+    not change what a run tunes; one of them that shapes the training scenarios a run
+    draws (``train_sample``: an attitude problem perturbs its case's state by the held-out
+    sizes) does, and is part of the label (:func:`_shapes_training`).
+
     Nothing named in the data is imported (:mod:`penaltyrun.problems.trust`): a problem
     whose module is not imported gets its label from the stored parameters alone.
     """
@@ -73,9 +78,12 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
                 raise LookupError(problem)
             ignore = getattr(mod, "VARIANT_IGNORE", ())
             default = asdict(protocol.make(problem, case, {}).params)
-            used = asdict(protocol.make(problem, case, params).params)
+            built = protocol.make(problem, case, params)
+            used = asdict(built.params)
             diff = [f"{k}={used[k]}" for k in sorted(used)
-                    if used[k] != default[k] and k not in ignore]
+                    if used[k] != default[k] and (
+                        k not in ignore or _shapes_training(built, problem, case, params, k,
+                                                            default[k]))]
             labels[key] = ",".join(diff)
         except Exception:  # module not importable, or old parameters: label from the data
             same = keys[(keys["problem"] == problem) & (keys["case"] == case)]
@@ -87,6 +95,20 @@ def add_variant(df: pd.DataFrame) -> pd.DataFrame:
     out["variant"] = [",".join(part for part in (v, _warm_label(w)) if part)
                       for v, w in zip(out["problem_variant"], warm)]
     return _add_budget_variant(_join_warm_diagonals(out))
+
+
+def _shapes_training(built: Any, problem: str, case: str, params: Any, key: str,
+                     default: Any) -> bool:
+    """Whether the problem parameter ``key`` shapes the training scenarios that ``built``
+    (rebuilt from the stored ``params``) drew: the scenarios it draws with ``key`` at its
+    ``default`` differ. False for a problem that drew none (no ``train_sample``)."""
+    from penaltyrun.report import protocol
+
+    drawn = getattr(built, "overrides", None)
+    if not getattr(built.params, "train_sample", 0) or drawn is None:
+        return False
+    other = protocol.make(problem, case, {**protocol.params_of(params), key: default})
+    return getattr(other, "overrides", None) != drawn
 
 
 def _raw_label(params: Any, all_params: list[Any]) -> str:

@@ -29,6 +29,7 @@ from penaltyrun.report.compare import NO_TEST
 from penaltyrun.report.holdout import BEST_KNOWN, discretization_check
 from penaltyrun.report.rows import has, present
 from penaltyrun.report.tables import fmt, with_unit
+from penaltyrun.report.tuning import mode_label, training_of
 
 #: Significance level of the words in the sentences (the p-values are always printed).
 ALPHA = 0.05
@@ -182,6 +183,17 @@ def _evidence_words(d: Any, f: Any) -> str:
     return f"diagonal value: {d['evidence']}; full value: {f['evidence']}"
 
 
+def training_words(jobs: pd.DataFrame) -> str:
+    """What a verdict's gain was measured on: ``the training scenario``, or for a problem
+    variant tuned on several (``train_scenarios``, ``train_sample``) e.g. ``the training
+    scenarios (mean of 8)`` — the cost the optimizers minimized."""
+    params = jobs["problem_params"].dropna() if "problem_params" in jobs else pd.Series()
+    training = training_of(params.iloc[0]) if len(params) else {}
+    if not training:
+        return "the training scenario"
+    return f"the training scenarios ({mode_label(training).removeprefix('multi (')}"
+
+
 def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
              disc: dict | None, jobs: pd.DataFrame) -> str:
     """The answer of one verdict row in words, with its hedge."""
@@ -191,15 +203,16 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         return f"**{label}**: only {have} starts converged or ran: no comparison."
     gain = row["gain_pct"]
     evidence = _evidence_words(d, f)
+    trained = training_words(jobs)
     if abs(gain) <= 100.0 * CERTIFY_RTOL:
         head = (f"full and diagonal reach the same best-known cost within {CERTIFY_RTOL:g} "
                 f"({evidence})")
     elif gain > 0:
-        head = (f"on the training scenario the best-known full cost is {fmt(gain, 3)} % below "
+        head = (f"on {trained} the best-known full cost is {fmt(gain, 3)} % below "
                 f"the diagonal's ({with_unit(d['best_known'], row['unit'])} → "
                 f"{with_unit(f['best_known'], row['unit'])}; {evidence})")
     else:
-        head = (f"full is {fmt(-gain, 3)} % worse on the training scenario ({evidence}); the "
+        head = (f"full is {fmt(-gain, 3)} % worse on {trained} ({evidence}); the "
                 "diagonal set lies inside the full set, so this is an optimizer shortfall, "
                 f"not a property of the map ({stop_advice(jobs[jobs['param'] != 'diagonal'])})")
     parts = [head]
@@ -208,11 +221,11 @@ def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,
         if np.isfinite(p) and p < ALPHA and h["ratio_median"] > 1.0:
             parts.append(("but " if gain > 0 else "and ") + "from the held-out scenarios full "
                          f"costs more ({ratio_words(h)})" +
-                         (": the gain is specific to the training scenario" if gain > 0
+                         (f": the gain is specific to {trained}" if gain > 0
                           else ""))
         elif np.isfinite(p) and p < ALPHA:
             parts.append(f"and from the held-out scenarios full costs less "
-                         f"({ratio_words(h)}): the gain holds off the training scenario")
+                         f"({ratio_words(h)}): the gain holds off {trained}")
         else:
             parts.append("on the held-out scenarios there is no evidence of a difference "
                          f"({ratio_words(h)})")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -333,6 +334,36 @@ def test_add_variant_splits_cells_run_with_another_budget():
     assert variants[3:5] == ["iters=300,n_particles=100"] * 2
     # alone in its problem variant, the side budget is that cell's main budget
     assert variants[5] == "t_max=500.0"
+
+
+def _params_frame(problem, case, params):
+    n = len(params)
+    return pd.DataFrame({
+        "problem": [problem] * n, "case": [case] * n, "problem_params": params,
+        "optimizer": ["cmaes"] * n, "param": ["diagonal"] * n,
+        "optimizer_settings": ['{"max_evals": 600}'] * n})
+
+
+@pytest.mark.parametrize("problem, case, key, value", [
+    ("attitude_lyapunov", "rest_to_rest", "holdout_perturb_deg", 180.0),
+    ("attitude_lqr", "detumble", "holdout_rate_rel", 0.05),
+    ("mpc_rendezvous", "scaled", "holdout_sphere_radius_m", 500.0),
+])
+def test_a_held_out_size_that_shapes_the_drawn_training_set_splits_cells(
+        problem, case, key, value):
+    """A held-out parameter is no variant of a run, unless the run draws its training
+    scenarios with it (``train_sample``): then it changes what the run tunes."""
+    held_only = _params_frame(problem, case, ["{}", json.dumps({key: value})])
+    assert add_variant(held_only)["problem_variant"].tolist() == ["", ""]
+    sample = {"train_sample": 2, "train_seed": 3}
+    trained = _params_frame(problem, case, [json.dumps(sample),
+                                            json.dumps({**sample, key: value})])
+    labels = add_variant(trained)["problem_variant"].tolist()
+    assert labels[0] == "train_sample=2,train_seed=3"
+    assert labels[1] == f"{key}={value},train_sample=2,train_seed=3"
+    # a held-out size the drawn sample does not use stays out of the label
+    other = _params_frame(problem, case, [json.dumps({**sample, "holdout_seed": 5})])
+    assert add_variant(other)["problem_variant"].tolist() == [labels[0]]
 
 
 def test_add_variant_labels_a_warm_start_as_a_variant_of_its_own():

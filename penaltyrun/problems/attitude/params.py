@@ -113,7 +113,9 @@ class Params(ParamsMixin, TrainingParams, criteria.CriterionParams):
         state (attitude rotated about a random axis by up to ``holdout_perturb_deg``,
         each rate scaled by 1 ± up to ``holdout_rate_rel``); 0 = none.
     holdout_perturb_deg, holdout_rate_rel : float
-        Perturbation sizes (degrees; relative).
+        Perturbation sizes (degrees; relative), also those of the training states drawn
+        for ``train_sample`` (so with ``train_sample`` they change what a run tunes, and
+        reports split cells by them).
     holdout_seed : int
         Seed of the perturbations (the held-out set is the same for every job).
     holdout_horizon_factor, holdout_t_max_cap : float

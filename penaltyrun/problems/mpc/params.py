@@ -88,6 +88,9 @@ class Params(ParamsMixin, TrainingParams, criteria.CriterionParams):
         Held-out starts at rest on the sphere of radius ``holdout_sphere_radius_m``
         (seeded, uniform on the sphere); 0: none.
     holdout_sphere_radius_m : float
+        Radius of that sphere (m), also that of the training starts drawn for
+        ``train_sample`` (so with ``train_sample`` it changes what a run tunes, and
+        reports split cells by it).
     holdout_seed : int
         Seed of the sphere sample (same set for every job).
     holdout_eccentricities : tuple of float

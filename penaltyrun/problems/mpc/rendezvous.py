@@ -261,8 +261,9 @@ class RendezvousMPC:
         dict
             ``problem``, ``case``, ``cost`` (m/s), ``delta_v`` (m/s), ``converged``,
             ``status``, ``t_final`` (s), ``t_max`` (s), ``final_distance`` (m),
-            ``final_speed`` (m/s), ``qp_iterations``, ``cost_unit``, ``terminal_weight``
-            (P, 6×6 nested list, SI units). Under a well-posed criterion also
+            ``final_speed`` (m/s), ``qp_iterations``, ``cost_unit``, ``mpc_terminal_P``
+            (the MPC's own terminal cost P, the DARE solution, 6×6 nested list, SI units;
+            not the criterion's S). Under a well-posed criterion also
             ``criterion``, ``horizon`` (s), ``energy`` (m²/s³), and ``rho`` with
             ``arrival_time`` (s) or ``terminal_S`` (S) with ``terminal_cost``; the cost
             unit is then m²/s³.
@@ -273,7 +274,7 @@ class RendezvousMPC:
         res = self.run(H, F, sc) if ok else None
         out.update(self._summary(res, sc))
         out.update({"t_max": float(self.params.t_max), "cost_unit": COST_UNIT,
-                    "terminal_weight": P.tolist()})
+                    "mpc_terminal_P": P.tolist()})
         p = self.params
         if p.criterion != criteria.DEADLINE:
             out.update({"criterion": p.criterion, "cost_unit": mpc_criteria.COST_UNIT,

@@ -143,6 +143,25 @@ def test_arrival_after_a_long_step_is_located_on_the_method():
     assert res["arrival_time"] == pytest.approx(float(sol.t_events[0][0]), abs=1e-6)
 
 
+
+@pytest.mark.slow
+def test_a_slow_loops_arrival_at_the_default_tolerances():
+    """An overdamped PD loop (small Kp, large Kd) that reaches the target after about an
+    hour: the distance falls slowly there, so the integrator's state error near the
+    target (default ``atol``, the paper's) moves the arrival by more than for a fast loop
+    — under a millisecond, as the criteria page says — while the cost stays within 1e-6.
+    """
+    mats = {"Kp": np.array([[0.02137, 0.00952, 0.00678], [0.00952, 0.02253, -0.00893],
+                            [0.00678, -0.00893, 0.08668]]),
+            "Kd": np.array([[2.412, -0.590, 1.126], [-0.590, 1.512, -0.518],
+                            [1.126, -0.518, 2.346]])}
+    prob = lyapunov.make_problem("rest_to_rest", {"criterion": "time_energy"})
+    res = prob.evaluate(mats)
+    t_f, y_f = _reference(prob, np.array(res["gain"]), 10_000.0, event=True)
+    assert res["converged"] and t_f > 3000.0
+    assert res["arrival_time"] == pytest.approx(t_f, abs=1e-3)
+    assert res["cost"] == pytest.approx(y_f[7] + prob.params.rho * t_f, rel=1e-6)
+
 def test_time_energy_failure_is_the_graded_cost_at_the_cap():
     mats = {"Kp": np.eye(3), "Kd": 3.0 * np.eye(3)}
     prob = lyapunov.make_problem("rest_to_rest", {"criterion": "time_energy", "rho": 0.01,

@@ -88,6 +88,17 @@ def test_euler_convention_is_intrinsic_zyx():
                                [0.5, -0.5, 0.5, 0.5], atol=1e-15)
 
 
+def test_euler_angles_are_scipys_intrinsic_zyx():
+    """The documented convention: SciPy's ``from_euler("ZYX", ...)`` (up to q → −q)."""
+    from scipy.spatial.transform import Rotation
+
+    angles = np.random.default_rng(5).uniform(-180.0, 180.0, (50, 3))
+    xyzw = Rotation.from_euler("ZYX", angles, degrees=True).as_quat()
+    expected = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    expected *= np.where(expected[:, :1] < 0.0, -1.0, 1.0)
+    np.testing.assert_allclose(ac.euler_to_quaternion(angles), expected, atol=1e-14)
+
+
 def test_cases_and_overrides():
     assert lyap.CASES == ("detumble", "rest_to_rest", "schaub_detumble", "schaub_detumble_sat")
     assert lyap.DEFAULT_CASE == "detumble"

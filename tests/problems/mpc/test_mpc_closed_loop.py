@@ -55,7 +55,7 @@ def test_matches_independent_dense_reference(prob, seed):
     assert out["delta_v"] == pytest.approx(ref["delta_v"], rel=1e-9)
     np.testing.assert_allclose(sim["u"][:-1], ref["inputs"], rtol=0, atol=1e-11)
     np.testing.assert_allclose(sim["r"], ref["states"][:, :3], rtol=0, atol=1e-6)
-    np.testing.assert_allclose(out["terminal_weight"], ref["P"], rtol=1e-8,
+    np.testing.assert_allclose(out["mpc_terminal_P"], ref["P"], rtol=1e-8,
                                atol=1e-10 * np.abs(ref["P"]).max())
 
 

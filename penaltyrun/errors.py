@@ -45,6 +45,32 @@ class SignalInterrupt(KeyboardInterrupt):
         super().__init__(f"signal {signum}")
 
 
+def exit_exception_in(exc: BaseException) -> BaseException | None:
+    """The ``KeyboardInterrupt`` or ``SystemExit`` that ``exc`` was raised from, if any
+    (``exc`` itself, or along its chain of causes and contexts). A signal's exception
+    raised while compiled code held the interpreter can come back wrapped in an ordinary
+    one, e.g. ``SystemError: CPUDispatcher(...) returned a result with an exception set``
+    with the ``KeyboardInterrupt`` as its cause."""
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, (KeyboardInterrupt, SystemExit)):
+            return link
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
+    return None
+
+
+def raise_wrapped_exit(exc: BaseException) -> None:
+    """Raise the ``KeyboardInterrupt`` or ``SystemExit`` wrapped in the ordinary exception
+    ``exc`` (:func:`exit_exception_in`), if any: code that turns a failing evaluation into a
+    status calls it first, so that a Ctrl-C reaching compiled code still ends the job the
+    way an unwrapped one does."""
+    inner = exit_exception_in(exc)
+    if inner is not None and inner is not exc:
+        raise inner
+
+
 class RunInterruptedError(Exception):
     """A run stopped by the user (Ctrl-C / SIGINT, SIGTERM, SIGHUP); its finished jobs stay
     on disk.

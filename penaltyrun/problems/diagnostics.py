@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from penaltyrun.errors import raise_wrapped_exit
 from penaltyrun.problems.base import ClosedLoop
 from penaltyrun.problems.hooks import hooks
 
@@ -231,6 +232,7 @@ def record_columns(problem: Any, mats: Mapping[str, Any],
     try:
         return columns(closed_loop_of(problem, mats, scalars))
     except Exception as exc:  # a diagnostic must not lose the job's result
+        raise_wrapped_exit(exc)
         logger.warning("closed-loop diagnostics of %s failed: %s",
                        getattr(problem, "name", "problem"), exc)
         return dict.fromkeys(COLUMNS)

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from penaltyrun.errors import ConfigError
+from penaltyrun.errors import ConfigError, raise_wrapped_exit
 from penaltyrun.problems.base import (
     BatchEvaluation,
     CostGradient,
@@ -86,6 +86,7 @@ class CostProblem:
         try:
             value = float(np.asarray(self.cost(**mats, **scalars), dtype=float).reshape(()))
         except Exception as exc:  # a failing cost is a status, never a crash
+            raise_wrapped_exit(exc)
             return FAILURE_COST, "error", f"{type(exc).__name__}: {exc}"
         if not math.isfinite(value):
             return FAILURE_COST, "nonfinite", f"the cost returned {value}"
@@ -110,7 +111,8 @@ class CostProblem:
         one call per candidate, so the failures are found candidate by candidate."""
         try:
             values = np.asarray(self.cost(**mats, **scalars), dtype=float)
-        except Exception:
+        except Exception as exc:
+            raise_wrapped_exit(exc)
             return self._rows(mats, scalars, n)
         if values.shape != (n,):
             return self._rows(mats, scalars, n)
@@ -200,6 +202,7 @@ class GradientCostProblem(CostProblem):
                 by_matrix[spec.name] = 0.5 * (G + G.T)
             by_scalar = {spec.name: float(out[spec.name]) for spec in self.scalars}
         except Exception as exc:  # a failing gradient is a reason, never a crash
+            raise_wrapped_exit(exc)
             return CostGradient(cost, status, None, {},
                                 f"the gradient raised {type(exc).__name__}: {exc}")
         return CostGradient(cost, status, by_matrix, by_scalar, "")

@@ -38,6 +38,7 @@ import numpy as np
 from penaltyrun import optim
 from penaltyrun.optim.base import uniform_box
 from penaltyrun.problems.hooks import hooks
+from penaltyrun.runner import interrupts
 from penaltyrun.runner.options import available_cores
 from penaltyrun.runner.plan import Job, job_seed, warm_stage_budget
 from penaltyrun.runner.setup import build, build_layout
@@ -170,6 +171,7 @@ def time_candidates(problem: Any, layout: Any, n: int, seed: int, batch: int = 1
         return Timing(tuple(per_eval(uniform_box(rng, lb, ub, batch)) for _ in range(n)),
                       warm, batch=batch)
     except Exception as exc:  # reported in the forecast; the run itself records failures
+        interrupts.reraise_run_signal(exc)
         return Timing(error=f"timing failed: {type(exc).__name__}: {exc}")
 
 
@@ -184,6 +186,7 @@ def warm_gradient(problem: Any, layout: Any, seed: int) -> None:
     try:
         z_gradient(problem, layout, uniform_box(np.random.default_rng(seed), lb, ub, 1)[0])
     except Exception as exc:  # the run records failures itself; the forecast never stops it
+        interrupts.reraise_run_signal(exc)
         logger.debug("gradient warm-up failed: %s: %s", type(exc).__name__, exc)
 
 
@@ -359,7 +362,7 @@ def log_forecast(jobs: Sequence[Job], samples: int, root_seed: int,
     """
     if samples <= 0 or not jobs:
         return {}
-    from penaltyrun.runner import interrupts, isolated
+    from penaltyrun.runner import isolated
 
     args = (list(jobs), samples, root_seed, workers)
     try:
@@ -381,6 +384,7 @@ def log_forecast(jobs: Sequence[Job], samples: int, root_seed: int,
                        "own: %s)", exc)
         return {}
     except Exception as exc:  # the forecast is advice: it never stops a run
+        interrupts.reraise_run_signal(exc)
         logger.warning("forecast: not available (%s: %s)", type(exc).__name__, exc)
         return {}
     for line in lines:

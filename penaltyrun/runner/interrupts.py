@@ -25,7 +25,7 @@ import threading
 from collections.abc import Iterator
 from typing import Any
 
-from penaltyrun.errors import SignalInterrupt
+from penaltyrun.errors import SignalInterrupt, exit_exception_in
 
 _state = {"worker": False, "marked": False}
 
@@ -68,6 +68,15 @@ def raised_by_job(exc: BaseException) -> bool:
         return (_state["worker"] or _state["marked"]
                 or threading.current_thread() is not threading.main_thread())
     return False
+
+
+def reraise_run_signal(exc: BaseException) -> None:
+    """Raise the Ctrl-C or SIGTERM of the run that ``exc`` (caught as an ordinary
+    exception around a job's code) wraps, if it wraps one: a signal to the run stops it
+    and is never recorded as the job's failure."""
+    inner = exit_exception_in(exc)
+    if inner is not None and inner is not exc and not raised_by_job(inner):
+        raise inner
 
 
 def describe_exit_exception(exc: BaseException) -> str:

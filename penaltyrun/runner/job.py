@@ -179,6 +179,7 @@ def _first_order(prob: Any, layout: Any, z: np.ndarray) -> dict[str, Any]:
     try:
         return first_order(prob, layout, z)
     except Exception as exc:  # noqa: BLE001 — a diagnostic: the job's result stands
+        interrupts.reraise_run_signal(exc)
         logger.warning("gradient at the best candidate failed: %s", exc)
         return {"grad_norm": float("nan"), "active_bounds": [],
                 "gradient_note": f"gradient failed: {exc}"}
@@ -345,6 +346,7 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
         record.update(_jsonable(diagnostics.record_columns(prob, best_mats, best_scalars)))
         record.update(_jsonable(_first_order(prob, layout, result.best_z)))
     except Exception as exc:  # a failing job is recorded, never crashes the run
+        interrupts.reraise_run_signal(exc)
         text = describe_job_error(exc)
         logger.error("job %s failed: %s", job.job_id, text)
         record.update({"status": FAILED, "error": f"{text}\n{traceback.format_exc()}"})

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import penaltyrun
-from penaltyrun.errors import RunInterruptedError, SignalInterrupt
+from penaltyrun.errors import RunInterruptedError, SignalInterrupt, exit_exception_in
 from penaltyrun.runner import interrupts
 
 
@@ -71,6 +71,43 @@ def test_a_ctrl_c_during_an_in_process_job_still_stops_the_run(tmp_path):
         return float(np.trace(K))
 
     prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="ctrlc")
+    with pytest.raises(RunInterruptedError) as info:
+        penaltyrun.tune(prob, n_starts=2, optimizer="baseline", workers=1, run_dir=tmp_path)
+    assert info.value.signum == signal.SIGINT
+    assert not list((tmp_path / "jobs").glob("*.json"))
+
+
+def _wrapped(inner: BaseException) -> SystemError:
+    """What compiled code that held the interpreter when a signal came gives back: a
+    SystemError whose cause is the signal's exception."""
+    try:
+        try:
+            raise inner
+        except BaseException as exc:
+            raise SystemError("CPUDispatcher(<function kernel>) returned a result with an "
+                              "exception set") from exc
+    except SystemError as outer:
+        return outer
+
+
+def test_a_signal_wrapped_by_compiled_code_is_found_and_raised_on():
+    sig = SignalInterrupt(signal.SIGTERM)
+    outer = _wrapped(sig)
+    assert exit_exception_in(outer) is sig
+    with pytest.raises(SignalInterrupt):
+        interrupts.reraise_run_signal(outer)
+    # the job's own sys.exit, wrapped: the job's failure, not the run's signal
+    interrupts.reraise_run_signal(_wrapped(SystemExit(3)))
+    assert exit_exception_in(ValueError("plain")) is None
+
+
+def test_a_ctrl_c_wrapped_by_compiled_code_stops_the_run_and_records_nothing(tmp_path):
+    """A Ctrl-C that reaches the run inside a compiled kernel comes back as a SystemError
+    (numba's dispatcher): the run stops as for any Ctrl-C; the job is not recorded."""
+    def cost(K):
+        raise _wrapped(SignalInterrupt(signal.SIGINT))
+
+    prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="wrapped")
     with pytest.raises(RunInterruptedError) as info:
         penaltyrun.tune(prob, n_starts=2, optimizer="baseline", workers=1, run_dir=tmp_path)
     assert info.value.signum == signal.SIGINT

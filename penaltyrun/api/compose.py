@@ -66,7 +66,7 @@ def group_node(group: str, name: str) -> dict[str, Any]:
     """
     path = CONF / group / f"{name}.yaml"
     if not path.is_file():
-        raise ConfigError(group, f"unknown {group} {name!r}", allowed=choices(group))
+        raise ConfigError(group, f"unknown choice {name!r}", allowed=choices(group))
     data = read_yaml(path)
     defaults = data.pop("defaults", None) or []
     node: dict[str, Any] = {}

@@ -123,6 +123,7 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
 
     from penaltyrun import problems
     from penaltyrun.api.evaluation import evaluate_candidate
+    from penaltyrun.io import strict_json
 
     prob = problems.make(cfg.problem.name, cfg.case, problem_params(cfg), problem_module(cfg))
     param = _plain(cfg.param) or {}
@@ -130,7 +131,7 @@ def run_evaluate(cfg: DictConfig) -> dict[str, Any]:
                                 _plain(cfg.get("z")), str(param.get("name", "full")),
                                 {k: v for k, v in param.items() if k != "name"},
                                 bool(cfg.get("gradient", False)))
-    print(json.dumps(result, default=str), flush=True)
+    print(json.dumps(strict_json(result), default=str, allow_nan=False), flush=True)
     hydra_cfg = HydraConfig.get()
     if hydra_cfg.output_subdir is None:  # cliargs.evaluate_overrides: nothing was written
         print(cliargs.EVALUATE_NOTHING_WRITTEN, file=sys.stderr, flush=True)

@@ -8,8 +8,9 @@ from penaltyrun.io.schema import (
     decode_json,
     find_results,
     read_results,
+    strict_json,
     to_table,
 )
 
 __all__ = ["COLUMNS", "RESULTS_FILE", "SCHEMA", "collect", "decode_json", "find_results",
-           "read_results", "to_table"]
+           "read_results", "strict_json", "to_table"]

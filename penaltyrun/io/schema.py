@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 from collections.abc import Iterable
 from datetime import datetime, timezone
@@ -242,6 +243,20 @@ def decode_json(value: str | float | None) -> Any:
         return json.loads(value)
     except RecursionError:
         raise ValueError("JSON nested too deep to parse") from None
+
+
+def strict_json(value: Any) -> Any:
+    """``value`` (decoded JSON and numbers) with every non-finite float (NaN, ±∞, which a
+    stored metric may hold) replaced by None: JSON has no token for them (Python writes
+    ``NaN``, which MATLAB's ``jsondecode`` and strict parsers refuse), so they are written
+    as ``null``."""
+    if isinstance(value, dict):
+        return {k: strict_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [strict_json(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 def config_key(config_hash: object) -> str:

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 from scipy.io import savemat
 
-from penaltyrun.io import decode_json, read_results
+from penaltyrun.io import decode_json, read_results, strict_json
 from penaltyrun.jobrecord import NO_RESULT_STATUSES
 from penaltyrun.problems import trust
 from penaltyrun.report import outdir
@@ -96,20 +96,6 @@ def export_best(src: Path, out: Path) -> list[Path]:
                       outdir.export_files, prefix=".export-", source=Path(src))
     logger.info("exported the best matrices of %d cells to %s", len(names) // 2, out)
     return [out / name for name in names]
-
-
-def strict_json(value: Any) -> Any:
-    """``value`` (decoded JSON and numbers) with every non-finite float (NaN, ±∞, which a
-    stored metric may hold) replaced by None: JSON has no token for them (Python writes
-    ``NaN``, which MATLAB's ``jsondecode`` and strict parsers refuse), so they are written
-    as ``null``."""
-    if isinstance(value, dict):
-        return {k: strict_json(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [strict_json(v) for v in value]
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
 
 
 def _write(best: pd.DataFrame, out: Path) -> list[str]:

@@ -53,7 +53,7 @@ def test_overrides_compose_as_hydra_does(hydra_cfg):
 
 
 def test_unknown_choices_list_the_files():
-    with pytest.raises(ConfigError, match="unknown param 'spiral'.*givens"):
+    with pytest.raises(ConfigError, match="param: unknown choice 'spiral'.*givens"):
         compose("zermelo", None, case=None, param="spiral", optimizer="pso",
                 optimizer_options=None, params=None, runner={})
 

@@ -114,3 +114,12 @@ def test_readme_python_control_snippet(copied):
     proc = subprocess.run([sys.executable, str(script)], cwd=copied, env=env,
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
+
+
+
+def test_the_export_pages_snippet_is_the_readmes():
+    """The export how-to shows the README's python-control snippet, which the test above
+    runs."""
+    page = (EXAMPLE.parents[1] / "docs" / "how-to" / "export.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", page, flags=re.S)
+    assert readme_blocks("python")[0] in blocks

@@ -87,7 +87,7 @@ def test_a_metric_that_is_not_finite_is_exported_as_null(results, tmp_path):
 
 @pytest.mark.parametrize("value", [float("nan"), float("inf"), -float("inf"), 1.5, "a", None])
 def test_strict_json_keeps_finite_values_and_nulls_the_rest(value):
-    from penaltyrun.report.export import strict_json
+    from penaltyrun.io import strict_json
 
     out = strict_json({"a": [value, (value,)], "b": {"c": value}})
     want = None if isinstance(value, float) and not np.isfinite(value) else value

@@ -93,8 +93,14 @@ def test_options_section_yaml_and_evaluate(folder):
     (folder / "myconf" / "problem" / "pendulum.yaml").write_text(blocks("yaml")[1])
     line = blocks("sh")[3].strip()
     assert "problem=pendulum" in line
-    result = json.loads(run(line, folder).stdout.strip().splitlines()[-1])
+    def refuse(token):
+        raise AssertionError(f"not strict JSON: {token}")
+
+    # strict JSON: an output that never settles has no number, and is null, not Infinity
+    result = json.loads(run(line, folder).stdout.strip().splitlines()[-1],
+                        parse_constant=refuse)
     for key in ("state_penalty", "disk_margin", "settling_time", "overshoot_percent", "dt",
                 "limits"):
         assert key in result
+    assert None in result["settling_time"]
     assert np.asarray(result["state_penalty"])[1, 1] == 0.0

@@ -26,7 +26,7 @@ from penaltyrun.io.schema import (
     decode_json,
     to_timestamp,
 )
-from penaltyrun.jobrecord import FIELDS, NUMBERS
+from penaltyrun.jobrecord import FIELDS, NUMBERS, OK
 from penaltyrun.typed import is_number
 
 #: Columns without which a Parquet file is not penaltyrun results.
@@ -251,15 +251,20 @@ OBJECT_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop",
 
 def check_content(frame: pd.DataFrame) -> str | None:
     """Why the values of ``frame`` (a results table as read) cannot be reported (None: they
-    can): a value of :data:`IMPOSSIBLE_VALUES` (a cost of −∞, a negative time) or a
-    held-out cost of −∞, a JSON column of :data:`OBJECT_COLUMNS` whose value
-    is not an object or is nested too deep to parse, a matrix that is not a rectangular
-    array of numbers, or held-out lists of different lengths. Each distinct value is decoded
+    can): a value of :data:`IMPOSSIBLE_VALUES` (a cost of −∞, a negative time), a job of
+    status ``ok`` without a finite ``best_cost``, a held-out cost of −∞, a JSON column of
+    :data:`OBJECT_COLUMNS` whose value is not an object or is nested too deep to parse, a
+    matrix that is not a rectangular array of numbers, or held-out lists of different
+    lengths. Each distinct value is decoded
     once; columns absent from ``frame`` (a lazily read frame's) are not checked here but
     when their rows are read."""
     for name, (impossible, what) in IMPOSSIBLE_VALUES.items():
         if name in frame and any(impossible(v).any() for v in _numbers(frame[name])):
             return f"column {name} holds {what}"
+    if "status" in frame and "best_cost" in frame:
+        cost = pd.to_numeric(frame["best_cost"], errors="coerce").to_numpy(float)
+        if ((frame["status"] == OK).to_numpy() & ~np.isfinite(cost)).any():
+            return "a job of status ok has no finite best_cost (an ok job records its cost)"
     for name in (n for n in OBJECT_COLUMNS if n in frame):
         for value in frame[name].dropna().unique():
             why = json_object_problem(name, value)

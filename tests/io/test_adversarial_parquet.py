@@ -107,6 +107,10 @@ def _no_start(path):
 
 DEEP = "[" * 100_000 + "]" * 100_000
 CONTENT = {"minus infinite cost": (_with(best_cost=-np.inf), "column best_cost holds -inf"),
+           "ok job without a cost": (_with(best_cost=np.nan), "a job of status ok has no "
+                                                             "finite best_cost"),
+           "ok job of infinite cost": (_with(best_cost=np.inf), "a job of status ok has no "
+                                                                "finite best_cost"),
            "matrices not an object": (_with(matrices=[1, 2]), "column matrices holds a JSON "
                                                               "list where an object"),
            "ragged matrix": (_with(matrices={"K": [[1.0, 2.0], [3.0]]}),

@@ -20,6 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from penaltyrun.cli import spec as cells
 from penaltyrun.cli.modes import JOB_MODES, MODES
+from penaltyrun.cli.quickcheck import SETTINGS_NODES, settings_not_value
 from penaltyrun.errors import ConfigError
 from penaltyrun.typed import is_number
 
@@ -134,6 +135,23 @@ def check_output_dir(path: str | Path | None, key: str = "report.output") -> Non
     check_run_dir(out, key)
 
 
+def settings_node(cfg: DictConfig, key: str, resolve: bool = True) -> dict[str, Any]:
+    """The settings under ``key`` of ``cfg`` as a dict (``{}`` when absent or null; with
+    ``resolve`` false, unresolved and only checked).
+
+    Raises
+    ------
+    ConfigError
+        ``key`` holds one value (``runner=5``), not settings.
+    """
+    node = OmegaConf.select(cfg, key)
+    if node is None:
+        return {}
+    if not isinstance(node, (DictConfig, Mapping)):
+        raise ConfigError(key, settings_not_value(key))
+    return dict(plain(node)) if resolve else {}
+
+
 def check_matrix_entries(values: Mapping[str, Any], prefix: str) -> None:
     """Refuse entries of ``matrices.*`` / ``scalars.*`` that are not numbers (booleans
     included: ``true`` is no matrix entry)."""
@@ -225,16 +243,16 @@ def check_config(cfg: DictConfig, connect: bool = True,
     mode = cfg.get("mode")
     if mode not in MODES:
         raise ConfigError("mode", f"unknown mode {mode!r}", allowed=MODES)
-    runner.check_report_options(plain(cfg.get("report")) or {})
-    runner.check_runner_options(plain(cfg.get("runner")) or {},
+    runner.check_report_options(settings_node(cfg, "report"))
+    runner.check_runner_options(settings_node(cfg, "runner"),
                                 connect=connect and mode == "optimize")
-    check_output_dir((plain(cfg.get("report")) or {}).get("output"))
+    check_output_dir(settings_node(cfg, "report").get("output"))
     if mode == "report":
         return
     check_evaluate_extras(mode, cfg.get("gradient"), plain(cfg.get("z")))
     if mode == "evaluate":
         for group in FREE_KEYS:
-            check_matrix_entries(plain(cfg.get(group)) or {}, group)
+            check_matrix_entries(settings_node(cfg, group), group)
     if mode in JOB_MODES:
         check_param_options(_options(cfg, "param"))
     params = cells.problem_params(cfg)
@@ -254,6 +272,8 @@ def check_config(cfg: DictConfig, connect: bool = True,
 def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) -> None:
     """Check a composed config (with its ``hydra`` node) against the shipped one ``base``:
     unknown ``+keys``, every option's type and range, the run directory, the scheduler."""
+    for key in SETTINGS_NODES:
+        settings_node(cfg, key, resolve=False)
     base = cells.with_params_schema(base)  # a problem's parameters: its Params dataclass
     check_known_keys(plain_nohydra(cells.with_params_schema(cfg)), plain_nohydra(base))
     check_config(cfg, base=base)

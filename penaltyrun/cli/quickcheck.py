@@ -31,6 +31,13 @@ _FLOAT = re.compile(r"[+-]?(?:(?:(?:0|[1-9][0-9]*)\.[0-9]*|\.[0-9]+)(?:[eE][+-]?
                     r"|(?:0|[1-9][0-9]*)[eE][+-]?[0-9]+)")
 _ID = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _SKIP = object()
+def settings_not_value(key: str) -> str:
+    """The refusal of one value given for the settings node ``key`` (``runner=5``)."""
+    return f"is a group of settings, not one value: set one of its keys, {key}.<key>=VALUE"
+
+
+#: Config nodes that hold settings (a mapping), never one plain value.
+SETTINGS_NODES = ("runner", "report", "matrices", "scalars", "hydra", "problem.params")
 
 
 def literal(text: str) -> Any:
@@ -70,6 +77,9 @@ def check_plain_values(argv: list[str]) -> None:
     values = {}
     for arg in overrides:
         key, eq, text = arg.partition("=")
+        name = key.lstrip("+~")
+        if eq and name in SETTINGS_NODES and not text.strip().startswith("{"):
+            raise ConfigError(name, settings_not_value(name))
         value = literal(text) if eq else _SKIP
         if value is _SKIP:
             continue

@@ -27,6 +27,8 @@ REFUSED = [
     ["optimizer=pso_paper_50x50", "optimizer.polish_share=2.0"],
     ["param=bogus"], ["problem=zermelo2", "runner.n_starts=3"], ["optimizer=psoo"],
     ["+experiment=nope"], ["-m", "param=givenz"], ["optimizer=bogus", "optimizer.w=1"],
+    ["runner=5"], ["report=5"], ["mode=evaluate", "problem=zermelo", "matrices=5"],
+    ["problem.params=3"],
 ]
 
 
@@ -38,6 +40,16 @@ def _full(argv: list[str], tmp_path) -> str | None:
     except ConfigError as exc:
         return str(exc)
     return None
+
+
+@pytest.mark.parametrize("argv", [["runner=null"], ["hydra=5"], ["-m", "runner=5,6"],
+                                  ["+runner=[1]"]], ids=" ".join)
+def test_one_value_for_a_group_of_settings_is_refused_first(argv):
+    """``runner=5`` (or a sweep of such values): one line naming the key and the fix,
+    before Hydra, which would stop with a traceback."""
+    with pytest.raises(ConfigError, match="is a group of settings, not one value: set one "
+                                          "of its keys, .*<key>=VALUE"):
+        check_plain_values(argv)
 
 
 @pytest.mark.parametrize("argv", REFUSED, ids=" ".join)

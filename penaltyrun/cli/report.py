@@ -60,6 +60,13 @@ def report_main(argv: list[str] | None = None) -> None:
                         help="progress bar of the report's steps on stderr (auto: on a "
                              "terminal only; as runner.progress for runs)")
     parser.add_argument("--version", action="version", version=f"penaltyrun {__version__}")
+
+    def one_line_error(message: str) -> None:  # argparse prints its usage block besides
+        print(f"penaltyrun-report: error: {message} (see penaltyrun-report --help)",
+              file=sys.stderr)
+        sys.exit(2)
+
+    parser.error = one_line_error  # type: ignore[method-assign]
     if argv is None:
         ensure_utf8_mode(sys.argv)
     use_file_backend()

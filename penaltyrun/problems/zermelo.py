@@ -383,6 +383,14 @@ def make_problem(case: str, overrides: Mapping[str, Any]) -> Zermelo:
     """Build the Zermelo problem: defaults → case entry → ``overrides``."""
     merged = {**CASE_PARAMS[case], **dict(overrides)}
     params = Params.from_mapping(merged)
+    for key in ("t_max", "event_radius", "rtol", "atol", "max_step", "max_steps",
+                "failure_penalty"):
+        value = getattr(params, key)
+        if not (value > 0 and (np.isfinite(value) or key == "max_step")):
+            raise ConfigError(f"problem.params.{key}", f"must be a positive number, got "
+                                                      f"{value!r}")
+    if not all(np.isfinite(v) for v in params.x0):
+        raise ConfigError("problem.params.x0", f"must be finite numbers, got {params.x0!r}")
     if any(not (np.isfinite(r) and r > 0) for r in params.holdout_radii):
         raise ConfigError("problem.params.holdout_radii", "radii must be positive numbers")
     if not (isinstance(params.holdout_n_angles, int) and params.holdout_n_angles >= 1):

@@ -80,6 +80,19 @@ def test_bad_matrices_are_clear_errors(prob, matrix, fragment):
     assert info.value.key == "matrices.K"
 
 
+
+@pytest.mark.parametrize("key, value", [("t_max", -1.0), ("t_max", 0.0),
+                                        ("event_radius", -1.0), ("rtol", 0.0),
+                                        ("max_step", 0.0), ("max_steps", 0),
+                                        ("failure_penalty", float("nan")),
+                                        ("x0", (float("inf"), 1.0))])
+def test_settings_out_of_range_are_refused_when_built(key, value):
+    """Refused before a run spends its budget (a negative t_max was accepted, and the
+    run's own records were then refused by the reader: negative times)."""
+    with pytest.raises(ConfigError) as info:
+        problems.make("zermelo", None, {key: value})
+    assert info.value.key == f"problem.params.{key}"
+
 def test_unknown_case_and_param():
     with pytest.raises(ConfigError, match="allowed: default"):
         problems.make("zermelo", "B", {})

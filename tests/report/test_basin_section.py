@@ -80,6 +80,12 @@ def test_basin_points_on_the_command_line(tmp_path, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--basin-points" in err[0] and "2 to 200" in err[0]
+    for bad in (["--basin-points", "1.5"], ["--progress", "maybe"], ["--bogus"]):
+        with pytest.raises(SystemExit) as exc:  # argparse's own refusals: one line too
+            report_main([str(folder), *bad])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("penaltyrun-report: error: ")
     report_main([str(folder), "-o", str(tmp_path / "rep"), "--basin-points", "0"])
     assert "Basins of attraction" not in (tmp_path / "rep" / "report.md").read_text()
     with pytest.raises(SystemExit):

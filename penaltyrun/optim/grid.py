@@ -35,6 +35,8 @@ logger = logging.getLogger(__name__)
 
 #: Largest dimension the grid accepts.
 MAX_DIM = 4
+#: Most points a grid may have (its cost array: 8 bytes a point, plus its coordinates).
+MAX_GRID_POINTS = 20_000_000
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,11 @@ class GridSettings(CommonSettings):
                               f"variables; this problem and map have {dim} (use pso, de or "
                               f"cmaes)")
         size = self.points_per_dim ** dim
+        if size > MAX_GRID_POINTS:
+            raise ConfigError("optimizer.points_per_dim", f"a grid of {self.points_per_dim}^"
+                              f"{dim} = {size:.3g} points is more than {MAX_GRID_POINTS:.0e} "
+                              "(its costs alone would not fit in memory); use fewer points "
+                              "per side")
         budget = main_budget(self)
         if budget is not None and budget < size:
             raise ConfigError("optimizer.max_evals", f"the grid needs {size} evaluations "

@@ -13,6 +13,9 @@ from penaltyrun.errors import ConfigError
 from penaltyrun.runner.plan import check_n_starts
 from penaltyrun.typed import is_int, is_number
 
+#: Most timed batches the forecast may run before a run (each one batch of candidates).
+MAX_FORECAST_SAMPLES = 1000
+
 #: runner option → (kind, description of the allowed values).
 RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "n_starts": ("pos_int", "a positive integer"),
@@ -31,7 +34,8 @@ RUNNER_OPTIONS: dict[str, tuple[str, str]] = {
     "warm_start": ("bool", "true or false"),
     "warm_start_share": ("unit_open", "a number in (0, 1)"),
     "progress": ("progress", "auto, true or false"),
-    "forecast_samples": ("nonneg_int", "a non-negative integer (0: no forecast)"),
+    "forecast_samples": ("forecast_samples", "an integer from 0 (no forecast) to "
+                                             f"{MAX_FORECAST_SAMPLES}"),
     "evaluate_on": ("evaluate_on", "local or dask"),
     "chunks": ("chunks", "auto or a positive integer"),
     "cutoff": ("bool", "true or false"),
@@ -58,6 +62,7 @@ def check_value(key: str, kind: str, value: Any, what: str) -> None:
         "pos_int": lambda v: is_int(v) and v >= 1,
         "workers": lambda v: v == "auto" or (is_int(v) and v >= 1),
         "nonneg_int": lambda v: is_int(v) and v >= 0,
+        "forecast_samples": lambda v: is_int(v) and 0 <= v <= MAX_FORECAST_SAMPLES,
         "bool": lambda v: isinstance(v, bool),
         "pos_float": lambda v: is_number(v) and math.isfinite(v) and v > 0,
         "opt_pos_float": lambda v: v is None or (is_number(v) and math.isfinite(v) and v > 0),

@@ -57,7 +57,20 @@ def build(problem: str, case: str | None, problem_params: Mapping[str, Any], par
                    problem_module)
     layout = checked("param", build_layout, prob, param, param_options)
     optim.check_dimension(settings, layout.dim)
+    if optimizer == "baseline":
+        check_baseline_scale(prob, float(settings.scale))
     return prob, layout, optim.with_gradient_cost(settings, prob)
+
+
+def check_baseline_scale(prob: Problem, scale: float) -> None:
+    """Refuse a baseline ``scale`` outside a penalty matrix's eigenvalue bounds: its point
+    K = scale · I lies outside every parameterization's box."""
+    for spec in prob.matrices:
+        lo, hi = spec.eig_bounds
+        if not lo <= scale <= hi:
+            raise ConfigError("optimizer.scale", f"{scale:g} · I lies outside the eigenvalue "
+                              f"bounds [{lo:g}, {hi:g}] of {spec.name}; pick a scale inside "
+                              "them")
 
 
 def build_within(time_limit_s: float | None, problem: str, case: str | None,

@@ -28,7 +28,8 @@ REFUSED = [
     ["param=bogus"], ["problem=zermelo2", "runner.n_starts=3"], ["optimizer=psoo"],
     ["+experiment=nope"], ["-m", "param=givenz"], ["optimizer=bogus", "optimizer.w=1"],
     ["runner=5"], ["report=5"], ["mode=evaluate", "problem=zermelo", "matrices=5"],
-    ["problem.params=3"],
+    ["problem.params=3"], ["runner.forecast_samples=100000000"],
+    ["runner.forecast_samples=-1"],
 ]
 
 

@@ -58,3 +58,11 @@ def test_bad_settings_name_the_key(options, key):
     with pytest.raises(ConfigError) as info:
         make_settings("grid", options)
     assert info.value.key == key
+
+
+def test_a_grid_too_large_for_memory_is_refused_naming_points_per_dim():
+    """100 000 points per side in 3 variables: refused when built, not a MemoryError of
+    the job."""
+    with pytest.raises(ConfigError, match="1e\\+15 points is more than") as err:
+        check_dimension(GridSettings(points_per_dim=100_000), 3)
+    assert err.value.key == "optimizer.points_per_dim"

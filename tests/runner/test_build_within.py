@@ -51,3 +51,14 @@ def test_a_construction_past_the_limit_is_one_config_error(monkeypatch):
         with pytest.raises(ConfigError, match="ran longer than runner.job_timeout=0.5 s"):
             build_within(0.5, *args)
         assert time.monotonic() - t0 < 10
+
+
+@pytest.mark.parametrize("scale", [20.0, 1e-9])
+def test_a_baseline_scale_outside_the_eigenvalue_bounds_is_refused_when_built(scale):
+    """K = scale · I outside every map's box: refused naming optimizer.scale (every job
+    failed with a message about the geagsp box before)."""
+    with pytest.raises(ConfigError, match=r"outside the eigenvalue bounds \[1e-08, 10\] of "
+                                          "K") as err:
+        build("zermelo", None, {}, "full", {}, "baseline", {"scale": scale})
+    assert err.value.key == "optimizer.scale"
+    build("zermelo", None, {}, "full", {}, "baseline", {"scale": 1.0})

@@ -368,6 +368,9 @@ def load(params: Mapping[str, Any], n_hint: int | None = None, m_hint: int | Non
         if obj_dt is not None and dt is not None and not np.isclose(obj_dt, dt, rtol=1e-12):
             raise ConfigError(f"{PREFIX}.dt", f"dt = {dt} but {params[source]} has dt = "
                               f"{obj_dt}; drop dt (the system's is used) or make them agree")
+        if obj_dt is not None and not (np.isfinite(obj_dt) and obj_dt > 0):
+            raise ConfigError(key, f"its sample time dt = {obj_dt} is not a positive number "
+                                   "(a continuous-time plant has none)")
         dt = obj_dt if dt is None else dt
     elif params.get("dynamics") is None:
         raise ConfigError(f"{PREFIX}.A", "no plant: give A and B, plant_file, plant or "

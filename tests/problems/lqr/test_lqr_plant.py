@@ -169,3 +169,13 @@ def test_a_plant_file_whose_arrays_are_too_large_is_refused_from_its_headers(tmp
     assert 3000 * 3000 * 8 > plant.MAX_PLANT_BYTES
     with pytest.raises(ConfigError, match="the limit for a plant file is"):
         lqr.make_problem("default", {"plant_file": str(path)})
+
+
+@pytest.mark.parametrize("dt", ["-1", "0", ".nan"])
+def test_a_plant_files_sample_time_must_be_positive(tmp_path, dt):
+    """As ``problem.params.dt`` on the command line: refused when built, naming the file's
+    key (it failed the jobs at run time: a singular or non-finite discretization)."""
+    (tmp_path / "plant.yaml").write_text(f"A: [[0, 1], [0, 0]]\nB: [[0], [1]]\ndt: {dt}\n")
+    with pytest.raises(ConfigError, match="is not a positive number") as err:
+        lqr.make_problem("default", {"plant_file": str(tmp_path / "plant.yaml")})
+    assert err.value.key == "problem.params.plant_file"

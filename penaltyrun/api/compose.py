@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any
 
 import yaml
@@ -100,6 +100,11 @@ def plain(value: Any, key: str = "value", depth: int = 0) -> Any:
         return [plain(v, key, depth + 1) for v in value]
     if hasattr(value, "tolist") and callable(value.tolist):  # numpy arrays and scalars
         return plain(value.tolist(), key, depth)
+    if isinstance(value, PurePath):  # a file a parameter names, as the command line gives it
+        return str(value)
+    if value is not None and not isinstance(value, (str, int, float, bool)):
+        raise ConfigError(key, f"{type(value).__name__} is not a config value (numbers, "
+                               "text, true/false, null, lists and mappings of them)")
     return value
 
 
@@ -182,6 +187,10 @@ def compose(problem: str, module: str | None, *, case: str | None, param: str,
     ConfigError
         An unknown map or optimizer, or an optimizer option the optimizer does not have.
     """
+    for key, value in (("params", params), ("optimizer_options", optimizer_options)):
+        if value is not None and not isinstance(value, Mapping):
+            raise ConfigError(key, f"must be a mapping {{name: value}}, got "
+                                   f"{type(value).__name__}")
     base = read_yaml(CONF / "config.yaml")
     base.pop("defaults", None)
     base.pop("hydra", None)

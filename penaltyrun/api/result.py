@@ -170,6 +170,21 @@ class TuneResult:
         return out
 
 
+def folder_argument(value: Any, key: str) -> Path:
+    """``value`` (a folder given to the Python API) as a Path.
+
+    Raises
+    ------
+    ConfigError
+        On ``key``: not a str or os.PathLike (e.g. a number or None).
+    """
+    import os
+
+    if not isinstance(value, (str, os.PathLike)):
+        raise ConfigError(key, f"must be a path (str or Path), got {type(value).__name__}")
+    return Path(value)
+
+
 def load(path: str | Path, *, problem: Any = None) -> TuneResult:
     """The results of a run folder, a study folder (``studies/<name>``), any folder with
     ``results.parquet`` files below it (e.g. the parent of several runs), or one
@@ -193,7 +208,7 @@ def load(path: str | Path, *, problem: Any = None) -> TuneResult:
     FileNotFoundError, ResultsUnreadableError
         No results file, or none readable, under ``path`` (when the records are read).
     """
-    path = Path(path)
+    path = folder_argument(path, "path")
     if not path.exists():
         raise ConfigError("path", f"{path} does not exist")
     if isinstance(problem, str):

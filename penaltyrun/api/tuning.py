@@ -16,7 +16,7 @@ from typing import Any
 from penaltyrun import problems
 from penaltyrun.api.compose import API_RUNNER, compose, read_yaml, run_spec
 from penaltyrun.api.core import run_cell, trust_own_modules
-from penaltyrun.api.result import TuneResult
+from penaltyrun.api.result import TuneResult, folder_argument
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.user_cost import from_cost
 
@@ -45,6 +45,10 @@ def resolve_problem(problem: Any) -> tuple[str, str | None, Any]:
         object that is not a problem.
     """
     if isinstance(problem, str):
+        if not all(part.isidentifier() for part in problem.split(".")):
+            raise ConfigError("problem", f"unknown problem {problem!r}: give a problem name, "
+                              "a dotted module path or a problem object",
+                              allowed=problems.available())
         if "." in problem and problem not in problems.available():
             name = problem.rsplit(".", 1)[1]
             problems.module(name, problem)  # import it now: one clear error if it fails
@@ -136,7 +140,10 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
     spec = run_spec(config)
     if run_dir is None:
         run_dir = tempfile.mkdtemp(prefix="penaltyrun-")
-    run_dir = Path(run_dir)
+    run_dir = folder_argument(run_dir, "run_dir")
+    if run_dir.exists() and not run_dir.is_dir():
+        raise ConfigError("run_dir", f"{run_dir} is a file; a run writes a folder: pass a "
+                                     "folder path")
     with held(obj):
         path = run_cell(spec, run_dir)
     trust_own_modules(name, None if obj is not None else module, spec.problem_params)

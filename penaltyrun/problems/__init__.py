@@ -212,6 +212,8 @@ def module(name: str, module_path: str | None = None) -> ModuleType:
     """
     if module_path and not trust.is_reading():  # the config being run names it: it wins
         return check_module(_import(str(module_path), "problem.module"), str(module_path))
+    if not isinstance(name, str) or not all(part.isidentifier() for part in name.split(".")):
+        raise ConfigError("problem", f"unknown problem {name!r}", allowed=available())
     user = trust.named()
     if name in user:
         return check_module(_import(user[name], "problem.module"), user[name])

@@ -260,6 +260,10 @@ def from_cost(cost: Callable[..., Any],
         raise ConfigError("cost", f"must be callable, got {type(cost).__name__}")
     if not isinstance(name, str) or not name.isidentifier():
         raise ConfigError("name", f"must be an identifier, got {name!r}")
+    for key, value in (("matrices", matrices), ("scalars", scalars)):
+        if value is not None and not isinstance(value, Mapping):
+            raise ConfigError(key, f"must be a mapping {{name: ...}}, got "
+                                   f"{type(value).__name__}")
     if not matrices:
         raise ConfigError("matrices", "give at least one matrix: {name: (size, (low, high))}")
     specs = []

@@ -179,3 +179,21 @@ def test_an_interrupted_tune_keeps_its_jobs_and_resumes(tmp_path):
     assert lock._key(tmp_path) not in lock._HELD  # free for the next run of this process
     res = penaltyrun.tune(prob, resume=True, **kwargs)
     assert len(res.records) == 2 and set(res.records["status"]) == {"ok"}
+
+
+@pytest.mark.parametrize("call, key", [
+    (lambda tmp: penaltyrun.from_cost(lambda K: 0.0, [("K", 2)]), "matrices"),
+    (lambda tmp: penaltyrun.tune("..."), "problem"),
+    (lambda tmp: penaltyrun.tune("zermelo", params=[1]), "params"),
+    (lambda tmp: penaltyrun.tune("zermelo", run_dir=5), "run_dir"),
+    (lambda tmp: penaltyrun.tune("zermelo", optimizer_options={"max_evals": object()}),
+     "optimizer_options"),
+    (lambda tmp: penaltyrun.load(None), "path"),
+    (lambda tmp: penaltyrun.tune("zermelo", run_dir=tmp / "a_file"), "run_dir"),
+], ids=["matrices-list", "relative-name", "params-list", "run_dir-int", "option-object",
+        "load-none", "run_dir-file"])
+def test_bad_arguments_raise_one_config_error_naming_them(tmp_path, call, key):
+    (tmp_path / "a_file").write_text("")
+    with pytest.raises(ConfigError) as err:
+        call(tmp_path)
+    assert err.value.key == key and "\n" not in str(err.value)

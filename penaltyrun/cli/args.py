@@ -27,6 +27,7 @@ import shlex
 import shutil
 import sys
 import tempfile
+import unicodedata
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -168,6 +169,10 @@ def _check_unquoted(arg: str) -> None:
     odd = sorted({ch for ch in value if not ch.isascii()})
     if not eq or not odd or value[:1] in ("'", '"') or value[:1] == "[":
         return
+    plain = unicodedata.normalize("NFKC", value)
+    if plain.isascii():  # full-width digits or letters: their ASCII form is what was meant
+        raise ConfigError(key.lstrip("+~"), f"{value!r} is written in full-width or other "
+                          f"compatibility characters: write {shlex.quote(f'{key}={plain}')}")
     quote = '"' if '"' not in value else "'"
     raise ConfigError(key.lstrip("+~"), f"Hydra reads {''.join(odd)!r} only inside quotes: "
                       f"write {shlex.quote(f'{key}={quote}{value}{quote}')}")

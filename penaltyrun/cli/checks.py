@@ -75,6 +75,10 @@ def check_known_keys(cfg: Mapping[str, Any], base: Mapping[str, Any]) -> None:
                                       "instead")
 
 
+#: Longest file or folder name (bytes) of common file systems (ext4, XFS, APFS, NTFS).
+NAME_MAX = 255
+
+
 def check_run_dir(path: str | Path, key: str = "hydra.run.dir", sweep: bool = False) -> None:
     """Check that directory ``path`` exists or can be created (nothing is left behind),
     that no other run is using it and that its ``results.parquet`` can be written; of a
@@ -90,6 +94,11 @@ def check_run_dir(path: str | Path, key: str = "hydra.run.dir", sweep: bool = Fa
     from penaltyrun.runner.lock import check_not_locked, check_sweep_dir
 
     path = Path(path).expanduser()
+    longest = max((len(os.fsencode(name)) for name in path.parts), default=0)
+    if longest > NAME_MAX:
+        raise ConfigError(key, f"a folder name of {longest} bytes in {str(path)[:60]}...: the "
+                               f"file system takes at most {NAME_MAX} bytes a name; choose "
+                               "a shorter one")
     for part in (path, *path.parents):
         if part.is_symlink() and not part.exists():
             raise ConfigError(key, f"{part} is a symbolic link to {os.readlink(part)}, which "

@@ -48,6 +48,8 @@ CASES = [
      ["hydra.run.dir: Hydra reads 'é' only inside quotes",
       "'hydra.run.dir=\"{cwd}/résultats\"'"]),
     (["optimizer=baseline", "report.output=报告"], ["report.output", "'report.output=\"报告\"'"]),
+    (["optimizer=baseline", "runner.n_starts=１"],
+     ["runner.n_starts: '１' is written in full-width", "write runner.n_starts=1"]),
     (["--config-dir", "myconf", "problem=two_carts"],
      ["problem: unknown choice 'two_carts'", "myconf/two_carts.yaml is outside the problem/",
       "move it to myconf/problem/two_carts.yaml"]),

@@ -163,3 +163,12 @@ def test_a_warm_start_without_budget_fails_in_the_preflight():
     with pytest.raises(ConfigError, match="runner.warm_start: needs an evaluation budget"):
         preflight(["problem=zermelo", "runner.warm_start=true",
                    "hydra.run.dir=/tmp/penaltyrun-preflight-never-written"])
+
+
+def test_a_folder_name_longer_than_a_file_system_takes_is_one_config_error(tmp_path):
+    """300 bytes in one name: refused naming the key (the run failed later with exit 5 and
+    the system's "File name too long", naming no key)."""
+    with pytest.raises(ConfigError, match="at most 255 bytes a name") as err:
+        checks.check_run_dir(tmp_path / ("a" * 300), "hydra.sweep.dir")
+    assert err.value.key == "hydra.sweep.dir"
+    checks.check_run_dir(tmp_path / ("a" * 255))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+import warnings
 from pathlib import Path
 
 from penaltyrun import __version__
@@ -117,10 +118,15 @@ def report_main(argv: list[str] | None = None) -> None:
         from penaltyrun.report.cache import default_dir
 
         cache_dir = None if args.no_cache else Path(args.cache_dir or default_dir())
-        report.build_report(src, out, paper=not args.no_paper,
-                            progress=progress.wanted(args.progress),
-                            probe=not args.no_probe, workers=workers, cache_dir=cache_dir,
-                            **maps)
+        with warnings.catch_warnings():
+            # numpy's and matplotlib's arithmetic warnings on extreme stored values (a cost
+            # of -1e308 squared) are no message for the user: the report's own checks
+            # name non-finite values, and a figure that cannot be drawn is a warning line
+            warnings.simplefilter("ignore", RuntimeWarning)
+            report.build_report(src, out, paper=not args.no_paper,
+                                progress=progress.wanted(args.progress),
+                                probe=not args.no_probe, workers=workers,
+                                cache_dir=cache_dir, **maps)
         print(f"report written to {out}")
         if args.export:
             _export(src, Path(args.export))

@@ -84,3 +84,28 @@ def test_a_report_beside_a_file_of_misfit_matrices_reports_the_rest(tmp_path, ca
              r.getMessage()]
     assert len(lines) == 1 and str(tmp_path / "bad" / RESULTS_FILE) in lines[0]
     assert str(tmp_path / "good") not in lines[0]
+
+
+def test_arithmetic_warnings_on_extreme_stored_values_stay_off_the_terminal(tmp_path):
+    """A stored cost of -1e308 (finite, extreme) overflows numpy's and matplotlib's
+    arithmetic: ``penaltyrun-report`` writes the report and prints no RuntimeWarning."""
+    import warnings
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from penaltyrun.cli import report_main
+
+    table = pq.read_table(GOLDEN)
+    costs = table["best_cost"].to_pylist()
+    costs[0] = -1e308
+    folder = tmp_path / "extreme"
+    folder.mkdir()
+    pq.write_table(table.set_column(table.schema.get_field_index("best_cost"), "best_cost",
+                                    pa.array(costs, pa.float64())), folder / RESULTS_FILE)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        report_main([str(folder), "-o", str(tmp_path / "report"), "--no-cache",
+                     "--basin-points", "0", "--no-probe", "--workers", "1"])
+    assert (tmp_path / "report" / "report.md").is_file()
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]

@@ -143,7 +143,7 @@ class _Progress:
             self.bar.close()
 
 
-def _dedupe(df: pd.DataFrame) -> pd.DataFrame:
+def drop_duplicate_jobs(df: pd.DataFrame) -> pd.DataFrame:
     """Keep each (job_id, config_hash) once (the first file in path order); one warning
     naming the files whose rows were left out and the files they duplicate."""
     dup = df.duplicated(subset=["job_id", "config_hash"], keep="first")
@@ -180,7 +180,7 @@ def _mark_statuses(df: pd.DataFrame) -> pd.DataFrame:
 
 def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = None,
                  lazy: bool = False, sources: bool = False,
-                 checked: Iterable[str] | None = None) -> pd.DataFrame:
+                 checked: Iterable[str] | None = None, dedupe: bool = True) -> pd.DataFrame:
     """All results under ``path`` (file, folder, or several) as one DataFrame, each job once.
 
     JSON columns stay text; use :func:`~penaltyrun.io.schema.decode_json` to parse them.
@@ -207,6 +207,11 @@ def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = No
         With ``lazy``: the columns left in the files that are checked as each file is
         read (the ones the caller may fill later), as a read of whole files checks the
         columns it reads; a file failing the check is skipped. Default: every column.
+    dedupe : bool
+        Leave out the rows that repeat a job of an earlier file (:func:`drop_duplicate_jobs`).
+        False keeps them, with :data:`SOURCE` and :data:`ROW`, for a caller that first
+        drops the rows it cannot use (so that an unusable copy never hides a usable one)
+        and then calls :func:`drop_duplicate_jobs` itself.
 
     Returns
     -------
@@ -264,10 +269,12 @@ def read_results(path: Path | Iterable[Path], columns: Iterable[str] | None = No
                                      f"unreadable file(s) ({shown})")
     if lazy:
         frames = [compact(f) for f in frames]  # job records: compacted here
-        df = _dedupe(concat_compact(frames))
+        df = concat_compact(frames)
     else:
-        df = _dedupe(pd.concat(frames, ignore_index=True))
-    if not lazy and not sources:
+        df = pd.concat(frames, ignore_index=True)
+    if dedupe:
+        df = drop_duplicate_jobs(df)
+    if not lazy and not sources and dedupe:
         df = df.drop(columns=[SOURCE, ROW])
     df = _mark_statuses(df.reset_index(drop=True))
     if lazy:

@@ -17,7 +17,7 @@ import pandas as pd
 from penaltyrun.io import storedprobe
 from penaltyrun.io.filecheck import ROW, SOURCE
 from penaltyrun.io.memory import release_memory
-from penaltyrun.io.read import declared_rows, read_results
+from penaltyrun.io.read import declared_rows, drop_duplicate_jobs, read_results
 from penaltyrun.io.schema import config_key
 from penaltyrun.jobrecord import JOB_STATUSES, NO_RESULT_STATUSES
 from penaltyrun.problems import trust
@@ -243,9 +243,10 @@ def build_report(src: Path, out: Path, paper: bool = True,
     if stream is None:
         stream = declared_rows(src) > STREAM_MIN_ROWS
     with trust.reading_results():
-        df = fitting_rows(add_variant(read_results(
+        # duplicates dropped after the unusable rows: a damaged copy never hides a job
+        df = drop_duplicate_jobs(fitting_rows(add_variant(read_results(
             src, FRAME_COLUMNS if stream else REPORT_COLUMNS, lazy=stream, sources=True,
-            checked=REPORT_COLUMNS)))
+            checked=REPORT_COLUMNS, dedupe=False))))
         stored = stored_probes(df) if probe else None
         if not stream:  # the files named in fitting_rows' warnings; read whole from here
             df = df.drop(columns=[SOURCE, ROW])

@@ -109,3 +109,25 @@ def test_arithmetic_warnings_on_extreme_stored_values_stay_off_the_terminal(tmp_
                      "--basin-points", "0", "--no-probe", "--workers", "1"])
     assert (tmp_path / "report" / "report.md").is_file()
     assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]
+
+
+def test_a_damaged_copy_sorted_first_never_hides_the_good_file(tmp_path):
+    """The same jobs in two files, the copy first in path order with matrices that do not
+    fit: its rows are left out as unusable before duplicates are, so the report is the
+    good file's (it was 'no usable results': the good rows had been dropped as
+    duplicates of the damaged ones)."""
+    from penaltyrun.cli import report_main
+
+    table = pq.read_table(GOLDEN)
+    bad = [json.dumps({"K": [[1.0, 2.0], [3.0, 4.0]]})] * table.num_rows
+    (tmp_path / "a_copy").mkdir()
+    (tmp_path / "b_good").mkdir()
+    pq.write_table(table.set_column(table.schema.get_field_index("matrices"), "matrices",
+                                    pa.array(bad, pa.string())),
+                   tmp_path / "a_copy" / RESULTS_FILE)
+    shutil.copy(GOLDEN, tmp_path / "b_good" / RESULTS_FILE)
+    protocol.reset()
+    report_main([str(tmp_path), "-o", str(tmp_path / "report"), "--no-cache",
+                 "--basin-points", "0", "--no-probe", "--workers", "1"])
+    text = (tmp_path / "report" / "report.md").read_text()
+    assert f"{table.num_rows} jobs" in text

@@ -78,7 +78,8 @@ def run_cell(spec: RunSpec, run_dir: Path, progress: ProgressFactory | None = No
     bar = progress(jobs) if progress is not None else contextlib.nullcontext(None)
     try:
         with bar as on_record:
-            runner.execute(jobs, run_dir, rc, on_record=on_record, expected_s=expected)
+            runner.execute(jobs, run_dir, rc, on_record=on_record, expected_s=expected,
+                           stale=[run_dir / io.RESULTS_FILE])
     except BaseException:  # the run is over: a later run in this process may take the folder
         lock.release(run_dir)
         raise

@@ -30,8 +30,9 @@ from penaltyrun.errors import ConfigError
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 #: Value kinds of the runner's option checks → the type a user writes.
-_KINDS = {"pos_int": "int", "nonneg_int": "int", "bool": "bool", "pos_float": "float",
-          "unit_open": "float", "workers": "int or auto", "chunks": "int or auto",
+_KINDS = {"pos_int": "int", "nonneg_int": "int", "forecast_samples": "int", "bool": "bool",
+          "pos_float": "float", "unit_open": "float", "workers": "int or auto",
+          "chunks": "int or auto",
           "choice": "str", "evaluate_on": "str", "progress": "bool or auto",
           "address": "str or null", "opt_pos_float": "float or null"}
 _PROBE = {int: (-(10 ** 12), 0, 10 ** 12), float: (-1e300, 1e300),

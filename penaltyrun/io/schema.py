@@ -87,8 +87,12 @@ def to_timestamp(value: Any) -> datetime | None:
             return None
     if not isinstance(value, datetime):
         return None
-    return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else \
-        value.astimezone(timezone.utc)
+    try:
+        return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else \
+            value.astimezone(timezone.utc)
+    except OverflowError:  # e.g. 0001-01-01T00:00:00+01:00: before year 1 in UTC
+        logger.warning("time %s out of range stored as null", value.isoformat())
+        return None
 
 
 def normalize(record: dict[str, Any], run_id: str = "") -> dict[str, Any]:

@@ -66,7 +66,8 @@ def dispatch_slots(workers: int, n_todo: int, backend: str = "local",
 
 def execute(jobs: Iterable[Job], run_dir: Path, options: RunnerOptions = SERIAL, *,
             on_record: Callable[[dict[str, Any]], None] | None = None,
-            expected_s: Mapping[str, float] | None = None) -> list[Path]:
+            expected_s: Mapping[str, float] | None = None,
+            stale: Iterable[Path] = ()) -> list[Path]:
     """Run ``jobs`` and write one record file per finished job.
 
     Parameters
@@ -92,6 +93,11 @@ def execute(jobs: Iterable[Job], run_dir: Path, options: RunnerOptions = SERIAL,
     expected_s : mapping, optional
         ``job_id`` → expected CPU time (s): jobs are dispatched longest first (see
         :func:`~penaltyrun.runner.plan.order_longest_first`); without it, in the given order.
+    stale : iterable of Path
+        Files of an earlier run in ``run_dir`` that this run replaces when it ends (its
+        ``results.parquet``): removed, once the folder is locked, when jobs are to run, so
+        that a run stopped part-way never leaves the earlier run's results looking like
+        its own (a folder holds a results file only while its last run is finished).
 
     Returns
     -------
@@ -121,6 +127,12 @@ def execute(jobs: Iterable[Job], run_dir: Path, options: RunnerOptions = SERIAL,
         logger.info("removed temporary files of an interrupted write in %s", jobs_dir)
     todo = order_longest_first(pending_jobs(jobs, run_dir, options.resume,
                                             options.retry_failed), expected_s)
+    if todo:
+        for path in stale:
+            if Path(path).is_file():
+                Path(path).unlink()
+                logger.info("removed %s of an earlier run; this run writes its own when it "
+                            "ends", path)
     shipped = backend == "dask" and bool(object_paths(todo))
     if shipped and evaluate_on == "dask":
         raise ConfigError("runner.evaluate_on", "dask evaluates the candidates of problems "

@@ -185,6 +185,29 @@ def quarantine_with_warning(path: Path, reason: str, what: str = "resume") -> Pa
     return dest
 
 
+#: Record fields that must be the job's own for the record to count as its result.
+IDENTITY_FIELDS = ("problem", "case", "param", "optimizer", "start", "seed",
+                   "optimizer_settings", "problem_params", "param_options")
+
+
+def identity_mismatch(record: dict[str, Any], job: Job) -> str:
+    """Why ``record`` (valid, named after ``job``) is not the result of ``job`` ("": it
+    is): a field of :data:`IDENTITY_FIELDS` that differs from the one the job would
+    record, e.g. a record edited by hand or copied from another configuration and
+    renamed."""
+    from penaltyrun.runner.job import identity_columns
+
+    def canonical(value: Any) -> str:
+        return json.dumps(json.loads(json.dumps(value, default=str)), sort_keys=True)
+
+    expected = identity_columns(job)
+    for name in IDENTITY_FIELDS:
+        if name in record and canonical(record[name]) != canonical(expected.get(name)):
+            return (f"its {name} {canonical(record[name]):.60} is not the job's "
+                    f"{canonical(expected.get(name)):.60}")
+    return ""
+
+
 def pending_jobs(jobs: Iterable[Job], run_dir: Path, resume: bool,
                  retry_failed: bool = False) -> list[Job]:
     """Jobs still to run: all of them, or with ``resume`` those without a valid record
@@ -199,6 +222,9 @@ def pending_jobs(jobs: Iterable[Job], run_dir: Path, resume: bool,
             todo.append(job)
             continue
         record, reason = load_record(path)
+        if record is not None:
+            reason = identity_mismatch(record, job)
+            record = None if reason else record
         if record is None:
             quarantine_with_warning(path, reason)
             todo.append(job)

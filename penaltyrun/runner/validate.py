@@ -30,20 +30,30 @@ from penaltyrun.jobrecord import (
     TEXT,
     TEXTS,
 )
-from penaltyrun.typed import is_int, is_number
+from penaltyrun.typed import is_int
 
 __all__ = ["JOB_STATUSES", "NO_RESULT_STATUSES", "OPTIONAL", "REQUIRED", "REQUIRED_FINISHED",
            "SCHEMA_VERSION", "record_problem"]
 
 #: How each kind of :data:`penaltyrun.jobrecord.FIELDS` is checked; fields of another kind
 #: (JSON values, times) are not checked.
+def _int64(value: Any) -> bool:
+    """An integer the results file can store (64-bit)."""
+    return is_int(value) and -(2 ** 63) <= value < 2 ** 63
+
+
+def _number(value: Any) -> bool:
+    """A number the results file can store: a float, or an integer in 64 bits."""
+    return isinstance(value, float) or _int64(value)
+
+
 _KIND_CHECKS = {
-    INT: is_int,
-    NUMBER: is_number,
+    INT: _int64,
+    NUMBER: _number,
     TEXT: lambda v: isinstance(v, str),
     BOOL: lambda v: isinstance(v, bool),
-    NUMBERS: lambda v: isinstance(v, list) and all(is_number(x) for x in v),
-    INTS: lambda v: isinstance(v, list) and all(is_int(x) for x in v),
+    NUMBERS: lambda v: isinstance(v, list) and all(_number(x) for x in v),
+    INTS: lambda v: isinstance(v, list) and all(_int64(x) for x in v),
     TEXTS: lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v),
 }
 #: Fields every record has (also a ``failed`` or ``timeout`` one), with their kind.

@@ -1,6 +1,7 @@
 """``job_timeout`` (``runner.job_timeout``): a job that hangs is killed and recorded
 ``timeout``, the other jobs finish, and a resume with ``retry_failed`` runs it again."""
 
+import json
 import os
 import time
 from types import SimpleNamespace
@@ -47,7 +48,12 @@ def test_a_hanging_job_costs_that_job_only_and_is_retried_on_resume(tmp_path):
     assert summary["n_starts"].tolist() == [3]
     assert summary["converged"].tolist() == [pytest.approx(2 / 3)]
 
-    planned = [SimpleNamespace(job_id=job_id, module_hash="") for job_id in df["job_id"]]
+    planned = [SimpleNamespace(  # the jobs as planned: what their records say of them
+        job_id=r["job_id"], module_hash="", meta={}, problem=r["problem"], case=r["case"],
+        param=r["param"], optimizer=r["optimizer"], start=r["start"], seed=r["seed"],
+        optimizer_options=json.loads(r["optimizer_settings"]),
+        problem_params=json.loads(r["problem_params"]),
+        param_options=json.loads(r["param_options"])) for r in df.to_dict("records")]
     assert pending_jobs(planned, res.run_dir, resume=True) == []
     again = pending_jobs(planned, res.run_dir, resume=True, retry_failed=True)
     assert [job.job_id for job in again] == [hung["job_id"]]

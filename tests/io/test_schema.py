@@ -293,3 +293,14 @@ def test_committed_study_of_an_older_schema_reads_with_null_diagnostics():
     old = raw.to_pandas()
     pd.testing.assert_series_equal(df["best_cost"], old["best_cost"], check_names=False)
     assert list(df["job_id"]) == list(old["job_id"])
+
+
+def test_a_time_that_leaves_the_calendar_in_utc_is_stored_as_null(caplog):
+    """0001-01-01T00:00:00+01:00 is before year 1 in UTC: one warning and null, not an
+    OverflowError that stopped every later write of the run's results."""
+    from penaltyrun.io.schema import to_timestamp
+
+    with caplog.at_level("WARNING"):
+        assert to_timestamp("0001-01-01T00:00:00+01:00") is None
+    assert "out of range" in caplog.text
+    assert to_timestamp("2026-01-01T00:00:00+01:00").hour == 23

@@ -112,3 +112,31 @@ def test_a_ctrl_c_wrapped_by_compiled_code_stops_the_run_and_records_nothing(tmp
         penaltyrun.tune(prob, n_starts=2, optimizer="baseline", workers=1, run_dir=tmp_path)
     assert info.value.signum == signal.SIGINT
     assert not list((tmp_path / "jobs").glob("*.json"))
+
+
+def test_a_run_stopped_part_way_leaves_no_earlier_results_file(tmp_path):
+    """A finished run of 2 starts, then the same cell with 4 starts resumed and stopped:
+    the earlier results.parquet is gone (a results file means the folder's last run
+    finished), the finished records stay, and the resume completes the 4 rows."""
+    calls = {"n": 0, "stop": False}
+
+    def cost(K):
+        if calls["stop"]:
+            raise SignalInterrupt(signal.SIGTERM)
+        calls["n"] += 1
+        return float(np.trace(K))
+
+    prob = penaltyrun.from_cost(cost, {"K": (2, (0.1, 10.0))}, name="stale")
+    penaltyrun.tune(prob, n_starts=2, optimizer="baseline", workers=1, run_dir=tmp_path,
+                    seed=3)
+    assert (tmp_path / "results.parquet").is_file()
+    calls["stop"] = True
+    with pytest.raises(RunInterruptedError):
+        penaltyrun.tune(prob, n_starts=4, optimizer="baseline", workers=1,
+                        run_dir=tmp_path, seed=3, resume=True)
+    assert not (tmp_path / "results.parquet").exists()
+    assert len(list((tmp_path / "jobs").glob("*.json"))) == 2
+    calls["stop"] = False
+    res = penaltyrun.tune(prob, n_starts=4, optimizer="baseline", workers=1,
+                          run_dir=tmp_path, seed=3, resume=True)
+    assert len(res.records) == 4

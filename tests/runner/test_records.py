@@ -56,3 +56,20 @@ def test_a_record_nested_too_deep_for_the_json_parser_is_unreadable(tmp_path):
     path.write_text("[" * 100_000 + "]" * 100_000)
     record, why = load_record(path)
     assert record is None and why.startswith("unreadable (maximum recursion depth")
+
+
+def test_a_record_that_is_not_its_jobs_own_is_moved_aside_and_rerun(tmp_path, caplog):
+    """Named after the job and valid, but its seed, start or settings are another job's
+    (edited by hand, or copied from another configuration and renamed): not reused."""
+    jobs = _jobs(4)
+    edits = [{"seed": 12345}, {"start": 3},
+             {"optimizer_settings": {**jobs[2].optimizer_options, "max_evals": 400}}, {}]
+    for job, edit in zip(jobs, edits):
+        write_record(tmp_path, job, {**_record(job),
+                                     "optimizer_settings": job.optimizer_options, **edit})
+    todo = pending_jobs(jobs, tmp_path, resume=True)
+    assert [j.job_id for j in todo] == [j.job_id for j in jobs[:3]]
+    for words in ("its seed 12345 is not the job's", "its start 3 is not the job's",
+                  "its optimizer_settings"):
+        assert words in caplog.text
+    assert len(list((tmp_path / JOBS_DIR / CORRUPT_DIR).iterdir())) == 3

@@ -33,6 +33,10 @@ def test_a_good_record_passes():
     ({"start": -1}, "start must be"),
     ({"schema_version": SCHEMA_VERSION + 1}, "unknown schema_version"),
     ({"history": ["x"]}, "history"),
+    # what a results file cannot store: integers beyond 64 bits
+    ({"seed": 2 ** 64}, "seed must be an integer"),
+    ({"best_cost": 10 ** 20}, "best_cost must be a number"),
+    ({"trace_evals": [1, 2 ** 63]}, "trace_evals"),
 ])
 def test_bad_records_are_named(change, fragment):
     assert fragment in record_problem({**GOOD, **change}, "j-s000")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -178,8 +179,6 @@ def folder_argument(value: Any, key: str) -> Path:
     ConfigError
         On ``key``: not a str or os.PathLike (e.g. a number or None).
     """
-    import os
-
     if not isinstance(value, (str, os.PathLike)):
         raise ConfigError(key, f"must be a path (str or Path), got {type(value).__name__}")
     return Path(value)

@@ -144,9 +144,8 @@ def check_output_dir(path: str | Path | None, key: str = "report.output") -> Non
     check_run_dir(out, key)
 
 
-def settings_node(cfg: DictConfig, key: str, resolve: bool = True) -> dict[str, Any]:
-    """The settings under ``key`` of ``cfg`` as a dict (``{}`` when absent or null; with
-    ``resolve`` false, unresolved and only checked).
+def checked_settings_node(cfg: DictConfig, key: str) -> Any:
+    """The node under ``key`` of ``cfg``, unresolved (None when absent or null).
 
     Raises
     ------
@@ -154,11 +153,16 @@ def settings_node(cfg: DictConfig, key: str, resolve: bool = True) -> dict[str, 
         ``key`` holds one value (``runner=5``), not settings.
     """
     node = OmegaConf.select(cfg, key)
-    if node is None:
-        return {}
-    if not isinstance(node, (DictConfig, Mapping)):
+    if node is not None and not isinstance(node, (DictConfig, Mapping)):
         raise ConfigError(key, settings_not_value(key))
-    return dict(plain(node)) if resolve else {}
+    return node
+
+
+def settings_node(cfg: DictConfig, key: str) -> dict[str, Any]:
+    """The settings under ``key`` of ``cfg`` as a dict (``{}`` when absent or null;
+    :func:`checked_settings_node`)."""
+    node = checked_settings_node(cfg, key)
+    return {} if node is None else dict(plain(node))
 
 
 def check_matrix_entries(values: Mapping[str, Any], prefix: str) -> None:
@@ -252,10 +256,11 @@ def check_config(cfg: DictConfig, connect: bool = True,
     mode = cfg.get("mode")
     if mode not in MODES:
         raise ConfigError("mode", f"unknown mode {mode!r}", allowed=MODES)
-    runner.check_report_options(settings_node(cfg, "report"))
+    report = settings_node(cfg, "report")
+    runner.check_report_options(report)
     runner.check_runner_options(settings_node(cfg, "runner"),
                                 connect=connect and mode == "optimize")
-    check_output_dir(settings_node(cfg, "report").get("output"))
+    check_output_dir(report.get("output"))
     if mode == "report":
         return
     check_evaluate_extras(mode, cfg.get("gradient"), plain(cfg.get("z")))
@@ -282,7 +287,7 @@ def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) ->
     """Check a composed config (with its ``hydra`` node) against the shipped one ``base``:
     unknown ``+keys``, every option's type and range, the run directory, the scheduler."""
     for key in SETTINGS_NODES:
-        settings_node(cfg, key, resolve=False)
+        checked_settings_node(cfg, key)
     base = cells.with_params_schema(base)  # a problem's parameters: its Params dataclass
     check_known_keys(plain_nohydra(cells.with_params_schema(cfg)), plain_nohydra(base))
     check_config(cfg, base=base)

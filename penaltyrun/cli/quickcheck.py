@@ -31,6 +31,8 @@ _FLOAT = re.compile(r"[+-]?(?:(?:(?:0|[1-9][0-9]*)\.[0-9]*|\.[0-9]+)(?:[eE][+-]?
                     r"|(?:0|[1-9][0-9]*)[eE][+-]?[0-9]+)")
 _ID = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _SKIP = object()
+
+
 def settings_not_value(key: str) -> str:
     """The refusal of one value given for the settings node ``key`` (``runner=5``)."""
     return f"is a group of settings, not one value: set one of its keys, {key}.<key>=VALUE"

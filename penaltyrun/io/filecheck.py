@@ -255,9 +255,8 @@ def check_content(frame: pd.DataFrame) -> str | None:
     status ``ok`` without a finite ``best_cost``, a held-out cost of −∞, a JSON column of
     :data:`OBJECT_COLUMNS` whose value is not an object or is nested too deep to parse, a
     matrix that is not a rectangular array of numbers, or held-out lists of different
-    lengths. Each distinct value is decoded
-    once; columns absent from ``frame`` (a lazily read frame's) are not checked here but
-    when their rows are read."""
+    lengths. Each distinct value is decoded once; columns absent from ``frame`` (a lazily
+    read frame's) are not checked here but when their rows are read."""
     for name, (impossible, what) in IMPOSSIBLE_VALUES.items():
         if name in frame and any(impossible(v).any() for v in _numbers(frame[name])):
             return f"column {name} holds {what}"

@@ -57,12 +57,16 @@ def training_of(params: Any) -> dict[str, Any]:
     return {k: p.get(k) for k in TRAIN_KEYS if p.get(k) is not None}
 
 
+def aggregate_label(training: dict[str, Any]) -> str:
+    """``<aggregate> of <n>`` of multi-scenario ``training`` settings (e.g. ``mean of 8``):
+    the cost the optimizers minimized."""
+    n = len(training.get("train_scenarios") or []) + int(training.get("train_sample") or 0)
+    return f"{training.get('train_aggregate') or 'mean'} of {n}"
+
+
 def mode_label(training: dict[str, Any]) -> str:
     """``single`` or ``multi (<aggregate> of <n>)``."""
-    if not training:
-        return SINGLE
-    n = len(training.get("train_scenarios") or []) + int(training.get("train_sample") or 0)
-    return f"multi ({training.get('train_aggregate') or 'mean'} of {n})"
+    return f"multi ({aggregate_label(training)})" if training else SINGLE
 
 
 def _canonical(value: Any) -> str:
@@ -247,5 +251,5 @@ def long_form(table: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-__all__ = ["SINGLE", "TRAIN_KEYS", "comparison", "mode_label", "study_sections",
+__all__ = ["SINGLE", "TRAIN_KEYS", "aggregate_label", "comparison", "mode_label", "study_sections",
            "training_of", "with_modes"]

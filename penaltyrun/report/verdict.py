@@ -29,7 +29,7 @@ from penaltyrun.report.compare import NO_TEST
 from penaltyrun.report.holdout import BEST_KNOWN, discretization_check
 from penaltyrun.report.rows import has, present
 from penaltyrun.report.tables import fmt, with_unit
-from penaltyrun.report.tuning import mode_label, training_of
+from penaltyrun.report.tuning import aggregate_label, training_of
 
 #: Significance level of the words in the sentences (the p-values are always printed).
 ALPHA = 0.05
@@ -191,7 +191,7 @@ def training_words(jobs: pd.DataFrame) -> str:
     training = training_of(params.iloc[0]) if len(params) else {}
     if not training:
         return "the training scenario"
-    return f"the training scenarios ({mode_label(training).removeprefix('multi (')}"
+    return f"the training scenarios ({aggregate_label(training)})"
 
 
 def sentence(row: dict, d: Any, f: Any, budgets: list[dict], h: dict | None,

@@ -35,8 +35,6 @@ from penaltyrun.typed import is_int
 __all__ = ["JOB_STATUSES", "NO_RESULT_STATUSES", "OPTIONAL", "REQUIRED", "REQUIRED_FINISHED",
            "SCHEMA_VERSION", "record_problem"]
 
-#: How each kind of :data:`penaltyrun.jobrecord.FIELDS` is checked; fields of another kind
-#: (JSON values, times) are not checked.
 def _int64(value: Any) -> bool:
     """An integer the results file can store (64-bit)."""
     return is_int(value) and -(2 ** 63) <= value < 2 ** 63
@@ -47,6 +45,8 @@ def _number(value: Any) -> bool:
     return isinstance(value, float) or _int64(value)
 
 
+#: How each kind of :data:`penaltyrun.jobrecord.FIELDS` is checked; fields of another kind
+#: (JSON values, times) are not checked.
 _KIND_CHECKS = {
     INT: _int64,
     NUMBER: _number,

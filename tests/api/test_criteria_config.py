@@ -65,11 +65,11 @@ def test_cli_evaluates_a_criterion(tmp_path):
     (["problem=mpc_rendezvous", "problem.params.criterion=fastest"],
      "problem.params.criterion", "unknown criterion"),
     (["problem=attitude_lqr", "problem.params.criterion=terminal",
-      "problem.params.terminal_weight=[1,2]"], "problem.terminal_weight", "6 diagonal"),
+      "problem.params.terminal_weight=[1,2]"], "problem.params.terminal_weight", "6 diagonal"),
     (["problem=lqr", "problem.params.criterion=terminal",
       "problem.params.terminal_weight=[[1,2,0],[2,1,0],[0,0,1]]"],
      "problem.params.terminal_weight", "semidefinite"),
-    (["problem=attitude_lyapunov", "problem.params.rho=-1"], "problem.rho", "positive"),
+    (["problem=attitude_lyapunov", "problem.params.rho=-1"], "problem.params.rho", "positive"),
 ], ids=["mpc-name", "attitude-shape", "lqr-psd", "attitude-rho"])
 def test_bad_criterion_settings_one_line_exit_2(tmp_path, args, key, words):
     proc = _cli([*args, "runner.n_starts=1"], tmp_path)

@@ -111,7 +111,8 @@ def attitude_to_quaternion(kind: str, values: Any) -> np.ndarray:
         return normalize_quaternion(values)
     if kind == "mrp":
         return mrp_to_quaternion(values)
-    raise ConfigError("problem.attitude_type", f"unknown type {kind!r}", allowed=ATTITUDE_TYPES)
+    raise ConfigError("problem.params.attitude_type", f"unknown type {kind!r}",
+                      allowed=ATTITUDE_TYPES)
 
 
 def robustness_grid(n: int = 6, lo: float = 10.0, hi: float = 350.0) -> np.ndarray:

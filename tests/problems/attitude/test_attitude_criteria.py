@@ -216,17 +216,17 @@ def test_companion_cases_switch_to_the_recorded_cost():
 
 
 @pytest.mark.parametrize("overrides,key,words", [
-    ({"criterion": "fastest"}, "problem.criterion", "unknown criterion"),
-    ({"criterion": "time_energy", "rho": 0.0}, "problem.rho", "positive"),
-    ({"rho": float("nan")}, "problem.rho", "positive"),
-    ({"free_time_cap": -1.0}, "problem.free_time_cap", "positive"),
-    ({"terminal_weight": [1.0, 2.0]}, "problem.terminal_weight", "6 diagonal entries"),
-    ({"terminal_weight": [1.0, 1.0, 1.0, 1.0, 1.0, -1.0]}, "problem.terminal_weight",
+    ({"criterion": "fastest"}, "problem.params.criterion", "unknown criterion"),
+    ({"criterion": "time_energy", "rho": 0.0}, "problem.params.rho", "positive"),
+    ({"rho": float("nan")}, "problem.params.rho", "positive"),
+    ({"free_time_cap": -1.0}, "problem.params.free_time_cap", "positive"),
+    ({"terminal_weight": [1.0, 2.0]}, "problem.params.terminal_weight", "6 diagonal entries"),
+    ({"terminal_weight": [1.0, 1.0, 1.0, 1.0, 1.0, -1.0]}, "problem.params.terminal_weight",
      "semidefinite"),
-    ({"terminal_weight": (np.eye(6) + np.eye(6, k=1)).tolist()}, "problem.terminal_weight",
+    ({"terminal_weight": (np.eye(6) + np.eye(6, k=1)).tolist()}, "problem.params.terminal_weight",
      "symmetric"),
     ({"terminal_weight": [1.0, 1.0, 1.0, 1.0, 1.0, float("inf")]},
-     "problem.terminal_weight", "finite"),
+     "problem.params.terminal_weight", "finite"),
 ])
 def test_bad_criterion_settings_are_one_config_error(overrides, key, words):
     with pytest.raises(ConfigError) as err:

@@ -19,6 +19,7 @@ import numpy as np
 from penaltyrun.errors import ConfigError
 from penaltyrun.penalty import derivatives as deriv
 from penaltyrun.penalty import orthogonal as orth
+from penaltyrun.typed import is_int
 
 KINDS = ("diagonal", "full", "geagsp", "givens", "cayley", "cayley_tan")
 ALIASES = {"full": "geagsp"}
@@ -214,14 +215,38 @@ def make(kind: str, n: int, eig_bounds: tuple[float, float], cayley_bound: float
          key: str = "param.name") -> Parameterization:
     """Build a parameterization, validating its settings.
 
+    Parameters
+    ----------
+    kind : str
+        One of :data:`KINDS` (``"full"``, ``"diagonal"``, ``"givens"``, ``"cayley"``, ...).
+    n : int
+        Size of the n × n matrix.
+    eig_bounds : (float, float)
+        Bounds (lower, upper) of its eigenvalues, 0 < lower < upper.
+    cayley_bound : float
+        Box half-width of the Cayley map's skew entries (``kind="cayley"``).
+    key : str
+        Config key named in the error of an unknown ``kind``.
+
+    Returns
+    -------
+    Parameterization
+
     Raises
     ------
     ConfigError
-        Unknown kind, or bounds that do not satisfy 0 < lower < upper.
+        Unknown kind, a size ``n`` that is not a positive integer, or bounds that do not
+        satisfy 0 < lower < upper.
     """
     if kind not in KINDS:
         raise ConfigError(key, f"unknown parameterization {kind!r}", allowed=KINDS)
-    lo, hi = (float(b) for b in eig_bounds)
+    if not is_int(n, any_integral=True) or n < 1:
+        raise ConfigError("n", f"the matrix size must be a positive integer, got {n!r}")
+    try:
+        lo, hi = (float(b) for b in eig_bounds)
+    except (TypeError, ValueError):
+        raise ConfigError("param.eig_bounds", f"need two numbers [lower, upper], got "
+                          f"{eig_bounds!r}") from None
     if not (0.0 < lo < hi and np.isfinite(hi)):
         raise ConfigError("param.eig_bounds",
                           f"need 0 < lower < upper < inf for a PD matrix, got [{lo}, {hi}]")

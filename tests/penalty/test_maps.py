@@ -424,3 +424,18 @@ def test_decode_is_the_sum_of_eigenvalue_weighted_outer_products(kind, n):
         ref = sum(Z[b, i] * np.outer(Q[b][:, i], Q[b][:, i]) for i in range(n))
         np.testing.assert_allclose(K[b], ref, rtol=0, atol=1e-13 * 10.0)
         np.testing.assert_array_equal(K[b], K[b].T)
+
+
+@pytest.mark.parametrize("n", [0, -1, 2.5, "2", None, True])
+def test_the_size_must_be_a_positive_integer(n):
+    with pytest.raises(ConfigError, match="^n: the matrix size must be a positive integer"):
+        make("full", n, (0.1, 10.0))
+
+
+def test_a_numpy_integer_size_is_a_size():
+    assert make("givens", np.int64(3), (0.1, 10.0)).n == 3
+
+
+def test_bounds_that_are_not_numbers_are_one_config_error():
+    with pytest.raises(ConfigError, match="^param.eig_bounds: need two numbers"):
+        make("full", 2, ("a", "b"))

@@ -43,7 +43,7 @@ def evaluate_matrices(prob: Any, matrices: Mapping[str, Any],
         indefinite matrix, or a missing scalar (naming ``matrices.<name>`` /
         ``scalars.<name>``).
     """
-    given = {k: v for k, v in (matrices or {}).items() if v is not None}
+    given = {k: v for k, v in _mapping(matrices, "matrices", prob).items() if v is not None}
     wanted = [spec.name for spec in prob.matrices]
     extra = sorted(set(given) - set(wanted))
     if extra:
@@ -51,17 +51,45 @@ def evaluate_matrices(prob: Any, matrices: Mapping[str, Any],
                           allowed=wanted)
     for spec in prob.matrices:
         if spec.name not in given:
-            raise ConfigError(f"matrices.{spec.name}", f"missing; pass "
-                              f"'matrices.{spec.name}=[[...], ...]' ({spec.size}x{spec.size})")
+            raise ConfigError(f"matrices.{spec.name}", f"missing: give the {spec.size}x"
+                              f"{spec.size} matrix {spec.name} (nested lists or an array)")
         check_spd(f"matrices.{spec.name}", given[spec.name], spec.size)
-    scalars_given = {k: v for k, v in (scalars or {}).items() if v is not None}
+    scalars_given = {k: v for k, v in _mapping(scalars, "scalars", prob).items()
+                     if v is not None}
+    extra = sorted(set(scalars_given) - {spec.name for spec in prob.scalars})
+    if extra:
+        raise ConfigError(f"scalars.{extra[0]}", f"not a scalar of problem {prob.name!r}",
+                          allowed=[spec.name for spec in prob.scalars])
     values = {}
     for spec in prob.scalars:
         if spec.name not in scalars_given:
-            raise ConfigError(f"scalars.{spec.name}", "missing; pass "
-                              f"'scalars.{spec.name}=<value>' in {list(spec.bounds)}")
-        values[spec.name] = float(scalars_given[spec.name])
+            raise ConfigError(f"scalars.{spec.name}", f"missing: give scalar {spec.name}, a "
+                              f"number in {list(spec.bounds)}")
+        value = scalars_given[spec.name]
+        if not is_number(value, any_real=True):
+            raise ConfigError(f"scalars.{spec.name}", f"must be a number in "
+                              f"{list(spec.bounds)}, got {value!r}")
+        values[spec.name] = float(value)
     return prob.evaluate(given, values or None)
+
+
+def _mapping(values: Any, key: str, prob: Any) -> Mapping[str, Any]:
+    """``values`` (``matrices`` or ``scalars``: name → value) as a mapping; ``{}`` for
+    None.
+
+    Raises
+    ------
+    ConfigError
+        ``values`` is not a mapping (e.g. a bare array instead of ``{"K": array}``).
+    """
+    if values is None:
+        return {}
+    if not isinstance(values, Mapping):
+        names = [spec.name for spec in getattr(prob, key, ())]
+        example = ", ".join(f"{n!r}: ..." for n in names) or "name: value"
+        raise ConfigError(key, f"must be a mapping {{{example}}} (name → value), got a "
+                          f"{type(values).__name__}")
+    return values
 
 
 def decode_z(layout: Any, z: Any) -> tuple[dict[str, Any], dict[str, float]]:
@@ -131,7 +159,7 @@ def evaluate_candidate(prob: Any, matrices: Mapping[str, Any] | None,
     """
     from penaltyrun.runner.setup import build_layout
 
-    given = {k: v for k, v in (matrices or {}).items() if v is not None}
+    given = {k: v for k, v in _mapping(matrices, "matrices", prob).items() if v is not None}
     if z is None and not gradient:
         return evaluate_matrices(prob, given, scalars)
     if gradient:

@@ -13,11 +13,24 @@ from penaltyrun.problems.base import Problem
 T = TypeVar("T")
 
 
+#: Options of every parameterization (``param.*``).
+PARAM_OPTIONS = ("eig_bounds", "cayley_bound")
+
+
 def build_layout(problem: Problem, param: str, options: Mapping[str, Any]) -> DecisionLayout:
     """Decision layout: every matrix of ``problem`` parameterized by ``param``.
 
     ``options["eig_bounds"]`` (if not None) overrides the problem's eigenvalue bounds.
+
+    Raises
+    ------
+    ConfigError
+        An option other than :data:`PARAM_OPTIONS`, or invalid bounds.
     """
+    unknown = sorted(set(options) - set(PARAM_OPTIONS) - {"name"})
+    if unknown:
+        raise ConfigError(f"param.{unknown[0]}", "not an option of the parameterizations",
+                          allowed=list(PARAM_OPTIONS))
     specs = []
     for spec in problem.matrices:
         bounds = options.get("eig_bounds") or spec.eig_bounds

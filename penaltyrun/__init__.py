@@ -8,7 +8,10 @@ starts fast:
 * :class:`TuneResult` — records, best start, summary and report of a run;
 * :func:`load` — the result of a run or study folder;
 * :func:`evaluate` — one candidate's matrices in detail, as ``mode=evaluate``;
-* :func:`compare` — the report's map-vs-map statistics of two results.
+* :func:`compare` — the report's map-vs-map statistics of two results;
+* the errors they raise: :class:`ConfigError` (bad input), :class:`RunInterruptedError`,
+  :class:`RunAbortedError`, :class:`EnvironmentProblemError`,
+  :class:`ResultsUnreadableError`.
 """
 
 from __future__ import annotations
@@ -23,6 +26,9 @@ __version__ = "0.1.0"
 
 _NAMES = {name: "api" for name in ("Best", "TuneResult", "compare", "evaluate",
                                    "from_cost", "load", "tune")}
+_NAMES.update({name: "errors" for name in ("ConfigError", "EnvironmentProblemError",
+                                           "ResultsUnreadableError", "RunAbortedError",
+                                           "RunInterruptedError")})
 
 __all__ = ["__version__", *sorted(_NAMES)]
 

@@ -64,7 +64,7 @@ def test_top_level_api_has_the_documented_signatures():
                      "gradient=None, gradient_cost=None)",
         "tune": "(problem, *, param='full', optimizer='cmaes', n_starts=10, seed=None, "
                 "optimizer_options=None, case=None, params=None, run_dir=None, workers=None, "
-                "resume=False, job_timeout=None)",
+                "resume=False, job_timeout=None, param_options=None, runner_options=None)",
         "load": "(path, *, problem=None)",
         "compare": "(result_a, result_b)",
     }

@@ -19,7 +19,7 @@ import yaml
 from penaltyrun import yamlsafe
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems.criteria import hashed_node
-from penaltyrun.runner.spec import RunnerOptions, RunSpec
+from penaltyrun.runner.spec import OPTIONAL_OPTIMIZER_OPTIONS, RunnerOptions, RunSpec
 from penaltyrun.typed import is_number
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
@@ -178,16 +178,19 @@ def checked_params(node: Mapping[str, Any], params: Mapping[str, Any]) -> dict[s
 
 def compose(problem: str, module: str | None, *, case: str | None, param: str,
             optimizer: str, optimizer_options: Mapping[str, Any] | None,
-            params: Mapping[str, Any] | None, runner: Mapping[str, Any]) -> dict[str, Any]:
+            params: Mapping[str, Any] | None, runner: Mapping[str, Any],
+            param_options: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The composed config of one cell (the dict the command line's Hydra config resolves
     to for the same choices and overrides).
 
     Raises
     ------
     ConfigError
-        An unknown map or optimizer, or an optimizer option the optimizer does not have.
+        An unknown map or optimizer, an optimizer or map option the optimizer or map does
+        not have, or an unknown runner option.
     """
-    for key, value in (("params", params), ("optimizer_options", optimizer_options)):
+    for key, value in (("params", params), ("optimizer_options", optimizer_options),
+                       ("param_options", param_options)):
         if value is not None and not isinstance(value, Mapping):
             raise ConfigError(key, f"must be a mapping {{name: value}}, got "
                                    f"{type(value).__name__}")
@@ -198,12 +201,23 @@ def compose(problem: str, module: str | None, *, case: str | None, param: str,
     if params:
         prob["params"] = checked_params(prob, params)
     opt = group_node("optimizer", optimizer)
-    unknown = sorted(set(optimizer_options or {}) - set(opt) - {"name"})
+    unknown = sorted(set(optimizer_options or {}) - set(opt) - {"name"}
+                     - set(OPTIONAL_OPTIMIZER_OPTIONS))
     if unknown:
         raise ConfigError(f"optimizer.{unknown[0]}", f"not an option of optimizer "
                           f"{optimizer!r}", allowed=sorted(set(opt) - {"name"}))
     opt.update(plain(optimizer_options or {}, "optimizer_options"))
-    config = {"problem": prob, "param": group_node("param", param), "optimizer": opt}
+    par = group_node("param", param)
+    unknown = sorted(set(param_options or {}) - set(par) - {"name"})
+    if unknown:
+        raise ConfigError(f"param.{unknown[0]}", f"not an option of map {param!r}",
+                          allowed=sorted(set(par) - {"name"}))
+    par.update(plain(param_options or {}, "param_options"))
+    unknown = sorted(set(runner) - set(base["runner"]))
+    if unknown:
+        raise ConfigError(f"runner.{unknown[0]}", "not a runner option",
+                          allowed=sorted(base["runner"]))
+    config = {"problem": prob, "param": par, "optimizer": opt}
     config.update(base)
     config["case"] = case
     config["runner"] = _merge(base["runner"], plain(runner, "runner"))

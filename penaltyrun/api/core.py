@@ -64,10 +64,11 @@ def run_cell(spec: RunSpec, run_dir: Path, progress: ProgressFactory | None = No
     RunInterruptedError, RunAbortedError, EnvironmentProblemError
         As :func:`penaltyrun.runner.execute`; finished jobs stay on disk for a resume.
     """
-    from penaltyrun import io, runner
+    from penaltyrun import io, optim, runner
     from penaltyrun.runner import lock
 
     prob, _, _ = spec.build()
+    optim.check_gradient_available(spec.optimizer, spec.optimizer_options, prob)
     run_dir = Path(run_dir)
     jobs = spec.plan(prob.case, run_meta(spec, run_dir))
     rc = spec.runner

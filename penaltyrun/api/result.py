@@ -90,7 +90,9 @@ class TuneResult:
     def records(self) -> pd.DataFrame:
         """One row per start, the columns of ``results.parquet``
         (:mod:`penaltyrun.io.schema`; JSON columns stay text, see
-        :func:`penaltyrun.io.decode_json`)."""
+        :func:`penaltyrun.io.decode_json`) and ``status_known``, which the reader adds:
+        False for a status this version does not know (listed, never counted as
+        converged; :func:`penaltyrun.io.read_results`)."""
         if self._records is None:
             self._records = io.read_results(self.source)
         return self._records
@@ -210,13 +212,14 @@ def load(path: str | Path, *, problem: Any = None) -> TuneResult:
     path = folder_argument(path, "path")
     if not path.exists():
         raise ConfigError("path", f"{path} does not exist")
-    if isinstance(problem, str):
+    if problem is not None:
         from penaltyrun.api.tuning import resolve_problem
 
-        name, module, _ = resolve_problem(problem)
-        if module:
-            problems.register(name, module)
-        problem = None
+        name, module, _ = resolve_problem(problem)  # a name, a module path or an object
+        if isinstance(problem, str):
+            if module:
+                problems.register(name, module)
+            problem = None
     if path.is_file():
         return TuneResult(path.parent, path, problem=problem)
     own = path / io.RESULTS_FILE
@@ -251,7 +254,10 @@ def compare(result_a: Any, result_b: Any) -> pd.DataFrame:
     -------
     DataFrame
         One row per pair of maps (``map_a``, ``map_b``, ``median_a``, ``median_b``,
-        ``a12_b_beats_a``, ``p_mwu``, ``p_holm``, ...).
+        ``a12_b_beats_a``, ``p_mwu``, ``p_holm``, ...). The maps of a pair are in the
+        report's order (the diagonal first), whatever the order of the two arguments:
+        ``a12_b_beats_a`` is the probability that a start of ``map_b`` beats one of
+        ``map_a``.
     """
     from penaltyrun.report import protocol
     from penaltyrun.report.compare import pairwise

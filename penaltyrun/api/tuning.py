@@ -51,6 +51,8 @@ def resolve_problem(problem: Any) -> tuple[str, str | None, Any]:
                               allowed=problems.available())
         if "." in problem and problem not in problems.available():
             name = problem.rsplit(".", 1)[1]
+            problems.builtin_name_refused(name, "problem", "a module's problem name is the "
+                                          "last part of its path; rename the module")
             problems.module(name, problem)  # import it now: one clear error if it fails
             return name, problem, None
         problems.module(problem)
@@ -61,6 +63,8 @@ def resolve_problem(problem: Any) -> tuple[str, str | None, Any]:
         raise ConfigError("problem", f"expected a problem name, a module path or a problem "
                           f"object (penaltyrun.from_cost), got a {type(problem).__name__} "
                           f"that lacks {', '.join(missing)}")
+    problems.builtin_name_refused(str(problem.name), "problem", "give the object another "
+                                  "name")
     return str(problem.name), f"{problems.OBJECT_PREFIX}{problem.name}", problem
 
 
@@ -78,7 +82,9 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
          seed: int | None = None, optimizer_options: Mapping[str, Any] | None = None,
          case: str | None = None, params: Mapping[str, Any] | None = None,
          run_dir: str | Path | None = None, workers: int | str | None = None,
-         resume: bool = False, job_timeout: float | None = None) -> TuneResult:
+         resume: bool = False, job_timeout: float | None = None,
+         param_options: Mapping[str, Any] | None = None,
+         runner_options: Mapping[str, Any] | None = None) -> TuneResult:
     """Tune the penalty matrices of ``problem``: ``n_starts`` seeded optimizer starts.
 
     Parameters
@@ -117,6 +123,14 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
         Wall-clock seconds a job may run before its worker process is killed and the job
         recorded ``timeout`` (s; ``runner.job_timeout``); with it even ``workers=1`` runs
         the jobs in a worker process. ``None``: no limit.
+    param_options : mapping, optional
+        Options of the map (``param.*`` on the command line): ``eig_bounds`` [lower,
+        upper] over the problem's eigenvalue bounds, ``cayley_bound``.
+    runner_options : mapping, optional
+        Other ``runner.*`` settings of the command line (:class:`~penaltyrun.runner.spec.
+        RunnerOptions`), e.g. ``{"warm_start": True}``, ``{"holdout": False}``,
+        ``{"retry_failed": True}``, ``{"backend": "dask"}``; the arguments above set
+        their own.
 
     Returns
     -------
@@ -132,11 +146,20 @@ def tune(problem: Any, *, param: str = "full", optimizer: str = "cmaes", n_start
     """
     name, module, obj = resolve_problem(problem)
     root_seed = default_seed() if seed is None else seed
-    runner = {**API_RUNNER, "n_starts": n_starts, "seed": root_seed,
-              "workers": "auto" if workers is None else workers, "resume": resume,
-              "job_timeout": job_timeout}
+    own = {"n_starts": n_starts, "seed": root_seed,
+           "workers": "auto" if workers is None else workers, "resume": resume,
+           "job_timeout": job_timeout}
+    if runner_options is not None and not isinstance(runner_options, Mapping):
+        raise ConfigError("runner_options", f"must be a mapping {{name: value}}, got "
+                          f"{type(runner_options).__name__}")
+    twice = sorted(set(runner_options or {}) & set(own))
+    if twice:
+        raise ConfigError(f"runner_options.{twice[0]}", f"pass {twice[0]}= as tune's own "
+                          "argument")
+    runner = {**API_RUNNER, **(runner_options or {}), **own}
     config = compose(name, module, case=case, param=param, optimizer=optimizer,
-                     optimizer_options=optimizer_options, params=params, runner=runner)
+                     optimizer_options=optimizer_options, params=params, runner=runner,
+                     param_options=param_options)
     spec = run_spec(config)
     if run_dir is None:
         run_dir = tempfile.mkdtemp(prefix="penaltyrun-")

@@ -22,6 +22,7 @@ from penaltyrun.cli import spec as cells
 from penaltyrun.cli.modes import JOB_MODES, MODES
 from penaltyrun.cli.quickcheck import SETTINGS_NODES, settings_not_value
 from penaltyrun.errors import ConfigError
+from penaltyrun.runner.spec import OPTIONAL_OPTIMIZER_OPTIONS
 from penaltyrun.typed import is_number
 
 #: Subtrees whose keys are free (candidate matrices / scalars of ``mode=evaluate``).
@@ -30,7 +31,7 @@ FREE_KEYS = ("matrices", "scalars")
 EVALUATE_EXTRAS = ("gradient",)
 #: Settings every search optimizer reads that only some presets list, added with
 #: ``+key=value`` (the charge per gradient of ``polish=gradient``).
-OPTIONAL_KEYS = ("optimizer.grad_cost",)
+OPTIONAL_KEYS = tuple(f"optimizer.{key}" for key in OPTIONAL_OPTIMIZER_OPTIONS)
 
 
 def plain(node: Any) -> Any:
@@ -181,23 +182,6 @@ def check_matrix_entries(values: Mapping[str, Any], prefix: str) -> None:
                                   f"{item!r}")
 
 
-def check_gradient_available(optimizer: str, options: Mapping[str, Any], prob: Any) -> None:
-    """An optimizer (or polish) that needs the exact gradient, on a problem without one, is
-    refused before any job runs."""
-    from penaltyrun.optim import GRADIENT_OPTIMIZERS
-    from penaltyrun.problems.base import gradient_support
-
-    reason = gradient_support(prob)
-    if not reason:
-        return
-    if optimizer in GRADIENT_OPTIMIZERS:
-        raise ConfigError("optimizer", f"{optimizer} needs the exact gradient, but {reason}; "
-                                       "pick another optimizer")
-    if options.get("polish") == "gradient":
-        raise ConfigError("optimizer.polish", f"gradient needs the exact gradient, but "
-                                              f"{reason}; use polish=L-BFGS-B (differences)")
-
-
 def check_evaluate_extras(mode: str, gradient: Any, z: Any) -> None:
     """``+gradient`` is true or false and only in ``mode=evaluate``; ``z`` is null or a
     list of numbers."""
@@ -250,7 +234,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
     ConfigError
         The first problem found, naming its key.
     """
-    from penaltyrun import problems, runner
+    from penaltyrun import optim, problems, runner
     from penaltyrun.runner.setup import checked
 
     mode = cfg.get("mode")
@@ -280,7 +264,7 @@ def check_config(cfg: DictConfig, connect: bool = True,
     spec = cells.run_spec(cfg)  # the cell as the runner builds and plans it
     prob, _, _ = spec.build()
     spec.warm_start_share()
-    check_gradient_available(spec.optimizer, spec.optimizer_options, prob)
+    optim.check_gradient_available(spec.optimizer, spec.optimizer_options, prob)
 
 
 def check_composed(cfg: DictConfig, base: DictConfig, multirun: bool = False) -> None:

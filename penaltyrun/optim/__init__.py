@@ -92,6 +92,28 @@ OPTIMIZERS: dict[str, Optimizer] = {
 #: Optimizers that need the problem's exact gradient.
 GRADIENT_OPTIMIZERS = tuple(name for name, opt in OPTIMIZERS.items() if opt.needs_gradient)
 
+def check_gradient_available(optimizer: str, options: Mapping[str, Any], prob: Any) -> None:
+    """Refuse an optimizer (or polish) that needs the exact gradient on a problem without
+    one, before any job runs (the command line's check and :func:`penaltyrun.tune`'s).
+
+    Raises
+    ------
+    ConfigError
+        ``optimizer`` or ``optimizer.polish``, naming why the problem has no gradient.
+    """
+    from penaltyrun.problems.base import gradient_support
+
+    reason = gradient_support(prob)
+    if not reason:
+        return
+    if optimizer in GRADIENT_OPTIMIZERS:
+        raise ConfigError("optimizer", f"{optimizer} needs the exact gradient, but {reason}; "
+                                       "pick another optimizer")
+    if options.get("polish") == "gradient":
+        raise ConfigError("optimizer.polish", f"gradient needs the exact gradient, but "
+                                              f"{reason}; use polish=L-BFGS-B (differences)")
+
+
 Settings = (PSOSettings | DESettings | CMAESSettings | GridSettings | BaselineSettings
             | PSOMatlabSettings | LBFGSSettings)
 
@@ -204,5 +226,6 @@ __getattr__, __dir__ = lazy.exports(__name__, _NAMES, globals())
 __all__ = ["GRADIENT_OPTIMIZERS", "OPTIMIZERS", "POLISH_METHODS", "BaselineSettings", "Optimizer",
            "CMAESSettings", "CommonSettings", "DESettings", "GridSettings", "LBFGSSettings",
            "OptimResult", "PSOMatlabSettings",
-           "PSOSettings", "Settings", "check_dimension", "declared_gradient_cost",
+           "PSOSettings", "Settings", "check_dimension", "check_gradient_available",
+           "declared_gradient_cost",
            "make_settings", "minimize", "planned_evals", "with_gradient_cost"]

@@ -137,6 +137,21 @@ def register(name: str, module_path: str) -> None:
     trust.name_module(name, module_path)
 
 
+def builtin_name_refused(name: str, key: str, fix: str) -> None:
+    """Refuse a user problem (a module, an in-memory object) named like one of penaltyrun's
+    own problems: its records would read as the built-in problem's and be pooled with them,
+    and naming it would replace the built-in for the rest of the process.
+
+    Raises
+    ------
+    ConfigError
+        ``name`` is a key of :data:`REGISTRY`; the message ends with ``fix``.
+    """
+    if name in REGISTRY:
+        raise ConfigError(key, f"{name!r} is the name of a built-in problem; a problem of "
+                          f"your own needs another name: {fix}")
+
+
 def available() -> tuple[str, ...]:
     """Names of the problems this installation knows (own, registered, entry points)."""
     own = [name for name, mod in REGISTRY.items() if importlib.util.find_spec(mod)]

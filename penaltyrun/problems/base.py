@@ -134,6 +134,32 @@ class BatchEvaluation:
     objective: np.ndarray | None = None
 
 
+def checked_batch(result: Any, n: int, problem: Any) -> Any:
+    """``result`` of ``problem.evaluate_batch`` on ``n`` candidates, checked against the
+    protocol: a :class:`BatchEvaluation` (or any object with its ``cost``, ``converged``
+    and ``status``) holding one entry per candidate.
+
+    Raises
+    ------
+    TypeError
+        In one line naming the problem and what it returned (a user module's bug: the
+        job that met it is recorded ``failed`` with this message).
+    """
+    name = getattr(problem, "name", type(problem).__name__)
+    missing = [a for a in ("cost", "converged", "status") if not hasattr(result, a)]
+    if missing:
+        raise TypeError(f"problem {name!r}: evaluate_batch must return a BatchEvaluation("
+                        f"cost, converged, status) with one entry per candidate; it returned "
+                        f"a {type(result).__name__} (without {', '.join(missing)})")
+    for field_name in ("cost", "converged", "status"):
+        shape = np.shape(getattr(result, field_name))
+        if shape != (n,):
+            raise TypeError(f"problem {name!r}: evaluate_batch returned {field_name} of "
+                            f"shape {shape} for {n} candidates; it must hold one entry per "
+                            f"candidate, shape ({n},)")
+    return result
+
+
 @runtime_checkable
 class Problem(Protocol):
     """What the optimizer and runner layers need from a problem instance."""

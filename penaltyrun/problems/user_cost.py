@@ -13,6 +13,7 @@ an in-process object (:func:`penaltyrun.problems.hold`), not by name.
 
 from __future__ import annotations
 
+import logging
 import math
 import types
 from collections.abc import Callable, Mapping
@@ -29,6 +30,8 @@ from penaltyrun.problems.base import (
     ScalarSpec,
 )
 from penaltyrun.typed import is_int
+
+logger = logging.getLogger(__name__)
 
 #: Cost given to a candidate whose cost raised or was not finite (finite, so that every
 #: optimizer ranks it last but keeps going).
@@ -75,6 +78,7 @@ class CostProblem:
         self.scalars = scalars
         self.batched = bool(batched)
         self.name = name
+        self._warned = False
 
     def __repr__(self) -> str:
         mats = ", ".join(f"{m.name}: {m.size}x{m.size}" for m in self.matrices)
@@ -87,7 +91,13 @@ class CostProblem:
             value = float(np.asarray(self.cost(**mats, **scalars), dtype=float).reshape(()))
         except Exception as exc:  # a failing cost is a status, never a crash
             raise_wrapped_exit(exc)
-            return FAILURE_COST, "error", f"{type(exc).__name__}: {exc}"
+            error = f"{type(exc).__name__}: {exc}"
+            if not self._warned:  # once: a cost that always raises must not pass unseen
+                self._warned = True
+                logger.warning("the cost of problem %r raised %s; such candidates get "
+                               "status 'error' and cost %g (said once per problem)",
+                               self.name, " ".join(error.split())[:300], FAILURE_COST)
+            return FAILURE_COST, "error", error
         if not math.isfinite(value):
             return FAILURE_COST, "nonfinite", f"the cost returned {value}"
         return value, "converged", ""
@@ -260,6 +270,9 @@ def from_cost(cost: Callable[..., Any],
         raise ConfigError("cost", f"must be callable, got {type(cost).__name__}")
     if not isinstance(name, str) or not name.isidentifier():
         raise ConfigError("name", f"must be an identifier, got {name!r}")
+    from penaltyrun.problems import builtin_name_refused
+
+    builtin_name_refused(name, "name", "pass another name=")
     for key, value in (("matrices", matrices), ("scalars", scalars)):
         if value is not None and not isinstance(value, Mapping):
             raise ConfigError(key, f"must be a mapping {{name: ...}}, got "

@@ -60,7 +60,9 @@ def _module(problem: str) -> ModuleType | None:
         warn(f"problem {problem!r}: a user problem whose module was not named, so its report "
              "hooks were not run (reading results never imports a module named in them); "
              "this report uses only the stored columns. To run its hooks, name the module: "
-             f"--problem-module {problem if problem.isidentifier() else repr(problem)}=MODULE")
+             f"--problem-module {problem if problem.isidentifier() else repr(problem)}=MODULE"
+             " (from Python: penaltyrun.load(..., problem=<the module path or the problem "
+             "object>))")
         return None
     except Exception as exc:  # a user module missing from PYTHONPATH, or broken
         warn(f"problem {problem!r}: its module cannot be imported ({exc}); this report uses "

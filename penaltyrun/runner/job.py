@@ -185,6 +185,34 @@ def _first_order(prob: Any, layout: Any, z: np.ndarray) -> dict[str, Any]:
                 "gradient_note": f"gradient failed: {exc}"}
 
 
+def _not_converged(detail: dict[str, Any]) -> str:
+    """The ``error`` of a job whose best candidate did not converge: its status, and the
+    problem's own error text when its evaluation gives one (a user cost that raised)."""
+    text = f"best candidate did not converge ({detail.get('status', 'unknown')})"
+    error = detail.get("error")
+    return f"{text}: {error}" if isinstance(error, str) and error else text
+
+
+#: ``best_status`` of a best candidate that its problem called converged although its cost
+#: is not a finite number (:func:`_finite_or_not_converged`).
+NONFINITE_BEST = "nonfinite"
+
+
+def _finite_or_not_converged(detail: dict[str, Any], best_cost: float) -> dict[str, Any]:
+    """The best candidate's evaluation ``detail``, not converged (status
+    :data:`NONFINITE_BEST`) when its own cost or the search's best cost is not finite: a
+    problem that returns NaN or inf with ``converged`` true (a user module's bug) would
+    otherwise be recorded converged at the optimizer's non-finite penalty."""
+    cost = detail.get("cost", best_cost)
+    try:
+        finite = bool(np.isfinite(float(cost))) and bool(np.isfinite(float(best_cost)))
+    except (TypeError, ValueError):
+        finite = False
+    if finite or not detail.get("converged", False):
+        return detail
+    return {**detail, "converged": False, "status": NONFINITE_BEST}
+
+
 def _warm_started(job: Job, prob: Any, layout: Any, settings: Any, evaluation: Any
                   ) -> tuple[optim.OptimResult, dict[str, Any]]:
     """Diagonal stage, then the full search seeded with the best diagonal matrix.
@@ -315,11 +343,11 @@ def _run_job(job: Job, evaluation: Any = None) -> dict[str, Any]:
         best_mats = {k: v[0] for k, v in mats.items()}
         best_scalars = {k: float(v[0]) for k, v in scalars.items()}
         detail, holdout = evaluation.best(job, prob, best_mats, best_scalars)
+        detail = _finite_or_not_converged(detail, result.best_cost)
         converged = bool(detail.get("converged", False))
         record.update({
             "status": OK if converged else DIVERGED,
-            "error": "" if converged else f"best candidate did not converge "
-                                          f"({detail.get('status', 'unknown')})",
+            "error": "" if converged else _not_converged(detail),
             "best_cost": float(result.best_cost),
             "best_converged": converged,
             "best_status": str(detail.get("status", "")),

@@ -18,6 +18,11 @@ from penaltyrun.runner.options import check_runner_options, resolve_workers
 from penaltyrun.runner.plan import Job, plan_jobs
 from penaltyrun.runner.usercode import user_code_hash
 
+#: Optimizer settings every search optimizer reads that only some presets list (the charge
+#: per exact gradient of ``polish=gradient``): given on the command line as
+#: ``+optimizer.grad_cost=...``, from Python in ``optimizer_options``.
+OPTIONAL_OPTIMIZER_OPTIONS = ("grad_cost",)
+
 
 @dataclass(frozen=True)
 class RunnerOptions:

@@ -26,7 +26,7 @@ import numpy as np
 
 from penaltyrun import __version__, problems
 from penaltyrun.penalty.layout import DecisionLayout
-from penaltyrun.problems.base import Problem, accepts_thresholds
+from penaltyrun.problems.base import Problem, accepts_thresholds, checked_batch
 from penaltyrun.problems.hooks import hooks
 from penaltyrun.runner.plan import Job, config_hash
 from penaltyrun.runner.setup import build_layout
@@ -111,9 +111,10 @@ class LocalEvaluation:
         def evaluate(Z: np.ndarray, thresholds: np.ndarray | None = None) -> Any:
             mats, scalars = layout.split(Z)
             if thresholds is None:
-                res = prob.evaluate_batch(mats, scalars or None)
+                res = checked_batch(prob.evaluate_batch(mats, scalars or None), len(Z), prob)
                 return res if getattr(res, "objective", None) is not None else res.cost
-            return prob.evaluate_batch(mats, scalars or None, thresholds=thresholds)
+            return checked_batch(prob.evaluate_batch(mats, scalars or None,
+                                                     thresholds=thresholds), len(Z), prob)
 
         evaluate.accepts_thresholds = bool(getattr(job, "cutoff", True)) and \
             accepts_thresholds(prob)
@@ -188,7 +189,7 @@ def evaluate_chunk(key: str, Z: np.ndarray) -> tuple[np.ndarray, float]:
     prob, layout = cached(key)
     c0 = time.thread_time()
     mats, scalars = layout.split(np.asarray(Z, float))
-    res = prob.evaluate_batch(mats, scalars or None)
+    res = checked_batch(prob.evaluate_batch(mats, scalars or None), len(Z), prob)
     if getattr(res, "objective", None) is not None:  # an objective form: keep both arrays
         return res, time.thread_time() - c0
     cost = np.asarray(res.cost, dtype=float)

@@ -9,6 +9,11 @@ entry), followed transitively. Installed packages, the standard library and pena
 itself are not hashed (their versions are recorded with every result). The imports are
 read from the source (``ast``), not from what happens to be imported in the process, so
 the hash depends on the files alone.
+
+An in-memory problem (``object:<name>``, e.g. from :func:`penaltyrun.from_cost`) has no
+file: its code is hashed instead (:func:`object_code_hash`), so that two cost functions
+under one problem name are two configurations and an edited cost is never resumed from
+the records of the old one.
 """
 
 from __future__ import annotations
@@ -76,6 +81,10 @@ def user_code_hash(problem_module: str | None, problem_params: Mapping[str, Any]
     """
     modules, files = _user_code(problem_module, problem_params, code_params, file_params)
     hashes = [h for _, name in modules if (h := module_source_hash(name))]
+    from penaltyrun.problems import OBJECT_PREFIX, held_object
+
+    if problem_module and problem_module.startswith(OBJECT_PREFIX):
+        hashes.append(object_code_hash(held_object(problem_module)))
     hashes += [h for _, path in files if (h := file_hash(path))]
     if len(hashes) <= 1:
         return hashes[0] if hashes else ""
@@ -104,6 +113,96 @@ def _user_code(problem_module: str | None, problem_params: Mapping[str, Any],
     files = [(key, value) for key in file_params
              if isinstance(value := problem_params.get(key), str)]
     return modules, files
+
+
+def object_code_hash(problem: Any) -> str:
+    """Short SHA-256 of what defines the in-memory problem ``problem``: its public
+    attributes (of a :func:`~penaltyrun.from_cost` problem its cost and gradient functions
+    and its matrix specifications) and, for a class of the user's own, the class's
+    methods. A function
+    counts by its compiled code (bytecode, constants, names, nested functions), default
+    arguments and the values it closes over (:func:`_callable_digest`); any other value
+    by its contents (an array's bytes, else its ``repr``).
+
+    Values a function reads from global variables at call time are not part of it: a cost
+    that depends on a module-level variable changed between runs looks the same.
+    """
+    digest = hashlib.sha256(type(problem).__qualname__.encode())
+    for name, value in sorted(getattr(problem, "__dict__", {}).items()):
+        if name.startswith("_"):  # the object's own bookkeeping, not what it computes
+            continue
+        digest.update(name.encode())
+        if callable(value) and not isinstance(value, type):
+            _callable_digest(value, digest, depth=0)
+        else:
+            _value_digest(value, digest)
+    if not type(problem).__module__.startswith("penaltyrun"):
+        for name, value in vars(type(problem)).items():
+            if callable(value):
+                digest.update(name.encode())
+                _callable_digest(value, digest, depth=0)
+    return digest.hexdigest()[:16]
+
+
+def _callable_digest(function: Any, digest: Any, depth: int) -> None:
+    """Feed ``digest`` with what defines ``function`` (see :func:`object_code_hash`)."""
+    import functools
+    import types
+
+    if depth > 8:
+        return
+    if isinstance(function, functools.partial):
+        _callable_digest(function.func, digest, depth + 1)
+        _value_digest((function.args, function.keywords), digest)
+        return
+    if isinstance(function, types.MethodType):
+        function = function.__func__
+    code = getattr(function, "__code__", None)
+    if code is None:  # a builtin, a numba dispatcher, an object with __call__
+        inner = getattr(function, "py_func", None)  # a numba dispatcher's Python function
+        if inner is None:
+            method = type(function).__call__  # an object's own __call__ (Python code)
+            inner = method if hasattr(method, "__code__") else None
+        if inner is not None:
+            _callable_digest(inner, digest, depth + 1)
+        else:
+            digest.update(repr(getattr(function, "__qualname__", function)).encode())
+        return
+    _code_digest(code, digest)
+    _value_digest(getattr(function, "__defaults__", None), digest)
+    _value_digest(getattr(function, "__kwdefaults__", None), digest)
+    for cell in getattr(function, "__closure__", None) or ():
+        try:
+            value = cell.cell_contents
+        except ValueError:  # an empty cell
+            continue
+        if callable(value) and not isinstance(value, type):
+            _callable_digest(value, digest, depth + 1)
+        else:
+            _value_digest(value, digest)
+
+
+def _code_digest(code: Any, digest: Any) -> None:
+    digest.update(code.co_code)
+    digest.update(repr((code.co_names, code.co_varnames)).encode())
+    for const in code.co_consts:
+        if hasattr(const, "co_code"):
+            _code_digest(const, digest)
+        else:
+            _value_digest(const, digest)
+
+
+def _value_digest(value: Any, digest: Any) -> None:
+    """Feed ``digest`` with ``value``: an array by its dtype, shape and bytes, anything else
+    by its ``repr``."""
+    import numpy as np
+
+    if isinstance(value, np.ndarray):
+        digest.update(repr((value.dtype.str, value.shape)).encode())
+        digest.update(np.ascontiguousarray(value).tobytes())
+    else:
+        text = repr(value)  # an object's default repr holds its address: its type instead
+        digest.update((type(value).__qualname__ if " at 0x" in text else text).encode())
 
 
 def file_hash(path: str) -> str:

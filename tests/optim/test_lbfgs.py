@@ -168,7 +168,7 @@ def test_gradient_polish_refines_any_optimizers_best_inside_the_budget():
 
 
 def test_problem_without_gradient_is_refused_before_any_job():
-    from penaltyrun.cli.checks import check_gradient_available
+    from penaltyrun.optim import check_gradient_available
     from penaltyrun.problems.lowthrust import lyapunov_transfer, qlaw
 
     with pytest.raises(ConfigError, match="piecewise in K"):  # the problem's own reason

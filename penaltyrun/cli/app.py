@@ -298,7 +298,8 @@ def main() -> None:
     if helptext.wants_help(argv):
         return print_for_reader(helptext.render(argv))
     install_signal_handlers()
-    argv, keep = cliargs.pop_keep(cliargs.options_first(userconf.normalize_argv(argv)))
+    argv, keep = cliargs.pop_keep(cliargs.options_first(
+        guard(lambda: userconf.normalize_argv(argv))))
     guard(lambda: quickcheck.check_plain_values(argv))
     args = guard(lambda: cliargs.check_options(argv))
     parsed = guard(lambda: cliargs.check_sweeps(args.overrides, args.multirun))

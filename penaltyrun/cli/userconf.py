@@ -114,7 +114,12 @@ def module_problems(argv: list[str]) -> list[str]:
     params: {}}`` is written into a temporary folder (removed when the process ends), which
     joins Hydra's search path (``hydra.searchpath``, after the user's own entries). The
     problem's name is the path's last part, as for ``penaltyrun.tune("my_pkg.my_module")``,
-    so both give the same config hash and jobs.
+    so both give the same config hash and jobs; it may not be a built-in problem's name.
+
+    Raises
+    ------
+    ConfigError
+        A path whose last part is the name of a built-in problem.
     """
     paths = []
     for arg in argv:
@@ -123,6 +128,11 @@ def module_problems(argv: list[str]) -> list[str]:
             paths += [v.strip() for v in value.split(",") if _MODULE_PATH.match(v.strip())]
     if not paths:
         return list(argv)
+    from penaltyrun.problems import builtin_name_refused
+
+    for path in paths:
+        builtin_name_refused(path.rsplit(".", 1)[1], "problem", "a module's problem name is "
+                             "the last part of its path; rename the module")
     folder = Path(tempfile.mkdtemp(prefix="penaltyrun-problems-"))
     atexit.register(shutil.rmtree, folder, True)
     (folder / "problem").mkdir()

@@ -76,3 +76,21 @@ def test_cli_module_path_runs_the_cell_the_api_runs(tmp_path, monkeypatch):
     assert list(cli["problem"]) == ["fitmod", "fitmod"]
     for column in ("job_id", "seed", "config_hash", "best_cost"):
         assert list(api[column]) == list(cli[column]), column
+
+
+def test_a_module_path_named_like_a_built_in_problem_is_one_line_exit_2(tmp_path):
+    """``problem=lab.lqr`` would record its jobs as the built-in ``lqr`` (and pool them
+    with its records): refused before the module is imported."""
+    pkg = tmp_path / "lab"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "lqr.py").write_text(MODULE)
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    done = subprocess.run([sys.executable, "-m", "penaltyrun.cli", "problem=lab.lqr",
+                           f"hydra.run.dir={tmp_path / 'run'}"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        "penaltyrun: error: problem: 'lqr' is the name of a built-in problem")
+    assert "rename the module" in lines[0] and not (tmp_path / "run").exists()

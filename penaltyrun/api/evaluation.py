@@ -165,7 +165,8 @@ def evaluate_candidate(prob: Any, matrices: Mapping[str, Any] | None,
     if gradient:
         reason = gradient_support(prob)
         if reason:
-            raise ConfigError("gradient", f"{reason}; drop +gradient=true")
+            raise ConfigError("gradient", f"{reason}; ask for no gradient (drop "
+                                          "+gradient=true; from Python, gradient=False)")
     layout = build_layout(prob, param, dict(param_options or {}))
     if z is not None:
         if given:

@@ -1,4 +1,5 @@
-"""``python -m penaltyrun.report_cli`` in a received folder imports nothing from it.
+"""``python -m penaltyrun.report_cli`` in a received folder imports nothing from it, and
+``penaltyrun-report`` reads no configuration file from it (:func:`ignore_folder_config`).
 
 ``python -m`` puts the current folder first on ``sys.path``. Run inside a received results
 folder, a file there named like a module that penaltyrun or the standard library imports
@@ -59,3 +60,38 @@ def guard_report_cli() -> None:
     """:func:`drop_current_folder` when this interpreter runs :data:`REPORT_MODULE`."""
     if run_as(REPORT_MODULE):
         drop_current_folder()
+
+
+#: numba's per-folder configuration file, read from the working directory at import and at
+#: every later compilation (``numba.core.config``).
+NUMBA_FOLDER_CONFIG = ".numba_config.yaml"
+
+
+def ignore_folder_config() -> None:
+    """Make a report over a received folder, run from inside it, blind to the configuration
+    files that numba and matplotlib read from the working directory.
+
+    numba reads ``.numba_config.yaml`` from the working directory (its ``cache_dir``
+    made a report write compiled-code caches, and load pickled cache indexes, wherever the
+    file said), and matplotlib a ``matplotlibrc`` there (it could switch text to LaTeX, so
+    that no figure is drawn, or recolour every figure). Both are imported here with the
+    working directory moved to penaltyrun's own package folder, and numba is told to look
+    for its file nowhere afterwards; settings from the environment (``NUMBA_*``,
+    ``MATPLOTLIBRC``) still apply. For ``penaltyrun-report``, whose input may come from
+    someone else, and its worker processes; a run (``penaltyrun``) keeps the folder's
+    files, which are the user's. A library imported before is not imported again.
+    """
+    import tempfile
+
+    here = os.getcwd()
+    with tempfile.TemporaryDirectory(prefix="penaltyrun-imports-") as empty:
+        os.chdir(empty)
+        try:
+            import matplotlib
+            import numba.core.config as numba_config
+
+            matplotlib.get_backend()
+        finally:
+            os.chdir(here)
+        if getattr(numba_config, "_config_fname", None) == NUMBA_FOLDER_CONFIG:
+            numba_config._config_fname = os.path.join(empty, NUMBA_FOLDER_CONFIG)  # gone

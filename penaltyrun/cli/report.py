@@ -77,6 +77,9 @@ def report_main(argv: list[str] | None = None) -> None:
     except SystemExit:  # --help, --version or a usage error: printed already
         end_if_pipe_closed()
         raise
+    from penaltyrun.safepath import ignore_folder_config
+
+    ignore_folder_config()  # before the report imports numba and matplotlib
     from penaltyrun import problems, report
     from penaltyrun.cli import progress
     from penaltyrun.io.memory import lean_process_memory

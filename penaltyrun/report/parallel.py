@@ -18,8 +18,12 @@ are written again in the report's own process.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
+import os
+import shutil
+import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -78,9 +82,14 @@ def ordered_map(work: Callable[[Any], Any], bundles: Iterable[tuple[Any, Any]], 
     next_out = 0
     exhausted = False
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(),
-                               initializer=initializer, initargs=initargs)
+                               initializer=_start_in, initargs=(os.getcwd(), initializer,
+                                                                initargs))
+    empty = tempfile.mkdtemp(prefix="penaltyrun-workers-")  # lives as long as the pool
     finished_all = False
     try:
+        with _clean_start(empty):  # every worker starts here, with a task doing nothing
+            for _ in range(workers):
+                _submit(pool, _ready, None)
         while True:
             while not exhausted and len(pending) < AHEAD_PER_WORKER * workers:
                 item = next(source, None)
@@ -109,6 +118,7 @@ def ordered_map(work: Callable[[Any], Any], bundles: Iterable[tuple[Any, Any]], 
         if not finished_all:  # an error, Ctrl-C, SIGTERM: the bundles in flight are dropped
             _terminate(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+        shutil.rmtree(empty, ignore_errors=True)
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
@@ -120,6 +130,45 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
         return
     for process in list(getattr(pool, "_processes", {}).values()):
         process.terminate()
+
+
+@contextlib.contextmanager
+def _clean_start(empty: str) -> Iterator[None]:
+    """Start worker processes (and the fork server) that find nothing in the working
+    directory: with ``PYTHONSAFEPATH`` set (``python -c``, which starts the fork server,
+    would put that directory first on ``sys.path``: a ``pandas.py`` in a received folder
+    reported from inside it ran) and from the empty directory ``empty`` (kept while the
+    pool lives: a process starts in its parent's directory of the moment), where their
+    first imports read no ``.numba_config.yaml`` or ``matplotlibrc``
+    (:func:`penaltyrun.safepath.ignore_folder_config`). :func:`_start_in` takes each worker
+    to the report's working directory."""
+    here, before = os.getcwd(), os.environ.get("PYTHONSAFEPATH")
+    os.environ["PYTHONSAFEPATH"] = "1"
+    os.chdir(empty)
+    try:
+        yield
+    finally:
+        os.chdir(here)
+        if before is None:
+            os.environ.pop("PYTHONSAFEPATH", None)
+        else:
+            os.environ["PYTHONSAFEPATH"] = before
+
+
+def _ready(_: Any) -> None:
+    """A task that does nothing: submitted once per worker so that every worker process
+    starts inside :func:`_clean_start`."""
+
+
+def _start_in(cwd: str, initializer: Callable[..., None], initargs: tuple) -> None:
+    """A worker's start: numba and matplotlib imported blind to folder configuration, then
+    the report's working directory (relative paths mean the same in every process), then
+    ``initializer(*initargs)``."""
+    from penaltyrun.safepath import ignore_folder_config
+
+    ignore_folder_config()
+    os.chdir(cwd)
+    initializer(*initargs)
 
 
 def _submit(pool: ProcessPoolExecutor, work: Callable[[Any], Any], bundle: Any

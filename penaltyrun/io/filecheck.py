@@ -246,7 +246,7 @@ IMPOSSIBLE_VALUES = {
                     (lambda v: v < 0, "negative times"))}
 #: JSON columns whose every value is an object ({name: value}) when present.
 OBJECT_COLUMNS = ("matrices", "scalars", "metrics", "holdout", "closed_loop",
-                  "optimizer_settings", "problem_params", "param_options")
+                  "optimizer_settings", "problem_params", "param_options", "warm_start")
 
 
 def check_content(frame: pd.DataFrame) -> str | None:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from penaltyrun.errors import ResultsUnreadableError
 from penaltyrun.io import storedprobe
 from penaltyrun.io.filecheck import ROW, SOURCE
 from penaltyrun.io.memory import release_memory
@@ -247,6 +248,9 @@ def build_report(src: Path, out: Path, paper: bool = True,
         df = drop_duplicate_jobs(fitting_rows(add_variant(read_results(
             src, FRAME_COLUMNS if stream else REPORT_COLUMNS, lazy=stream, sources=True,
             checked=REPORT_COLUMNS, dedupe=False))))
+        if df.empty:
+            raise ResultsUnreadableError(f"no job rows under {src}: the results files hold "
+                                         "none (point the report at a run's folder)")
         stored = stored_probes(df) if probe else None
         if not stream:  # the files named in fitting_rows' warnings; read whole from here
             df = df.drop(columns=[SOURCE, ROW])

@@ -148,7 +148,9 @@ def _feed(digest: Any, value: Any) -> None:
         digest.update(b"R" + np.float64(value).tobytes())
     elif value is None or value is pd.NaT or value is pd.NA:
         digest.update(b"0")
-    else:  # timestamps and the like: their exact text
+    elif isinstance(value, pd.Timestamp):  # by its count in its own unit: the text of a
+        _feed(digest, f"Timestamp:{value.unit}:{int(value.asm8.view('i8'))}:{value.tz}")
+    else:  # other timestamps and the like: their exact text
         _feed(digest, f"{type(value).__name__}:{value!r}")
 
 

@@ -185,6 +185,8 @@ HOSTILE = {**CONTENT,
            "deep problem parameters": (_deep_params, "column problem_params holds text "
                                                      "that is not usable JSON (JSON nested"),
            "damaged parameterization options": (_bad_options, "column param_options"),
+           "deep warm start": (_with(warm_start=DEEP), "column warm_start holds text that "
+                                                       "is not usable JSON"),
            "huge declared row count": (_huge_rows, f"declares {filecheck.MAX_FILE_ROWS + 1} rows"),
            "dictionary bomb": (_dictionary_bomb, "bytes when read (the limit is"),
            "truncated": (_truncated, ""),

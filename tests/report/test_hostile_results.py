@@ -434,3 +434,25 @@ def test_s8_an_export_link_is_refused_before_the_report_is_written(tmp_path, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--export" in err[0] and "symbolic link" in err[0]
     assert not (tmp_path / "rep").exists() and not any(victim.iterdir())
+
+
+def test_b8_a_file_of_no_rows_alone_is_one_line_and_exit_2(tmp_path, capsys):
+    empty = tmp_path / "received"
+    empty.mkdir()
+    pq.write_table(to_table(rows()[:0], "run"), empty / RESULTS_FILE)
+    with pytest.raises(SystemExit) as stop:
+        report_main([str(empty), "-o", str(tmp_path / "out")])
+    assert stop.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "no job rows under" in lines[0]
+
+
+def test_b8_a_start_time_beyond_pythons_dates_is_reported_with_the_cache(tmp_path):
+    """A stored time of 2**62 µs (year 146 140) has no text form in Python; the section
+    cache keys it by its count instead."""
+    records = [{**r, "started_at": pd.Timestamp(2**62, unit="us", tz="UTC")}
+               for r in rows(problem="zermelo", case="default")]
+    src = write(tmp_path / "received", records)
+    out = build_report(src, tmp_path / "out", basin_points=0, probe=False,
+                       cache_dir=tmp_path / "cache")
+    assert (out / "report.md").is_file()

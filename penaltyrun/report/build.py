@@ -378,7 +378,8 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
                   f"{md_text(str(r.error).splitlines()[0]) if r.error else ''}"
                   for r in failed.itertuples()]
         lines.append("")
-    commits = ", ".join(sorted(df["git_commit"].dropna().unique())) or "unknown"
+    commits = ", ".join(md_text(c) for c in sorted(map(str, df["git_commit"].dropna().unique()))
+                        ) or "unknown"
     lines += ["## Methods and conventions", "", methods(), "",
               f"Code commit(s) of these results: {commits}.", ""]
     steps.step(STEPS[10])

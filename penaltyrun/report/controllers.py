@@ -40,7 +40,7 @@ from penaltyrun.report import protocol
 from penaltyrun.report.controller_plots import channel_figure, cost_mode_scatter, pole_map
 from penaltyrun.report.rows import batches, full_row, groups
 from penaltyrun.report.stats import converged
-from penaltyrun.report.tables import fmt, markdown, md_text, with_unit
+from penaltyrun.report.tables import fenced, fmt, markdown, md_text, with_unit
 
 logger = logging.getLogger(__name__)
 
@@ -139,11 +139,11 @@ def matrix_block(name: str, M: Any, rows: tuple[str, ...] = (),
     M = np.atleast_2d(np.asarray(M, float))
     M = np.where(np.abs(M) <= ROUNDOFF * np.max(np.abs(M), initial=0.0), 0.0, M)
     cells = [[fmt(float(v), DIGITS) for v in r] for r in M]
-    head = list(cols) if len(cols) == M.shape[1] else []
-    left = list(rows) if len(rows) == M.shape[0] else [""] * M.shape[0]
+    head = [fenced(c) for c in cols] if len(cols) == M.shape[1] else []
+    left = [fenced(r) for r in rows] if len(rows) == M.shape[0] else [""] * M.shape[0]
     width = max(len(c) for c in [*head, *(c for r in cells for c in r)])
     lw = max(len(x) for x in left)
-    lines = [f"{name} =", "```"]
+    lines = [f"{md_text(name)} =", "```"]
     if head:
         lines.append(" " * (lw + 1) + " ".join(h.rjust(width) for h in head))
     lines += [(f"{lab.rjust(lw)} " if lw else "") + " ".join(c.rjust(width) for c in r)

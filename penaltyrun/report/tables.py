@@ -46,11 +46,27 @@ _MD_ACTIVE = re.compile(r"([\\`*\[\]<>|])")
 _MD_LINK = re.compile(r"([\[\]<>])")
 
 
+def one_line(value: object) -> str:
+    """``value`` as text on one line: every run of white space (newlines included) one
+    space, and every other character that is not printable (an escape, NUL, a carriage
+    return inside a word) the replacement character U+FFFD."""
+    text = " ".join(str(value).split())
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else "\ufffd" for c in text)
+
+
+def fenced(value: object) -> str:
+    """A name from the data inside a fenced code block: :func:`one_line`, with backticks
+    turned into quotes (a name can neither close the fence nor open another)."""
+    return one_line(value).replace("`", "'")
+
+
 def md_text(value: object) -> str:
-    """A text from the data as inert Markdown on one line: every run of white space
-    (newlines included) becomes one space and ``\\ ` * [ ] < > |`` are backslash-escaped, so
-    no name can start a line, a table row, an image, a link or raw HTML."""
-    return _MD_ACTIVE.sub(r"\\\1", " ".join(str(value).split()))
+    """A text from the data as inert Markdown on one line (:func:`one_line`), with
+    ``\\ ` * [ ] < > |`` backslash-escaped, so no name can start a line, a table row, an
+    image, a link or raw HTML."""
+    return _MD_ACTIVE.sub(r"\\\1", one_line(value))
 
 
 def alt_text(caption: object) -> str:
@@ -62,7 +78,7 @@ def alt_text(caption: object) -> str:
 def md_line(text: str) -> str:
     """A line the report composed around names from the data (it may use ``**`` and
     backticks itself): on one line, with ``[ ] < >`` escaped (no image, link or raw HTML)."""
-    return _MD_LINK.sub(r"\\\1", " ".join(str(text).split()))
+    return _MD_LINK.sub(r"\\\1", one_line(text))
 
 
 def with_unit(value: float, unit: str, digits: int = 5) -> str:

@@ -14,6 +14,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
@@ -456,3 +457,31 @@ def test_b8_a_start_time_beyond_pythons_dates_is_reported_with_the_cache(tmp_pat
     out = build_report(src, tmp_path / "out", basin_points=0, probe=False,
                        cache_dir=tmp_path / "cache")
     assert (out / "report.md").is_file()
+
+
+def test_s5_commit_and_matrix_names_reach_the_report_as_inert_text(tmp_path):
+    """A stored commit and a matrix name carrying HTML, a heading, an image line and
+    control characters: report.md holds them escaped, on one line each."""
+    name = "K\n\n![x](mine.png)\n# INJECTED HEADING\x1b[31m"
+    records = [{**r, "git_commit": "<img src=x onerror=alert(1)>\n# INJECTED COMMIT\x00",
+                "matrices": {name: r["matrices"]["K"]}}
+               for r in rows()]
+    src = write(tmp_path / "received", records)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mine.png").write_bytes(b"the user's own file")
+    build_report(src, out, basin_points=0, probe=False)
+    text = (out / "report.md").read_text(encoding="utf-8")
+    assert not re.search(r"(?<!\\)<img", text) and "![x](mine.png)" not in text
+    assert not any(line.startswith("# INJECTED") for line in text.splitlines())
+    assert "\x1b" not in text and "\x00" not in text
+    build_report(src, out, basin_points=0, probe=False)  # a second report into the folder
+    assert (out / "mine.png").read_bytes() == b"the user's own file"
+
+
+def test_s5_names_in_a_fenced_matrix_block_cannot_close_the_fence():
+    from penaltyrun.report.controllers import matrix_block
+
+    lines = matrix_block("gain", np.eye(2), ("u```", "v\n# h"), ("x", "y`"))
+    assert [line for line in lines if line.startswith("```")] == ["```", "```"]
+    assert not any(line.startswith("#") for line in lines)

@@ -114,14 +114,21 @@ def read_regular(path: Path) -> str:
     return read_regular_bytes(path).decode("utf-8")
 
 
+#: Largest job record read (bytes): a record holds one start's settings, costs and traces,
+#: a few megabytes at most; a larger file (a sparse file of gigabytes in a received folder)
+#: is not a record and is never read into memory.
+MAX_RECORD_BYTES = 256 * 2**20
+
+
 def read_regular_bytes(path: Path) -> bytes:
     """The bytes of ``path``, opened only as a regular file (never through a symbolic
-    link, never blocking on a FIFO).
+    link, never blocking on a FIFO) of at most :data:`MAX_RECORD_BYTES`.
 
     Raises
     ------
     OSError
-        ``path`` cannot be opened, or is not a regular file (``strerror`` says so).
+        ``path`` cannot be opened, is not a regular file or is larger than the limit
+        (``strerror`` says so).
     """
     flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
     try:
@@ -131,9 +138,13 @@ def read_regular_bytes(path: Path) -> bytes:
             raise OSError(exc.errno, "a symbolic link, not a regular file") from None
         raise
     with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
             raise OSError(0, "not a regular file (a FIFO, device or folder)")
-        return fh.read()
+        if info.st_size > MAX_RECORD_BYTES:
+            raise OSError(0, f"{info.st_size} bytes, more than a job record holds (the "
+                             f"limit is {MAX_RECORD_BYTES})")
+        return fh.read(MAX_RECORD_BYTES + 1)
 
 
 def load_record(path: Path) -> tuple[dict[str, Any] | None, str]:

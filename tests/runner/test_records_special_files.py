@@ -83,3 +83,15 @@ def test_s7_an_unusable_record_is_never_moved_through_a_linked_corrupt_folder(tm
     with pytest.raises(EnvironmentProblemError, match="symbolic link or not a folder"):
         quarantine(record)
     assert record.exists() and not list(elsewhere.iterdir())
+
+
+def test_a_file_larger_than_any_record_is_never_read(tmp_path, monkeypatch):
+    """A sparse file of gigabytes (no disk space, all of it memory if read) named like a
+    record: refused from its size, without reading it."""
+    from penaltyrun.runner import records
+
+    path = tmp_path / "huge.json"
+    with open(path, "wb") as fh:
+        fh.truncate(records.MAX_RECORD_BYTES + 1)
+    record, why = load_record(path)
+    assert record is None and "more than a job record holds" in why

@@ -9,7 +9,7 @@ with one :class:`YamlLimitError` naming the file and the limit:
 
 * a file larger than :data:`MAX_BYTES` (1 MiB; checked before it is read);
 * nesting deeper than :data:`MAX_DEPTH` (50 levels of mappings and lists), counted after
-  aliases are followed;
+  aliases are followed, and OmegaConf interpolations ``${...}`` nested deeper than that;
 * aliases that add more than :data:`MAX_ALIAS_VALUES` (100 000) values when expanded, or
   an alias inside the node it refers to (a recursive structure).
 
@@ -140,12 +140,30 @@ def load_text(text: str, name: str = "YAML", loader: type | None = None) -> Any:
     if len(text) > MAX_BYTES or len(text.encode("utf-8", "surrogatepass")) > MAX_BYTES:
         raise YamlLimitError(f"{name}: larger than {MAX_BYTES} bytes (the limit for a "
                              f"YAML file)")
+    if _interpolation_depth(text) > MAX_DEPTH:
+        raise YamlLimitError(f"{name}: interpolations ${{...}} nested deeper than "
+                             f"{MAX_DEPTH} levels (the limit for a YAML file)")
     reader = _bounded(base)(text)
     reader._name = name
     try:
         return reader.get_single_data()
     finally:
         reader.dispose()
+
+
+def _interpolation_depth(text: str) -> int:
+    """The deepest nesting of OmegaConf interpolations ``${...}`` in ``text`` (a ``}`` closes
+    the innermost open one): resolving them recurses once per level."""
+    if "${" not in text:
+        return 0
+    depth = deepest = 0
+    i = text.find("${")
+    while i >= 0:
+        closes = text.count("}", text.rfind("${", 0, i) + 2 if depth else i, i)
+        depth = max(depth - closes, 0) + 1
+        deepest = max(deepest, depth)
+        i = text.find("${", i + 2)
+    return deepest
 
 
 def load_file(path: str | os.PathLike[str], loader: type | None = None) -> Any:

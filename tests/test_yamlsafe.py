@@ -93,3 +93,11 @@ _data = st.recursive(_leaf, lambda inner: st.one_of(
 def test_data_within_the_limits_reads_as_safe_load(data):
     text = yaml.safe_dump(data)
     assert yamlsafe.load_text(text) == yaml.safe_load(text)
+
+
+def test_interpolations_nested_too_deep_are_refused_before_anything_resolves_them():
+    deep = "t_max: " + "${" * 400 + "x" + "}" * 400 + "\n"
+    with pytest.raises(yamlsafe.YamlLimitError, match="interpolations .* nested deeper"):
+        yamlsafe.load_text(deep, "evil.yaml")
+    fine = "a: ${x}\nb: ${oc.env:HOME,${c:${d}}} and ${e}\n"
+    assert yamlsafe.load_text(fine)["b"].startswith("${oc.env")

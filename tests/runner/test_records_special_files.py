@@ -85,7 +85,7 @@ def test_s7_an_unusable_record_is_never_moved_through_a_linked_corrupt_folder(tm
     assert record.exists() and not list(elsewhere.iterdir())
 
 
-def test_a_file_larger_than_any_record_is_never_read(tmp_path, monkeypatch):
+def test_a_file_larger_than_any_record_is_never_read(tmp_path):
     """A sparse file of gigabytes (no disk space, all of it memory if read) named like a
     record: refused from its size, without reading it."""
     from penaltyrun.runner import records

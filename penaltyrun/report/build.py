@@ -173,6 +173,17 @@ def checks(df: pd.DataFrame) -> list[str]:
     return lines
 
 
+#: Most characters of a failed job's error line the report shows.
+ERROR_LINE_CHARS = 300
+
+
+def _first_line(error: object) -> str:
+    """The first line of a stored error text, cut at :data:`ERROR_LINE_CHARS` characters
+    (a stored error of megabytes on one line is no line for a report)."""
+    line = str(error)[:ERROR_LINE_CHARS + 1].splitlines()[0] if str(error) else ""
+    return line if len(line) <= ERROR_LINE_CHARS else line[:ERROR_LINE_CHARS] + " …"
+
+
 #: Rows (declared in the files' footers) above which a report reads its results lazily:
 #: the per-row text and list columns are read for the rows a section needs
 #: (:mod:`penaltyrun.report.rows`), so memory does not grow with them.
@@ -375,7 +386,7 @@ def _write_files(src: str, df: pd.DataFrame, out: Path, paper: bool, basin_point
     if not failed.empty:
         lines += ["## Failed jobs", ""]
         lines += [f"- {md_text(r.job_id)} ({md_text(r.status)}): "
-                  f"{md_text(str(r.error).splitlines()[0]) if r.error else ''}"
+                  f"{md_text(_first_line(r.error)) if r.error else ''}"
                   for r in failed.itertuples()]
         lines.append("")
     commits = ", ".join(md_text(c) for c in sorted(map(str, df["git_commit"].dropna().unique()))

@@ -485,3 +485,11 @@ def test_s5_names_in_a_fenced_matrix_block_cannot_close_the_fence():
     lines = matrix_block("gain", np.eye(2), ("u```", "v\n# h"), ("x", "y`"))
     assert [line for line in lines if line.startswith("```")] == ["```", "```"]
     assert not any(line.startswith("#") for line in lines)
+
+
+def test_a_stored_error_of_megabytes_is_one_short_line_in_the_report():
+    from penaltyrun.report.build import ERROR_LINE_CHARS, _first_line
+
+    assert _first_line("ValueError: bad\nTraceback ...") == "ValueError: bad"
+    long = _first_line("x" * 40_000_000)
+    assert len(long) == ERROR_LINE_CHARS + 2 and long.endswith(" …")

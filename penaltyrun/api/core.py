@@ -70,6 +70,10 @@ def run_cell(spec: RunSpec, run_dir: Path, progress: ProgressFactory | None = No
     prob, _, _ = spec.build()
     optim.check_gradient_available(spec.optimizer, spec.optimizer_options, prob)
     run_dir = Path(run_dir)
+    if spec.runner.report:  # a report folder the run could not write into: before any job
+        from penaltyrun.report import outdir
+
+        outdir.check(_report_folder(spec, run_dir), "report.output", run_dir)
     jobs = spec.plan(prob.case, run_meta(spec, run_dir))
     rc = spec.runner
     logger.info("%d jobs (%s / %s / %s / %s) → %s", len(jobs), prob.name, prob.case,
@@ -89,10 +93,15 @@ def run_cell(spec: RunSpec, run_dir: Path, progress: ProgressFactory | None = No
         from penaltyrun import report  # matplotlib, scipy.stats: only when a report is written
 
         trust_own_modules(spec.problem, spec.problem_module, spec.problem_params)
-        out = Path(spec.report_output) if spec.report_output else run_dir / "report"
+        out = _report_folder(spec, run_dir)
         report.build_report(path, out, paper=bool(spec.report_paper))
         logger.info("report written to %s", out)
     return path
+
+
+def _report_folder(spec: RunSpec, run_dir: Path) -> Path:
+    """Where the report of a run goes: ``report.output``, else ``<run_dir>/report``."""
+    return Path(spec.report_output) if spec.report_output else run_dir / "report"
 
 
 def trust_own_modules(problem: str, module_path: str | None,

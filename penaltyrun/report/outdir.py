@@ -171,6 +171,8 @@ def write_into(out: Path, key: str, write: Callable[[Path], None],
     EnvironmentProblemError
         Writing failed (e.g. a full disk): one line naming the folder (and the free space);
         nothing of the new output is left in ``out``.
+    ConfigError
+        A folder in ``out`` has the name of a file of the new output: nothing is moved.
     """
     out = prepare(out, key, source)
     remove_abandoned(out, prefix)
@@ -182,6 +184,12 @@ def write_into(out: Path, key: str, write: Callable[[Path], None],
             raise EnvironmentProblemError(describe_os_error(exc, exc.filename or out)) from None
         previous = owned(out)
         new = sorted(item.name for item in tmp.iterdir())
+        for name in new:  # every file can take its place, or none is moved
+            dest = out / name
+            if not (tmp / name).is_dir() and dest.is_dir() and not dest.is_symlink():
+                raise ConfigError(key, f"{dest} is a folder where the output writes a file "
+                                  f"of that name; move it away or choose another folder "
+                                  f"(nothing was changed in {out})")
         for name in new:
             dest = out / name
             if (tmp / name).is_dir() and dest.is_dir() and not dest.is_symlink():

@@ -493,3 +493,17 @@ def test_a_stored_error_of_megabytes_is_one_short_line_in_the_report():
     assert _first_line("ValueError: bad\nTraceback ...") == "ValueError: bad"
     long = _first_line("x" * 40_000_000)
     assert len(long) == ERROR_LINE_CHARS + 2 and long.endswith(" …")
+
+
+def test_s7_a_folder_named_like_an_output_file_leaves_the_earlier_report_whole(tmp_path):
+    src = write(tmp_path / "received", rows())
+    out = tmp_path / "out"
+    build_report(src, out, basin_points=0, probe=False)
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    (out / "report.html").unlink()
+    (out / "report.html").mkdir()
+    with pytest.raises(ConfigError, match="report.html is a folder where the output"):
+        build_report(write(tmp_path / "other", rows(case="second")), out, basin_points=0,
+                     probe=False)
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert after == {k: v for k, v in before.items() if k != "report.html"}

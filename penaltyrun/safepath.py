@@ -75,8 +75,8 @@ def ignore_folder_config() -> None:
     made a report write compiled-code caches, and load pickled cache indexes, wherever the
     file said), and matplotlib a ``matplotlibrc`` there (it could switch text to LaTeX, so
     that no figure is drawn, or recolour every figure). Both are imported here with the
-    working directory moved to penaltyrun's own package folder, and numba is told to look
-    for its file nowhere afterwards; settings from the environment (``NUMBA_*``,
+    working directory moved to an empty temporary folder, and numba is told to look for
+    its file nowhere afterwards; settings from the environment (``NUMBA_*``,
     ``MATPLOTLIBRC``) still apply. For ``penaltyrun-report``, whose input may come from
     someone else, and its worker processes; a run (``penaltyrun``) keeps the folder's
     files, which are the user's. A library imported before is not imported again.

@@ -21,6 +21,7 @@ these.
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -154,15 +155,13 @@ def load_text(text: str, name: str = "YAML", loader: type | None = None) -> Any:
 def _interpolation_depth(text: str) -> int:
     """The deepest nesting of OmegaConf interpolations ``${...}`` in ``text`` (a ``}`` closes
     the innermost open one): resolving them recurses once per level."""
-    if "${" not in text:
-        return 0
     depth = deepest = 0
-    i = text.find("${")
-    while i >= 0:
-        closes = text.count("}", text.rfind("${", 0, i) + 2 if depth else i, i)
-        depth = max(depth - closes, 0) + 1
+    previous = -2
+    for opening in re.finditer(r"\$\{", text):
+        closed = text.count("}", previous + 2, opening.start()) if depth else 0
+        depth = max(depth - closed, 0) + 1
         deepest = max(deepest, depth)
-        i = text.find("${", i + 2)
+        previous = opening.start()
     return deepest
 
 

@@ -201,27 +201,29 @@ def compose(problem: str, module: str | None, *, case: str | None, param: str,
     if params:
         prob["params"] = checked_params(prob, params)
     opt = group_node("optimizer", optimizer)
-    unknown = sorted(set(optimizer_options or {}) - set(opt) - {"name"}
-                     - set(OPTIONAL_OPTIMIZER_OPTIONS))
-    if unknown:
-        raise ConfigError(f"optimizer.{unknown[0]}", f"not an option of optimizer "
-                          f"{optimizer!r}", allowed=sorted(set(opt) - {"name"}))
+    _refuse_unknown(optimizer_options, opt, "optimizer", f"an option of optimizer "
+                    f"{optimizer!r}", extra=OPTIONAL_OPTIMIZER_OPTIONS)
     opt.update(plain(optimizer_options or {}, "optimizer_options"))
     par = group_node("param", param)
-    unknown = sorted(set(param_options or {}) - set(par) - {"name"})
-    if unknown:
-        raise ConfigError(f"param.{unknown[0]}", f"not an option of map {param!r}",
-                          allowed=sorted(set(par) - {"name"}))
+    _refuse_unknown(param_options, par, "param", f"an option of map {param!r}")
     par.update(plain(param_options or {}, "param_options"))
-    unknown = sorted(set(runner) - set(base["runner"]))
-    if unknown:
-        raise ConfigError(f"runner.{unknown[0]}", "not a runner option",
-                          allowed=sorted(base["runner"]))
+    _refuse_unknown(runner, base["runner"], "runner", "a runner option")
     config = {"problem": prob, "param": par, "optimizer": opt}
     config.update(base)
     config["case"] = case
     config["runner"] = _merge(base["runner"], plain(runner, "runner"))
     return config
+
+
+def _refuse_unknown(given: Mapping[str, Any] | None, node: Mapping[str, Any], group: str,
+                    what: str, extra: tuple[str, ...] = ()) -> None:
+    """Refuse a key of ``given`` that the group's ``node`` (its ``name`` aside) and
+    ``extra`` do not have: ``ConfigError`` on ``<group>.<key>``, "not <what>", listing the
+    node's keys."""
+    known = set(node) - {"name"}
+    unknown = sorted(set(given or {}) - known - set(extra))
+    if unknown:
+        raise ConfigError(f"{group}.{unknown[0]}", f"not {what}", allowed=sorted(known))
 
 
 def run_spec(config: Mapping[str, Any]) -> RunSpec:

@@ -180,7 +180,8 @@ ERROR_LINE_CHARS = 300
 def _first_line(error: object) -> str:
     """The first line of a stored error text, cut at :data:`ERROR_LINE_CHARS` characters
     (a stored error of megabytes on one line is no line for a report)."""
-    line = str(error)[:ERROR_LINE_CHARS + 1].splitlines()[0] if str(error) else ""
+    lines = str(error)[:ERROR_LINE_CHARS + 1].splitlines()
+    line = lines[0] if lines else ""
     return line if len(line) <= ERROR_LINE_CHARS else line[:ERROR_LINE_CHARS] + " …"
 
 

@@ -10,6 +10,10 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 
+#: Key prefix of the attitude problems' parameters in messages (``problem.params.<key>``,
+#: as the command line takes them).
+PREFIX = "problem.params"
+
 #: Allowed values of ``Params.attitude_type``.
 ATTITUDE_TYPES = ("euler", "quaternion", "mrp")
 
@@ -111,7 +115,7 @@ def attitude_to_quaternion(kind: str, values: Any) -> np.ndarray:
         return normalize_quaternion(values)
     if kind == "mrp":
         return mrp_to_quaternion(values)
-    raise ConfigError("problem.params.attitude_type", f"unknown type {kind!r}",
+    raise ConfigError(f"{PREFIX}.attitude_type", f"unknown type {kind!r}",
                       allowed=ATTITUDE_TYPES)
 
 

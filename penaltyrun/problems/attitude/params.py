@@ -29,7 +29,11 @@ import numpy as np
 
 from penaltyrun.errors import ConfigError
 from penaltyrun.problems import criteria, horizon
-from penaltyrun.problems.attitude.frames import ATTITUDE_TYPES, attitude_to_quaternion
+from penaltyrun.problems.attitude.frames import (
+    ATTITUDE_TYPES,
+    PREFIX,
+    attitude_to_quaternion,
+)
 from penaltyrun.problems.attitude.objective import OBJECTIVE_FORMS
 from penaltyrun.problems.base import ParamsMixin
 from penaltyrun.problems.multiscenario import TrainingParams
@@ -212,6 +216,7 @@ class Params(ParamsMixin, TrainingParams, criteria.CriterionParams):
         return float("inf") if self.u_max is None else float(self.u_max)
 
 
+
 def validate(params: Params) -> Params:
     """Check parameter values; returns ``params`` unchanged.
 
@@ -223,64 +228,64 @@ def validate(params: Params) -> Params:
     try:
         inertia = params.inertia_matrix()
     except (TypeError, ValueError):
-        raise ConfigError("problem.params.inertia", "expected 3 moments or a 3x3 matrix") from None
+        raise ConfigError(f"{PREFIX}.inertia", "expected 3 moments or a 3x3 matrix") from None
     if inertia.shape != (3, 3) or not np.all(np.isfinite(inertia)):
-        raise ConfigError("problem.params.inertia", "expected 3 moments or a 3x3 matrix")
+        raise ConfigError(f"{PREFIX}.inertia", "expected 3 moments or a 3x3 matrix")
     if not np.allclose(inertia, inertia.T, rtol=0.0, atol=1e-12 * np.max(np.abs(inertia))) \
             or np.linalg.eigvalsh(inertia)[0] <= 0.0:
-        raise ConfigError("problem.params.inertia", "inertia must be symmetric positive definite")
+        raise ConfigError(f"{PREFIX}.inertia", "inertia must be symmetric positive definite")
     if params.attitude_type not in ATTITUDE_TYPES:
-        raise ConfigError("problem.params.attitude_type", f"unknown type {params.attitude_type!r}",
+        raise ConfigError(f"{PREFIX}.attitude_type", f"unknown type {params.attitude_type!r}",
                           allowed=ATTITUDE_TYPES)
     need = 4 if params.attitude_type == "quaternion" else 3
     att = np.asarray(params.attitude, dtype=float)
     if att.shape != (need,) or not np.all(np.isfinite(att)):
-        raise ConfigError("problem.params.attitude",
+        raise ConfigError(f"{PREFIX}.attitude",
                           f"expected {need} finite numbers for type {params.attitude_type!r}")
     if need == 4 and np.linalg.norm(att) == 0.0:
-        raise ConfigError("problem.params.attitude", "quaternion must be nonzero")
+        raise ConfigError(f"{PREFIX}.attitude", "quaternion must be nonzero")
     w0 = np.asarray(params.omega0, dtype=float)
     if w0.shape != (3,) or not np.all(np.isfinite(w0)):
-        raise ConfigError("problem.params.omega0", "expected 3 finite rates (rad/s)")
+        raise ConfigError(f"{PREFIX}.omega0", "expected 3 finite rates (rad/s)")
     for key in ("t_max", "tol", "rtol", "atol", "max_step", "event_spacing",
                 "failure_penalty"):
         value = getattr(params, key)
         if not (isinstance(value, Real) and value > 0):
-            raise ConfigError(f"problem.params.{key}", f"must be a positive number, got {value!r}")
+            raise ConfigError(f"{PREFIX}.{key}", f"must be a positive number, got {value!r}")
     if params.u_max is not None and not (isinstance(params.u_max, Real) and params.u_max > 0):
-        raise ConfigError("problem.params.u_max", "must be null (off) or a positive torque (N·m)")
+        raise ConfigError(f"{PREFIX}.u_max", "must be null (off) or a positive torque (N·m)")
     if params.objective_form not in OBJECTIVE_FORMS:
-        raise ConfigError("problem.params.objective_form",
+        raise ConfigError(f"{PREFIX}.objective_form",
                           f"unknown form {params.objective_form!r}", allowed=OBJECTIVE_FORMS)
     for key in ("n_event_samples", "max_steps"):
         value = getattr(params, key)
         if not (isinstance(value, Integral) and value >= 1):
-            raise ConfigError(f"problem.params.{key}", f"must be a positive integer, got {value!r}")
+            raise ConfigError(f"{PREFIX}.{key}", f"must be a positive integer, got {value!r}")
     lo, hi = (float(v) for v in params.eig_bounds)
     if not 0.0 < lo < hi:
-        raise ConfigError("problem.params.eig_bounds", "need 0 < lower < upper")
+        raise ConfigError(f"{PREFIX}.eig_bounds", "need 0 < lower < upper")
     for key, low in (("event_weight_q0", 0.0), ("event_weight_qv", None),
                      ("event_weight_w", None)):
         value = getattr(params, key)
         if not isinstance(value, Real) or not np.isfinite(value) or value < 0 \
                 or (low is None and value == 0):
             need = "a number >= 0" if low is not None else "a positive number"
-            raise ConfigError(f"problem.params.{key}", f"must be {need}, got {value!r}")
+            raise ConfigError(f"{PREFIX}.{key}", f"must be {need}, got {value!r}")
     for key in ("holdout_n", "holdout_n_perturbed", "holdout_seed"):
         value = getattr(params, key)
         if not (isinstance(value, Integral) and value >= 0):
-            raise ConfigError(f"problem.params.{key}", f"must be an integer >= 0, got {value!r}")
+            raise ConfigError(f"{PREFIX}.{key}", f"must be an integer >= 0, got {value!r}")
     for key in ("holdout_perturb_deg", "holdout_rate_rel"):
         value = getattr(params, key)
         if not (isinstance(value, Real) and 0 <= value):
-            raise ConfigError(f"problem.params.{key}", f"must be a number >= 0, got {value!r}")
-    horizon.check_settings(params, "problem.params")
-    criteria.check(params, "problem.params")
+            raise ConfigError(f"{PREFIX}.{key}", f"must be a number >= 0, got {value!r}")
+    horizon.check_settings(params, PREFIX)
+    criteria.check(params, PREFIX)
     if params.criterion != criteria.DEADLINE and params.objective_form != "cost":
-        raise ConfigError("problem.params.objective_form", f"criterion {params.criterion} is "
+        raise ConfigError(f"{PREFIX}.objective_form", f"criterion {params.criterion} is "
                           "minimized as it is: use objective_form=cost")
     if params.terminal_weight is not None:
-        criteria.terminal_matrix(params.terminal_weight, 6, "problem.params.terminal_weight")
+        criteria.terminal_matrix(params.terminal_weight, 6, f"{PREFIX}.terminal_weight")
     return params
 
 
